@@ -1,0 +1,40 @@
+"""Exceptions raised by flightid.
+
+Every error names the argument (or case-file key), what was expected and what came.
+They subclass ValueError / TypeError so that generic handlers keep working.
+"""
+
+from __future__ import annotations
+
+
+class FlightIdError(Exception):
+    """Base class of all flightid errors."""
+
+
+class InputError(FlightIdError, ValueError):
+    """An argument has the wrong value, shape or content."""
+
+
+class InputTypeError(FlightIdError, TypeError):
+    """An argument has the wrong type."""
+
+
+class SimulationError(FlightIdError, ArithmeticError):
+    """The system equations produced non-finite states or outputs (the simulation diverged)."""
+
+    def __init__(self, message: str, *, step: int | None = None) -> None:
+        super().__init__(message)
+        self.step = step
+
+
+class EstimationError(FlightIdError, RuntimeError):
+    """Estimation cannot proceed (e.g. the information matrix is singular at the start)."""
+
+
+def describe(value: object) -> str:
+    """Short description of a value for error messages."""
+    shape = getattr(value, "shape", None)
+    if shape is not None:
+        return f"{type(value).__name__} of shape {tuple(shape)}"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

@@ -1,0 +1,200 @@
+"""``Simulator``: output time histories of a model over one or several maneuvers.
+
+One call of ``outputs`` for a batch of B parameter vectors performs B system integrations
+(B "equivalent evaluations" in the paper's accounting, RP-1153 §6); the simulator counts them.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightid.data.flightdata import FlightData
+from flightid.errors import InputError, SimulationError
+from flightid.model.statespace import StateSpaceModel
+from flightid.simulate.kernels import EULER, RK4, make_kernel
+
+__all__ = ["Simulator", "SimulationBatch", "simulate"]
+
+_METHODS = {"euler": EULER, "rk4": RK4}
+
+# Compiled kernels are cached per (f, h) pair so that repeated estimations reuse them.
+_KERNEL_CACHE: dict[tuple[int, int, bool], tuple] = {}
+
+
+@dataclass(frozen=True)
+class SimulationBatch:
+    """Outputs of a batch: ``outputs`` (B, N_total, n_o) and per-trajectory divergence.
+
+    ``diverged[b]`` is True if trajectory b produced a non-finite state or output; its
+    outputs from that sample on are NaN and ``messages[b]`` says where.
+    """
+
+    outputs: np.ndarray
+    diverged: np.ndarray
+    messages: tuple[str, ...]
+
+
+def _as_data_list(data: FlightData | Sequence[FlightData]) -> list[FlightData]:
+    if isinstance(data, FlightData):
+        return [data]
+    items = list(data)
+    if not items or not all(isinstance(d, FlightData) for d in items):
+        raise InputError("data: expected a FlightData or a non-empty list of FlightData")
+    return items
+
+
+class Simulator:
+    """Integrates a ``StateSpaceModel`` against the inputs of one or more maneuvers.
+
+    Args:
+        model: the model.
+        data: a ``FlightData`` or a list of them (maneuvers); they must carry the model's
+            input channels (outputs are not needed to simulate).
+        method: ``"rk4"`` (default) or ``"euler"``.
+        compiled: run the numba-compiled kernel (falls back to Python, with a warning, when
+            numba cannot compile the model functions).
+    """
+
+    def __init__(
+        self,
+        model: StateSpaceModel,
+        data: FlightData | Sequence[FlightData],
+        method: str = "rk4",
+        compiled: bool = True,
+    ) -> None:
+        if method not in _METHODS:
+            raise InputError(f"method: expected one of {sorted(_METHODS)}, got {method!r}")
+        self.model = model
+        self.maneuvers = _as_data_list(data)
+        self.method = method
+        if model.per_maneuver_x0 and len(model.x0) != len(self.maneuvers):
+            raise InputError(
+                f"data: the model gives initial states for {len(model.x0)} maneuvers, "
+                f"but {len(self.maneuvers)} were given"
+            )
+        self._times = []
+        self._inputs = []
+        for i, maneuver in enumerate(self.maneuvers):
+            missing = [n for n in model.inputs if n not in maneuver.input_names
+                       and n not in maneuver.output_names]
+            if missing:
+                raise InputError(
+                    f"data[{i}] ({maneuver.name or 'unnamed'}): the model's inputs {missing} are "
+                    f"not channels of the data (inputs {list(maneuver.input_names)}, outputs "
+                    f"{list(maneuver.output_names)})"
+                )
+            self._times.append(np.ascontiguousarray(maneuver.time, dtype=float))
+            u = np.column_stack([maneuver.channel(n) for n in model.inputs]) if model.inputs \
+                else np.zeros((maneuver.n_samples, 0))
+            self._inputs.append(np.ascontiguousarray(u, dtype=float))
+        self._x0_maps = [model.initial_state_maps(i if model.per_maneuver_x0 else 0)
+                         for i in range(len(self.maneuvers))]
+        self._kernel, self.compiled = self._get_kernel(compiled)
+        self.evaluations = 0
+
+    # --------------------------------------------------------------------- kernels
+    def _get_kernel(self, compiled: bool):
+        key = (id(self.model.f), id(self.model.h), compiled)
+        if key in _KERNEL_CACHE:
+            entry = _KERNEL_CACHE[key]
+            if entry[0] is self.model.f and entry[1] is self.model.h:
+                return entry[2], entry[3]
+        kernel, is_compiled = make_kernel(self.model.f, self.model.h, compiled)
+        if is_compiled:
+            kernel, is_compiled = self._try_compile(kernel)
+        _KERNEL_CACHE[key] = (self.model.f, self.model.h, kernel, is_compiled)
+        return kernel, is_compiled
+
+    def _try_compile(self, kernel):
+        """Run the compiled kernel once on the first samples; fall back to Python on failure."""
+        theta = self.model.parameters.values[None, :]
+        x0 = self.model.initial_state(theta[0], 0)[None, :]
+        n = min(3, self._times[0].shape[0])
+        y = np.empty((1, n, len(self.model.outputs)))
+        flag = np.empty(1, dtype=np.int64)
+        try:
+            kernel(theta, x0, self._times[0][:n], self._inputs[0][:n], _METHODS[self.method],
+                   len(self.model.outputs), y, flag)
+            return kernel, True
+        except Exception as exc:  # numba typing errors have many classes
+            if type(exc).__module__.startswith("numba"):
+                warnings.warn(
+                    f"model {self.model.name!r}: numba could not compile f/h "
+                    f"({type(exc).__name__}); running the pure-Python kernel instead",
+                    RuntimeWarning,
+                    stacklevel=4,
+                )
+                return make_kernel(self.model.f, self.model.h, compiled=False)
+            raise
+
+    # --------------------------------------------------------------------- running
+    @property
+    def n_samples(self) -> int:
+        """Total number of samples over all maneuvers."""
+        return int(sum(t.shape[0] for t in self._times))
+
+    def run(self, thetas: np.ndarray) -> SimulationBatch:
+        """Outputs for a batch of full parameter vectors ``thetas`` (B, n_params).
+
+        Counts B equivalent evaluations. Non-finite trajectories are flagged, not raised.
+        """
+        thetas = np.ascontiguousarray(np.atleast_2d(np.asarray(thetas, dtype=float)))
+        n_params = len(self.model.parameters)
+        if thetas.ndim != 2 or thetas.shape[1] != n_params:
+            raise InputError(
+                f"thetas: expected shape (batch, {n_params}), got {thetas.shape}"
+            )
+        n_batch = thetas.shape[0]
+        n_out = len(self.model.outputs)
+        outputs = np.empty((n_batch, self.n_samples, n_out))
+        diverged = np.zeros(n_batch, dtype=bool)
+        messages = [""] * n_batch
+        start = 0
+        for i, (t, u, (constants, index)) in enumerate(
+            zip(self._times, self._inputs, self._x0_maps, strict=True)
+        ):
+            x0s = np.repeat(constants[None, :], n_batch, axis=0)
+            mask = index >= 0
+            x0s[:, mask] = thetas[:, index[mask]]
+            block = np.empty((n_batch, t.shape[0], n_out))
+            flag = np.empty(n_batch, dtype=np.int64)
+            self._kernel(thetas, np.ascontiguousarray(x0s), t, u, _METHODS[self.method], n_out,
+                         block, flag)
+            outputs[:, start:start + t.shape[0]] = block
+            for b in np.flatnonzero(flag >= 0):
+                if not diverged[b]:
+                    diverged[b] = True
+                    messages[b] = (
+                        f"simulation diverged in maneuver {i} at t = {t[flag[b]]:.4g} s "
+                        f"(sample {int(flag[b])}): non-finite state or output"
+                    )
+            start += t.shape[0]
+        self.evaluations += n_batch
+        return SimulationBatch(outputs, diverged, tuple(messages))
+
+    def outputs(self, theta: np.ndarray) -> np.ndarray:
+        """Outputs (N_total, n_o) for one full parameter vector; raises if it diverges."""
+        batch = self.run(np.asarray(theta, dtype=float)[None, :])
+        if batch.diverged[0]:
+            raise SimulationError(batch.messages[0])
+        return batch.outputs[0]
+
+
+def simulate(
+    model: StateSpaceModel,
+    data: FlightData | Sequence[FlightData],
+    theta: np.ndarray | None = None,
+    method: str = "rk4",
+    compiled: bool = True,
+) -> np.ndarray:
+    """Model outputs (N_total, n_o) for parameter vector ``theta`` (default: current values).
+
+    Raises ``SimulationError`` if the trajectory becomes non-finite.
+    """
+    simulator = Simulator(model, data, method=method, compiled=compiled)
+    theta = model.parameters.values if theta is None else np.asarray(theta, dtype=float)
+    return simulator.outputs(theta)
