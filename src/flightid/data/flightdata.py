@@ -61,12 +61,12 @@ def _as_channel_matrix(
         if matrix.ndim == 1:
             matrix = matrix[:, None]
         if matrix.ndim != 2:
-            raise InputError(f"{argument}: expected a 2-D matrix (samples × channels), "
-                             f"got {describe(matrix)}")
+            raise InputError(
+                f"{argument}: expected a 2-D matrix (samples × channels), got {describe(matrix)}"
+            )
         if matrix.shape[0] != n_samples:
             raise InputError(
-                f"{argument}: expected {n_samples} rows (the length of time), "
-                f"got {matrix.shape[0]}"
+                f"{argument}: expected {n_samples} rows (the length of time), got {matrix.shape[0]}"
             )
         if names is None:
             raise InputError(f"{argument}: a matrix needs its channel names (argument names)")
@@ -77,9 +77,7 @@ def _as_channel_matrix(
             )
     for name in names:
         if not isinstance(name, str) or not name.isidentifier():
-            raise InputError(
-                f"{argument}: channel names must be identifiers, got {describe(name)}"
-            )
+            raise InputError(f"{argument}: channel names must be identifiers, got {describe(name)}")
     if len(set(names)) != len(names):
         raise InputError(f"{argument}: channel names must be unique, got {names}")
     bad = ~np.isfinite(matrix)
@@ -133,10 +131,14 @@ class FlightData:
         except (TypeError, ValueError):
             raise InputTypeError(f"time: expected a numeric series, got {describe(time)}") from None
         if t.ndim != 1 or t.shape[0] < 2:
-            raise InputError(f"time: expected a 1-D series of at least 2 samples, got {describe(t)}")
+            raise InputError(
+                f"time: expected a 1-D series of at least 2 samples, got {describe(t)}"
+            )
         if not np.all(np.isfinite(t)):
-            raise InputError(f"time: values must be finite; found {int((~np.isfinite(t)).sum())} "
-                             "non-finite value(s)")
+            raise InputError(
+                f"time: values must be finite; found {int((~np.isfinite(t)).sum())} "
+                "non-finite value(s)"
+            )
         dt = np.diff(t)
         if np.any(dt <= 0):
             k = int(np.argmax(dt <= 0))
@@ -224,7 +226,9 @@ class FlightData:
         if stop is not None:
             keep &= self.time <= stop + 1e-9
         if keep.sum() < 2:
-            raise InputError(f"start/stop: the interval [{start}, {stop}] keeps fewer than 2 samples")
+            raise InputError(
+                f"start/stop: the interval [{start}, {stop}] keeps fewer than 2 samples"
+            )
         return FlightData(
             self.time[keep],
             self.inputs[keep],

@@ -169,9 +169,7 @@ class Parameters(Sequence[Parameter]):
         if isinstance(values, Mapping):
             unknown = sorted(set(values) - set(self._index))
             if unknown:
-                raise InputError(
-                    f"values: unknown parameter names {unknown}; known: {self.names}"
-                )
+                raise InputError(f"values: unknown parameter names {unknown}; known: {self.names}")
             return Parameters(
                 replace(p, value=float(values[p.name])) if p.name in values else p for p in self
             )

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Union
 
 import numpy as np
 
@@ -26,7 +25,7 @@ from flightid.model.parameters import Parameters
 
 __all__ = ["StateSpaceModel", "InitialState"]
 
-InitialState = Sequence[Union[float, str]]
+InitialState = Sequence[float | str]
 
 
 def _names(values: Sequence[str], argument: str) -> tuple[str, ...]:
@@ -93,7 +92,8 @@ class StateSpaceModel:
         spec = list(spec)
         if len(spec) != len(self.states):
             raise InputError(
-                f"{where}: expected {len(self.states)} entries (one per state {list(self.states)}), "
+                f"{where}: expected {len(self.states)} entries "
+                f"(one per state {list(self.states)}), "
                 f"got {len(spec)}"
             )
         checked: list[float | str] = []

@@ -79,8 +79,11 @@ class Simulator:
         self._times = []
         self._inputs = []
         for i, maneuver in enumerate(self.maneuvers):
-            missing = [n for n in model.inputs if n not in maneuver.input_names
-                       and n not in maneuver.output_names]
+            missing = [
+                n
+                for n in model.inputs
+                if n not in maneuver.input_names and n not in maneuver.output_names
+            ]
             if missing:
                 raise InputError(
                     f"data[{i}] ({maneuver.name or 'unnamed'}): the model's inputs {missing} are "
@@ -88,11 +91,16 @@ class Simulator:
                     f"{list(maneuver.output_names)})"
                 )
             self._times.append(np.ascontiguousarray(maneuver.time, dtype=float))
-            u = np.column_stack([maneuver.channel(n) for n in model.inputs]) if model.inputs \
+            u = (
+                np.column_stack([maneuver.channel(n) for n in model.inputs])
+                if model.inputs
                 else np.zeros((maneuver.n_samples, 0))
+            )
             self._inputs.append(np.ascontiguousarray(u, dtype=float))
-        self._x0_maps = [model.initial_state_maps(i if model.per_maneuver_x0 else 0)
-                         for i in range(len(self.maneuvers))]
+        self._x0_maps = [
+            model.initial_state_maps(i if model.per_maneuver_x0 else 0)
+            for i in range(len(self.maneuvers))
+        ]
         self._kernel, self.compiled = self._get_kernel(compiled)
         self.evaluations = 0
 
@@ -117,8 +125,16 @@ class Simulator:
         y = np.empty((1, n, len(self.model.outputs)))
         flag = np.empty(1, dtype=np.int64)
         try:
-            kernel(theta, x0, self._times[0][:n], self._inputs[0][:n], _METHODS[self.method],
-                   len(self.model.outputs), y, flag)
+            kernel(
+                theta,
+                x0,
+                self._times[0][:n],
+                self._inputs[0][:n],
+                _METHODS[self.method],
+                len(self.model.outputs),
+                y,
+                flag,
+            )
             return kernel, True
         except Exception as exc:  # numba typing errors have many classes
             if type(exc).__module__.startswith("numba"):
@@ -145,9 +161,7 @@ class Simulator:
         thetas = np.ascontiguousarray(np.atleast_2d(np.asarray(thetas, dtype=float)))
         n_params = len(self.model.parameters)
         if thetas.ndim != 2 or thetas.shape[1] != n_params:
-            raise InputError(
-                f"thetas: expected shape (batch, {n_params}), got {thetas.shape}"
-            )
+            raise InputError(f"thetas: expected shape (batch, {n_params}), got {thetas.shape}")
         n_batch = thetas.shape[0]
         n_out = len(self.model.outputs)
         outputs = np.empty((n_batch, self.n_samples, n_out))
@@ -162,9 +176,10 @@ class Simulator:
             x0s[:, mask] = thetas[:, index[mask]]
             block = np.empty((n_batch, t.shape[0], n_out))
             flag = np.empty(n_batch, dtype=np.int64)
-            self._kernel(thetas, np.ascontiguousarray(x0s), t, u, _METHODS[self.method], n_out,
-                         block, flag)
-            outputs[:, start:start + t.shape[0]] = block
+            self._kernel(
+                thetas, np.ascontiguousarray(x0s), t, u, _METHODS[self.method], n_out, block, flag
+            )
+            outputs[:, start : start + t.shape[0]] = block
             for b in np.flatnonzero(flag >= 0):
                 if not diverged[b]:
                     diverged[b] = True
