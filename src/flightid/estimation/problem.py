@@ -1,0 +1,201 @@
+"""The output-error problem: a model, its maneuvers, and the measured outputs.
+
+Residuals and cost (RP-1153 §6):
+
+    ν_i  = z_i − y_i(θ)                               (n_o residuals at sample i)
+    J(θ) = Σ_i ν_iᵀ R⁻¹ ν_i                           [3.46]
+    R̂    = diag( (1/N) Σ_i ν_i ν_iᵀ )                 [3.45]
+
+The estimation works on the vector of *free* parameters in their own units; ``typical``
+(from each parameter's ``scale``, or its start value) scales them for the linear algebra and
+sets the floor of the relative convergence tests.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from flightid.data.flightdata import FlightData
+from flightid.errors import InputError
+from flightid.model.statespace import StateSpaceModel
+from flightid.simulate.simulator import SimulationBatch, Simulator, _as_data_list
+
+__all__ = ["OutputErrorProblem", "estimate_noise_covariance"]
+
+
+def estimate_noise_covariance(residuals: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray:
+    """Diagonal of R̂ = (1/N) Σ ν_i ν_iᵀ [3.45], bounded below by ``floor``.
+
+    Args:
+        residuals: (N, n_o) residuals.
+        floor: (n_o,) smallest admissible variances (keeps R̂ positive for noise-free data).
+    Returns:
+        (n_o,) variances in the outputs' units squared.
+    """
+    r_diag = np.mean(residuals**2, axis=0)
+    if floor is not None:
+        r_diag = np.maximum(r_diag, floor)
+    return r_diag
+
+
+class OutputErrorProblem:
+    """Everything an optimizer needs: simulate, residuals, cost, sensitivities.
+
+    Args:
+        model: the state-space model; its free parameters are estimated.
+        data: one ``FlightData`` or a list (maneuvers); each must have the model's output
+            channels (as outputs) and input channels (as inputs or outputs).
+        method: ``"rk4"`` or ``"euler"``.
+        compiled: use the numba kernel.
+    """
+
+    def __init__(
+        self,
+        model: StateSpaceModel,
+        data: FlightData | Sequence[FlightData],
+        method: str = "rk4",
+        compiled: bool = True,
+    ) -> None:
+        self.model = model
+        self.maneuvers = _as_data_list(data)
+        for i, maneuver in enumerate(self.maneuvers):
+            missing = [n for n in model.outputs if n not in maneuver.output_names]
+            if missing:
+                raise InputError(
+                    f"data[{i}] ({maneuver.name or 'unnamed'}): the model's outputs {missing} "
+                    f"are not output channels of the data (outputs {list(maneuver.output_names)})"
+                )
+        self.simulator = Simulator(model, self.maneuvers, method=method, compiled=compiled)
+        self.measured = np.concatenate(
+            [np.column_stack([m.output(n) for n in model.outputs]) for m in self.maneuvers]
+        )
+        self.time = np.concatenate([m.time for m in self.maneuvers])
+        self.maneuver_index = np.concatenate(
+            [np.full(m.n_samples, i) for i, m in enumerate(self.maneuvers)]
+        )
+        parameters = model.parameters
+        self.free_mask = parameters.free_mask
+        if not self.free_mask.any():
+            raise InputError("model.parameters: no parameter is free; nothing to estimate")
+        self.free_index = np.flatnonzero(self.free_mask)
+        self.theta_start_full = parameters.values
+        self.free_names = parameters.free_names
+        self.typical = parameters.typical[self.free_mask]
+        # Floor of R̂: 1e-12 of each output's variance about its mean (at least 1e-30), so that
+        # noise-free data do not give a zero variance; documented in docs/method.md.
+        spread = np.var(self.measured, axis=0)
+        self.r_floor = np.maximum(1e-12 * spread, 1e-30)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_free(self) -> int:
+        return int(self.free_index.size)
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.measured.shape[0])
+
+    @property
+    def n_outputs(self) -> int:
+        return int(self.measured.shape[1])
+
+    @property
+    def evaluations(self) -> int:
+        """System integrations done so far (the paper's equivalent evaluations)."""
+        return self.simulator.evaluations
+
+    # ------------------------------------------------------------------ vectors
+    @property
+    def theta_start(self) -> np.ndarray:
+        """Free parameters' start values."""
+        return self.theta_start_full[self.free_index].copy()
+
+    def full_theta(self, theta_free: np.ndarray) -> np.ndarray:
+        """Full parameter vector(s) with the free entries replaced; accepts (n_f,) or (B, n_f)."""
+        theta_free = np.asarray(theta_free, dtype=float)
+        if theta_free.shape[-1] != self.n_free:
+            raise InputError(
+                f"theta_free: expected {self.n_free} free parameters {self.free_names}, "
+                f"got shape {theta_free.shape}"
+            )
+        full = np.broadcast_to(
+            self.theta_start_full, theta_free.shape[:-1] + self.theta_start_full.shape
+        ).copy()
+        full[..., self.free_index] = theta_free
+        return full
+
+    # ------------------------------------------------------------------ evaluations
+    def run(self, theta_free_batch: np.ndarray) -> SimulationBatch:
+        """Simulate a batch (B, n_f) of free-parameter vectors: B equivalent evaluations."""
+        return self.simulator.run(self.full_theta(np.atleast_2d(theta_free_batch)))
+
+    def outputs(self, theta_free_batch: np.ndarray) -> np.ndarray:
+        """Model outputs (B, N, n_o); NaN rows where a trajectory diverged."""
+        return self.run(theta_free_batch).outputs
+
+    def residuals(self, outputs: np.ndarray) -> np.ndarray:
+        """ν = z − y for outputs of shape (N, n_o) or (B, N, n_o)."""
+        return self.measured - outputs
+
+    def cost(self, outputs: np.ndarray, r_diag: np.ndarray) -> np.ndarray | float:
+        """J = Σ_i ν_iᵀ R⁻¹ ν_i [3.46] for (N, n_o) or (B, N, n_o) outputs; inf if non-finite."""
+        nu = self.residuals(outputs)
+        # J = Σ_i Σ_k ν_ik² / R_kk
+        cost = np.einsum("...ik,...ik,k->...", nu, nu, 1.0 / r_diag)
+        return np.where(np.isfinite(cost), cost, np.inf)
+
+    def noise_covariance(self, outputs: np.ndarray) -> np.ndarray:
+        """R̂ diagonal [3.45] from the residuals of (N, n_o) outputs."""
+        return estimate_noise_covariance(self.residuals(outputs), self.r_floor)
+
+    def sensitivities(
+        self,
+        theta_free: np.ndarray,
+        outputs: np.ndarray | None = None,
+        relative_step: float = 1e-6,
+        central: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Output sensitivities G_i = ∂y_i/∂θ by finite differences, in one batch.
+
+        Forward differences cost n_f integrations (plus one if ``outputs`` at ``theta_free``
+        is not given); central differences cost 2·n_f. Steps are
+        ``relative_step · max(|θ_j|, typical_j)``.
+
+        Returns:
+            (G of shape (N, n_o, n_f), outputs at theta_free of shape (N, n_o)).
+        """
+        theta_free = np.asarray(theta_free, dtype=float)
+        steps = relative_step * np.maximum(np.abs(theta_free), self.typical)
+        eye = np.diag(steps)
+        if central:
+            batch = np.vstack([theta_free + eye, theta_free - eye])
+            sim = self.run(batch)
+            self._raise_if_diverged(sim, "sensitivities")
+            plus, minus = sim.outputs[: self.n_free], sim.outputs[self.n_free :]
+            # G_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
+            g = (plus - minus) / (2.0 * steps[:, None, None])
+            if outputs is None:
+                outputs = self.outputs(theta_free[None, :])[0]
+        else:
+            if outputs is None:
+                batch = np.vstack([theta_free[None, :], theta_free + eye])
+                sim = self.run(batch)
+                self._raise_if_diverged(sim, "sensitivities")
+                outputs, perturbed = sim.outputs[0], sim.outputs[1:]
+            else:
+                sim = self.run(theta_free + eye)
+                self._raise_if_diverged(sim, "sensitivities")
+                perturbed = sim.outputs
+            # G_j = (y(θ + δ_j e_j) − y(θ)) / δ_j
+            g = (perturbed - outputs[None]) / steps[:, None, None]
+        return np.moveaxis(g, 0, -1), outputs
+
+    @staticmethod
+    def _raise_if_diverged(sim: SimulationBatch, what: str) -> None:
+        if sim.diverged.any():
+            from flightid.errors import SimulationError
+
+            first = int(np.flatnonzero(sim.diverged)[0])
+            raise SimulationError(f"{what}: {sim.messages[first]}")

@@ -1,0 +1,190 @@
+"""``Estimate``: the frozen result of an output-error estimation.
+
+Cramér–Rao bounds [RP-1153 3.47–3.49]: with M = Σ_i G_iᵀ R⁻¹ G_i at θ̂ (sensitivities by
+central differences, computed once after the optimizer stops and counted separately in
+``accuracy_evaluations``), σ_j = √((M⁻¹)_jj). If M is singular the undetermined parameters
+get σ = inf and the status message says which; they are never reported as NaN estimates.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from flightid.model.parameters import Parameters
+from flightid.model.statespace import StateSpaceModel
+
+__all__ = ["Estimate"]
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    """Result of ``estimate``. All arrays are read-only.
+
+    Attributes:
+        names: parameter names (full vector, free and fixed).
+        values: estimated values (fixed ones unchanged).
+        initial: start values.
+        free: mask of the estimated parameters.
+        std: Cramér–Rao bounds (1σ); NaN for fixed parameters, inf where undetermined.
+        covariance: M⁻¹ over the free parameters (n_f × n_f).
+        information_matrix: M at θ̂ (n_f × n_f).
+        sensitivities: G at θ̂, (N, n_o, n_f).
+        r_diag: noise variances R used at the end (n_o,).
+        cost: J(θ̂) = Σ νᵀR⁻¹ν under ``r_diag``.
+        cost_history: J after the start and each accepted pass (under the R of that pass).
+        evaluation_history: equivalent evaluations spent at those points.
+        equivalent_evaluations: system integrations used by the optimizer (incl. R cycles).
+        accuracy_evaluations: integrations for the final information matrix.
+        iterations: passes (all noise cycles).
+        noise_cycles: R re-estimations.
+        converged, status, message: outcome (status: converged | max_iterations |
+            max_evaluations | stalled).
+        time, measured, predicted, residuals: (N,), (N, n_o) over all maneuvers.
+        maneuver_index: (N,) maneuver number of each sample.
+        output_names: the outputs.
+        solver, solver_settings, noise_policy, method: what ran.
+        wall_time_s: seconds.
+        model: the model with the estimated values.
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    initial: np.ndarray
+    free: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    information_matrix: np.ndarray
+    sensitivities: np.ndarray
+    r_diag: np.ndarray
+    cost: float
+    cost_history: tuple[float, ...]
+    evaluation_history: tuple[int, ...]
+    equivalent_evaluations: int
+    accuracy_evaluations: int
+    iterations: int
+    noise_cycles: int
+    converged: bool
+    status: str
+    message: str
+    time: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    residuals: np.ndarray
+    maneuver_index: np.ndarray
+    output_names: tuple[str, ...]
+    solver: str
+    solver_settings: dict
+    noise_policy: str
+    method: str
+    wall_time_s: float
+    model: StateSpaceModel = field(repr=False)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "values",
+            "initial",
+            "free",
+            "std",
+            "covariance",
+            "information_matrix",
+            "sensitivities",
+            "r_diag",
+            "time",
+            "measured",
+            "predicted",
+            "residuals",
+            "maneuver_index",
+        ):
+            array = np.array(getattr(self, name))
+            array.flags.writeable = False
+            object.__setattr__(self, name, array)
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def free_names(self) -> list[str]:
+        return [n for n, f in zip(self.names, self.free, strict=True) if f]
+
+    @property
+    def parameters(self) -> Parameters:
+        """The model's parameters with the estimated values."""
+        return self.model.parameters
+
+    @cached_property
+    def correlation(self) -> np.ndarray:
+        """Correlation matrix of the free estimates, from the covariance."""
+        sigma = np.sqrt(np.diag(self.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = self.covariance / np.outer(sigma, sigma)
+        corr[~np.isfinite(corr)] = np.nan
+        return corr
+
+    @property
+    def n_data(self) -> int:
+        """N·n_o, the number of scalar measurements."""
+        return int(self.measured.size)
+
+    def value(self, name: str) -> float:
+        return float(self.values[self.names.index(name)])
+
+    def stddev(self, name: str) -> float:
+        return float(self.std[self.names.index(name)])
+
+    def fit_error(self) -> np.ndarray:
+        """RMS residual per output, in the outputs' units."""
+        return np.sqrt(np.mean(self.residuals**2, axis=0))
+
+    # ------------------------------------------------------------------ reports
+    def summary(self) -> str:
+        """A readable table of the estimates with their Cramér–Rao bounds."""
+        from flightid.report.text import estimate_summary
+
+        return estimate_summary(self)
+
+    def to_dict(self) -> dict:
+        """The JSON contract: method, converged, status, cost, iterations, evaluations, ..."""
+        parameters = []
+        for i, name in enumerate(self.names):
+            std = float(self.std[i])
+            parameters.append(
+                {
+                    "name": name,
+                    "value": float(self.values[i]),
+                    "initial": float(self.initial[i]),
+                    "std": std if (self.free[i] and np.isfinite(std)) else None,
+                    "free": bool(self.free[i]),
+                }
+            )
+        return {
+            "method": self.solver,
+            "converged": bool(self.converged),
+            "status": self.status,
+            "message": self.message,
+            "cost": float(self.cost),
+            "iterations": int(self.iterations),
+            "equivalent_evaluations": int(self.equivalent_evaluations),
+            "accuracy_evaluations": int(self.accuracy_evaluations),
+            "noise_cycles": int(self.noise_cycles),
+            "noise_policy": self.noise_policy,
+            "integration": self.method,
+            "wall_time_s": float(self.wall_time_s),
+            "solver_settings": dict(self.solver_settings),
+            "R": [float(r) for r in self.r_diag],
+            "outputs": list(self.output_names),
+            "fit_rms": [float(e) for e in self.fit_error()],
+            "cost_history": [float(c) for c in self.cost_history],
+            "evaluation_history": [int(e) for e in self.evaluation_history],
+            "parameters": parameters,
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return json.dumps(self.to_dict(), indent=indent)
+
+    def __repr__(self) -> str:
+        return (
+            f"Estimate({self.solver}, {self.status}, cost={self.cost:.6g}, "
+            f"evaluations={self.equivalent_evaluations}, iterations={self.iterations})"
+        )

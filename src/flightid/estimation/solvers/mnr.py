@@ -1,0 +1,132 @@
+"""MNR — modified Newton–Raphson (Gauss–Newton) with finite-difference sensitivities.
+
+Each pass [RP-1153 4.4–4.8]: sensitivities G_i = ∂y_i/∂θ by forward (n_f integrations, in one
+batch) or central (2·n_f) differences at the current θ, the Gauss–Newton step
+Δθ = −M⁻¹g, then step-size control (halving) until the cost drops. The integration at the
+accepted point is the base of the next pass, so a forward-difference pass costs n_f + 1
+equivalent evaluations plus one per halving.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightid.errors import InputError
+from flightid.estimation.gauss_newton import gauss_newton_step
+from flightid.estimation.objective import Objective, SolverOutcome
+from flightid.estimation.solvers.common import budget_status, halving_search
+
+__all__ = ["MNR"]
+
+
+@dataclass(frozen=True)
+class MNR:
+    """Gauss–Newton with finite-difference sensitivities.
+
+    Attributes:
+        relative_step: finite-difference step, relative to max(|θ_j|, typical_j).
+        central: central differences (2·n_f integrations per pass) instead of forward.
+        max_halvings: step-size halvings tried before declaring a stall.
+    """
+
+    relative_step: float = 1e-6
+    central: bool = False
+    max_halvings: int = 10
+
+    name = "mnr"
+
+    def __post_init__(self) -> None:
+        if not 0 < self.relative_step < 1:
+            raise InputError(f"MNR.relative_step: expected 0 < step < 1, got {self.relative_step}")
+        if self.max_halvings < 0:
+            raise InputError(f"MNR.max_halvings: expected ≥ 0, got {self.max_halvings}")
+
+    def settings(self) -> dict:
+        return {
+            "relative_step": self.relative_step,
+            "central": self.central,
+            "max_halvings": self.max_halvings,
+        }
+
+    def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
+        problem = objective.problem
+        conv = objective.convergence
+        if state is not None:
+            theta, outputs = state
+            cost = float(objective.costs_of(outputs)[0])
+        else:
+            theta = np.array(theta0, dtype=float)
+            cost, outputs = objective.evaluate_start(theta)
+            objective.record(theta, cost)
+        for iteration in range(1, conv.max_iterations + 1):
+            if objective.budget_exhausted():
+                return SolverOutcome(
+                    theta,
+                    outputs,
+                    cost,
+                    iteration - 1,
+                    False,
+                    *budget_status(objective),
+                    state=(theta, outputs),
+                )
+            g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
+            nu = problem.residuals(outputs)
+            step = gauss_newton_step(g, nu, objective.r_diag, problem.typical).step
+            accepted = halving_search(objective, theta, cost, step, self.max_halvings)
+            if accepted is None:
+                settled = conv.params_settled(step, theta, problem.typical)
+                status = (
+                    "converged"
+                    if settled
+                    else ("max_evaluations" if objective.budget_exhausted() else "stalled")
+                )
+                message = (
+                    "converged: the Gauss–Newton step is below the parameter tolerance and "
+                    "no shorter step lowers the cost"
+                    if settled
+                    else f"stalled: no step length down to 2^-{self.max_halvings} lowered the cost"
+                )
+                return SolverOutcome(
+                    theta,
+                    outputs,
+                    cost,
+                    iteration,
+                    settled,
+                    status,
+                    message,
+                    state=(theta, outputs),
+                )
+            new_theta, new_cost, new_outputs, taken = accepted
+            relative = conv.relative_cost_change(cost, new_cost)
+            settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
+                taken, new_theta, problem.typical
+            )
+            theta, cost, outputs = new_theta, new_cost, new_outputs
+            objective.record(theta, cost)
+            noise_settled = objective.maxlik_update(outputs, relative)
+            if noise_settled is not None:
+                cost = float(objective.costs_of(outputs)[0])
+                settled = settled and noise_settled
+            if settled:
+                return SolverOutcome(
+                    theta,
+                    outputs,
+                    cost,
+                    iteration,
+                    True,
+                    "converged",
+                    "converged: cost and parameter changes below tolerance",
+                    state=(theta, outputs),
+                )
+        return SolverOutcome(
+            theta,
+            outputs,
+            cost,
+            conv.max_iterations,
+            False,
+            "max_iterations",
+            f"stopped after {conv.max_iterations} iterations without converging",
+            state=(theta, outputs),
+        )

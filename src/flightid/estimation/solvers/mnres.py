@@ -1,0 +1,330 @@
+"""MNRES — modified Newton–Raphson with estimated sensitivities (RP-1153 §4, 4.9–4.24).
+
+The solver keeps a set of parameter points with their output histories. Each pass:
+
+1. take the lowest-cost point as the expansion point θ⁰;
+2. estimate the sensitivities G_i from the surface through the stored points
+   (``flightid.estimation.surface``: algebraic form [4.15], or least squares [4.18–4.23],
+   batch QR or constant-window recursive);
+3. take the Gauss–Newton step [4.4–4.8] with those G_i, integrate once at the new point;
+4. if the cost dropped, the new point enters and the highest-cost point leaves; otherwise the
+   step is halved (one integration each) and, failing that, the solver restarts;
+5. stop when cost and parameters have settled (``Convergence``).
+
+Initialisation and restart perturb each parameter from θ⁰ (n_f integrations, in one batch).
+The first perturbations are ``initial_perturbation`` × max(|θ_j|, typical_j). At a restart
+they are scaled by parameter importance (§7): with M_ℓℓ from the current surface,
+δθ_ℓ ∝ 1/√M_ℓℓ — parameters that move the cost little get larger perturbations — normalised
+so their geometric-mean relative size equals the restart size, then clipped to a factor 10
+either side of it. The restart size shrinks with the last accepted step so that the surface
+stays local near convergence.
+
+Restarts happen when the cost will not drop, or when ΔX (the point cloud) is ill-conditioned;
+the paper's version had no such safeguards and oscillated on example 2, case 2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flightid.errors import EstimationError, InputError
+from flightid.estimation.gauss_newton import gauss_newton_step, information_matrix
+from flightid.estimation.objective import Objective, SolverOutcome
+from flightid.estimation.solvers.common import budget_status, halving_search
+from flightid.estimation.surface import RecursiveSurface, algebraic_surface, batch_surface
+
+__all__ = ["MNRES"]
+
+_FORMS = ("algebraic", "batch", "recursive")
+
+
+@dataclass
+class _PointSet:
+    """The stored parameter points (unscaled), their outputs and costs."""
+
+    points: np.ndarray  # (n, n_f)
+    outputs: np.ndarray  # (n, N, n_o)
+    costs: np.ndarray  # (n,)
+    reference: np.ndarray  # expansion reference of the least-squares forms (n_f,)
+    surface: RecursiveSurface | None = None
+    restarts: int = 0
+    last_step: np.ndarray | None = field(default=None)
+
+
+@dataclass(frozen=True)
+class MNRES:
+    """Newton–Raphson with sensitivities from a surface through past points.
+
+    Attributes:
+        form: ``"algebraic"`` (n_f + 1 points, [4.15]), ``"batch"`` (least-squares plane by
+            QR) or ``"recursive"`` (least-squares plane, constant-window recursive update).
+        window: points kept by the least-squares forms (≥ n_f + 1; default n_f + 1).
+        initial_perturbation: first perturbation, relative to max(|θ_j|, typical_j).
+        importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7).
+        max_halvings: step halvings before a restart.
+        max_condition: largest acceptable condition number of the (scaled) point cloud.
+        max_restarts: restarts at most before declaring a stall.
+    """
+
+    form: str = "algebraic"
+    window: int | None = None
+    initial_perturbation: float = 0.01
+    importance_scaling: bool = True
+    max_halvings: int = 3
+    max_condition: float = 1e8
+    max_restarts: int = 20
+
+    name = "mnres"
+
+    def __post_init__(self) -> None:
+        if self.form not in _FORMS:
+            raise InputError(f"MNRES.form: expected one of {_FORMS}, got {self.form!r}")
+        if not 0 < self.initial_perturbation < 1:
+            raise InputError(
+                "MNRES.initial_perturbation: expected a fraction between 0 and 1, "
+                f"got {self.initial_perturbation!r}"
+            )
+        if self.max_halvings < 0 or self.max_restarts < 0:
+            raise InputError("MNRES.max_halvings and MNRES.max_restarts must be ≥ 0")
+        if self.form == "algebraic" and self.window is not None:
+            raise InputError("MNRES.window: only the 'batch' and 'recursive' forms take a window")
+
+    def settings(self) -> dict:
+        return {
+            "form": self.form,
+            "window": self.window,
+            "initial_perturbation": self.initial_perturbation,
+            "importance_scaling": self.importance_scaling,
+            "max_halvings": self.max_halvings,
+            "max_condition": self.max_condition,
+            "max_restarts": self.max_restarts,
+        }
+
+    # ------------------------------------------------------------------ helpers
+    def _window(self, n_free: int) -> int:
+        window = n_free + 1 if self.window is None else int(self.window)
+        if window < n_free + 1:
+            raise InputError(
+                f"MNRES.window: expected at least n_free + 1 = {n_free + 1} points, got {window}"
+            )
+        return window
+
+    def _initialise(
+        self,
+        objective: Objective,
+        theta: np.ndarray,
+        outputs: np.ndarray,
+        cost: float,
+        deltas: np.ndarray,
+        restarts: int,
+    ) -> _PointSet:
+        """Perturb each parameter from θ (n_f integrations in one batch)."""
+        trial = theta[None, :] + np.diag(deltas)
+        costs, trial_outputs = objective.evaluate(trial)
+        # A perturbation that makes the simulation diverge is retried 10 times smaller.
+        for _ in range(3):
+            bad = ~np.isfinite(costs)
+            if not bad.any():
+                break
+            deltas = np.where(bad, deltas / 10.0, deltas)
+            retry_costs, retry_outputs = objective.evaluate(theta[None, :] + np.diag(deltas)[bad])
+            costs[bad], trial_outputs[bad] = retry_costs, retry_outputs
+        if not np.all(np.isfinite(costs)):
+            raise EstimationError("MNRES: perturbed simulations diverge around the current point")
+        points = np.vstack([theta[None, :], theta[None, :] + np.diag(deltas)])
+        all_outputs = np.concatenate([outputs[None], trial_outputs])
+        all_costs = np.concatenate([[cost], costs])
+        point_set = _PointSet(points, all_outputs, all_costs, theta.copy(), restarts=restarts)
+        if self.form == "recursive":
+            typical = objective.typical
+            point_set.surface = RecursiveSurface(
+                points / typical, all_outputs.reshape(points.shape[0], -1), theta / typical
+            )
+        return point_set
+
+    def _restart_deltas(
+        self,
+        objective: Objective,
+        theta: np.ndarray,
+        g: np.ndarray | None,
+        last_step: np.ndarray | None,
+    ) -> np.ndarray:
+        """Perturbations for a restart: importance-scaled, shrinking with the last step."""
+        magnitude = np.maximum(np.abs(theta), objective.typical)
+        size = self.initial_perturbation
+        if last_step is not None:
+            # 10 × the last relative step, between 1e-5 and the initial perturbation
+            size = float(np.clip(10.0 * np.max(np.abs(last_step) / magnitude), 1e-5, size))
+        relative = np.full(theta.shape, size)
+        if self.importance_scaling and g is not None:
+            diagonal = np.diag(information_matrix(g, objective.r_diag)) * magnitude**2
+            if np.all(diagonal > 0) and np.all(np.isfinite(diagonal)):
+                # δθ_ℓ ∝ 1/√M_ℓℓ, geometric mean of δθ_ℓ/|θ_ℓ| equal to `size`
+                weights = 1.0 / np.sqrt(diagonal)
+                weights /= np.exp(np.mean(np.log(weights)))
+                relative = size * np.clip(weights, 0.1, 10.0)
+        return relative * magnitude
+
+    def _slopes(self, objective: Objective, state: _PointSet, base: int) -> np.ndarray:
+        typical = objective.typical
+        flat = state.outputs.reshape(state.points.shape[0], -1)
+        if self.form == "algebraic":
+            return algebraic_surface(state.points / typical, flat, base, self.max_condition)
+        if self.form == "batch":
+            return batch_surface(
+                state.points / typical, flat, state.reference / typical, self.max_condition
+            )
+        return state.surface.slopes()
+
+    # ------------------------------------------------------------------ main loop
+    def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
+        problem = objective.problem
+        conv = objective.convergence
+        typical = objective.typical
+        window = self._window(problem.n_free)
+        if state is None:
+            theta = np.array(theta0, dtype=float)
+            cost, outputs = objective.evaluate_start(theta)
+            objective.record(theta, cost)
+            magnitude = np.maximum(np.abs(theta), typical)
+            state = self._initialise(
+                objective, theta, outputs, cost, self.initial_perturbation * magnitude, 0
+            )
+        else:
+            state.costs = objective.costs_of(state.outputs)
+        g = None
+        for iteration in range(1, conv.max_iterations + 1):
+            base = int(np.argmin(state.costs))
+            theta, cost, outputs = state.points[base], state.costs[base], state.outputs[base]
+            if objective.budget_exhausted():
+                return SolverOutcome(
+                    theta,
+                    outputs,
+                    cost,
+                    iteration - 1,
+                    False,
+                    *budget_status(objective),
+                    state=state,
+                )
+            try:
+                slopes = self._slopes(objective, state, base)
+            except EstimationError:
+                slopes = None
+            if slopes is not None:
+                # ∂y/∂θ = ∂y/∂ϑ / typical, reshaped to (N, n_o, n_f)
+                g = (slopes / typical[:, None]).T.reshape(
+                    problem.n_samples, problem.n_outputs, problem.n_free
+                )
+                step = gauss_newton_step(
+                    g, problem.residuals(outputs), objective.r_diag, typical
+                ).step
+                accepted = halving_search(objective, theta, cost, step, self.max_halvings)
+            else:
+                step, accepted = None, None
+            if accepted is None:
+                if step is not None and conv.params_settled(step, theta, typical):
+                    return SolverOutcome(
+                        theta,
+                        outputs,
+                        cost,
+                        iteration,
+                        True,
+                        "converged",
+                        "converged: the step is below the parameter tolerance and no shorter "
+                        "step lowers the cost",
+                        state=state,
+                    )
+                if objective.budget_exhausted():
+                    return SolverOutcome(
+                        theta,
+                        outputs,
+                        cost,
+                        iteration,
+                        False,
+                        *budget_status(objective),
+                        state=state,
+                    )
+                if state.restarts >= self.max_restarts:
+                    return SolverOutcome(
+                        theta,
+                        outputs,
+                        cost,
+                        iteration,
+                        False,
+                        "stalled",
+                        f"stalled: no lower cost found after {self.max_restarts} restarts",
+                        state=state,
+                    )
+                deltas = self._restart_deltas(objective, theta, g, state.last_step)
+                last_step = state.last_step
+                state = self._initialise(
+                    objective, theta, outputs, cost, deltas, state.restarts + 1
+                )
+                state.last_step = last_step
+                continue
+            new_theta, new_cost, new_outputs, taken = accepted
+            self._insert(objective, state, new_theta, new_outputs, new_cost, window)
+            state.last_step = taken
+            relative = conv.relative_cost_change(cost, new_cost)
+            settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
+                taken, new_theta, typical
+            )
+            objective.record(new_theta, new_cost)
+            noise_settled = objective.maxlik_update(new_outputs, relative)
+            if noise_settled is not None:
+                state.costs = objective.costs_of(state.outputs)
+                settled = settled and noise_settled
+            if settled:
+                return SolverOutcome(
+                    new_theta,
+                    new_outputs,
+                    float(np.min(state.costs)),
+                    iteration,
+                    True,
+                    "converged",
+                    "converged: cost and parameter changes below tolerance",
+                    state=state,
+                )
+        base = int(np.argmin(state.costs))
+        return SolverOutcome(
+            state.points[base],
+            state.outputs[base],
+            float(state.costs[base]),
+            conv.max_iterations,
+            False,
+            "max_iterations",
+            f"stopped after {conv.max_iterations} iterations without converging",
+            state=state,
+        )
+
+    def _insert(
+        self,
+        objective: Objective,
+        state: _PointSet,
+        theta: np.ndarray,
+        outputs: np.ndarray,
+        cost: float,
+        window: int,
+    ) -> None:
+        """The new point enters; the highest-cost point leaves once the window is full."""
+        typical = objective.typical
+        if state.points.shape[0] < window:
+            if state.surface is not None:
+                state.surface.add(theta / typical, outputs.reshape(-1))
+            state.points = np.vstack([state.points, theta[None]])
+            state.outputs = np.concatenate([state.outputs, outputs[None]])
+            state.costs = np.append(state.costs, cost)
+            return
+        worst = int(np.argmax(state.costs))
+        if state.surface is not None:
+            state.surface.replace(
+                theta / typical,
+                outputs.reshape(-1),
+                state.points[worst] / typical,
+                state.outputs[worst].reshape(-1),
+            )
+        state.points[worst] = theta
+        state.outputs[worst] = outputs
+        state.costs[worst] = cost

@@ -1,0 +1,1 @@
+"""Reports: text tables, figures, HTML and JSON. Reads results; computes nothing new."""
