@@ -1,0 +1,315 @@
+"""Ordinary least squares with the statistics an engineer reads (RP-1153 §3, [3.1–3.8]).
+
+Model: z = X θ + ν, with X the (N, n_p) regressor matrix and z the measured response.
+
+The estimate minimises the residual sum of squares RSS = ‖z − Xθ‖²; it is computed from a
+QR factorisation X = Q R (numerically equivalent to θ = (XᵀX)⁻¹Xᵀz [3.4] without forming
+XᵀX), with a rank check from the SVD of R.
+
+Statistics (N samples, n_p parameters):
+
+    s²        = RSS / (N − n_p)                         fit error variance
+    Cov(θ̂)    = s² (XᵀX)⁻¹                              classical covariance
+    t_j       = θ̂_j / std_j ,  partial F_j = t_j²       (F to remove term j, 1 and N − n_p dof)
+    R²        = 1 − RSS / TSS                           TSS about the mean when the model has
+                                                        a constant column, about zero otherwise
+    R²_adj    = 1 − (1 − R²)(N − k0)/(N − n_p)          k0 = 1 with a constant, else 0
+    F_overall = ((TSS − RSS)/(n_p − k0)) / s²
+    PSE       = RSS/N + σ²_max n_p / N                  predicted squared error (METHOD §5)
+
+Collinearity: the condition number is that of X with its columns scaled to unit length
+(so it does not depend on units), and the variance inflation factor of column j is
+VIF_j = 1/(1 − R_j²), R_j² from regressing column j on the other columns (with the constant);
+equivalently the diagonal of the inverse correlation matrix of the non-constant columns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from scipy import stats
+
+from flightid.errors import InputError, describe
+
+__all__ = ["LeastSquaresResult", "least_squares", "LeastSquaresError"]
+
+
+class LeastSquaresError(InputError):
+    """The regression problem is malformed (shapes, rank, too few samples)."""
+
+
+@dataclass(frozen=True, eq=False)
+class LeastSquaresResult:
+    """Frozen result of a least-squares fit. Arrays are read-only.
+
+    Attributes:
+        names: regressor names, one per column of X.
+        estimates: θ̂ (n_p,).
+        std: standard errors sqrt(diag(s²(XᵀX)⁻¹)).
+        covariance: s² (XᵀX)⁻¹ (n_p, n_p).
+        residuals: z − X θ̂ (N,).
+        fitted: X θ̂ (N,).
+        rss, tss: residual and total sums of squares.
+        n_samples, n_parameters: N and n_p.
+        has_constant: whether a column is constant (R², F are then about the mean).
+        sigma2_max: the σ²_max used in PSE.
+    """
+
+    names: tuple[str, ...]
+    estimates: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    residuals: np.ndarray
+    fitted: np.ndarray
+    rss: float
+    tss: float
+    n_samples: int
+    n_parameters: int
+    has_constant: bool
+    sigma2_max: float
+    condition_number: float
+    vif: np.ndarray = field(repr=False)
+
+    # ----------------------------------------------------------------- statistics
+    @property
+    def dof(self) -> int:
+        """Residual degrees of freedom N − n_p."""
+        return self.n_samples - self.n_parameters
+
+    @property
+    def s2(self) -> float:
+        """Fit error variance s² = RSS/(N − n_p)."""
+        return self.rss / self.dof if self.dof > 0 else float("nan")
+
+    @property
+    def r2(self) -> float:
+        """Coefficient of determination R² = 1 − RSS/TSS."""
+        return 1.0 - self.rss / self.tss if self.tss > 0 else float("nan")
+
+    @property
+    def r2_adjusted(self) -> float:
+        """R² adjusted for the degrees of freedom."""
+        k0 = 1 if self.has_constant else 0
+        if self.dof <= 0:
+            return float("nan")
+        return 1.0 - (1.0 - self.r2) * (self.n_samples - k0) / self.dof
+
+    @property
+    def f_overall(self) -> float:
+        """Overall F statistic ((TSS − RSS)/(n_p − k0)) / s²."""
+        k0 = 1 if self.has_constant else 0
+        n_reg = self.n_parameters - k0
+        if n_reg <= 0 or self.dof <= 0 or self.s2 == 0:
+            return float("nan")
+        return ((self.tss - self.rss) / n_reg) / self.s2
+
+    @cached_property
+    def t_values(self) -> np.ndarray:
+        """t_j = θ̂_j / std_j."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.estimates / self.std
+
+    @cached_property
+    def partial_f(self) -> np.ndarray:
+        """Partial F of each term (F to remove it), = t_j²."""
+        return self.t_values**2
+
+    @cached_property
+    def p_values(self) -> np.ndarray:
+        """Two-sided p-values of the t statistics."""
+        return 2.0 * stats.t.sf(np.abs(self.t_values), self.dof)
+
+    @property
+    def pse(self) -> float:
+        """Predicted squared error RSS/N + σ²_max n_p/N (METHOD §5)."""
+        return self.rss / self.n_samples + self.sigma2_max * self.n_parameters / self.n_samples
+
+    def parameter(self, name: str) -> tuple[float, float]:
+        """(estimate, standard error) of the regressor ``name``."""
+        if name not in self.names:
+            raise KeyError(f"no regressor named {name!r}; regressors: {list(self.names)}")
+        j = self.names.index(name)
+        return float(self.estimates[j]), float(self.std[j])
+
+    # ----------------------------------------------------------------- reports
+    def summary(self) -> str:
+        """A statsmodels-like text table."""
+        lines = [
+            "Least-squares regression",
+            "=" * 78,
+            f"N = {self.n_samples:<8d} n_p = {self.n_parameters:<4d} dof = {self.dof:<8d}"
+            f"R² = {self.r2:.6f}   adj. R² = {self.r2_adjusted:.6f}",
+            f"s² = {self.s2:.6g}   s = {np.sqrt(self.s2):.6g}   F = {self.f_overall:.6g}   "
+            f"PSE = {self.pse:.6g} (σ²_max = {self.sigma2_max:.4g})",
+            f"condition number (unit-length columns) = {self.condition_number:.4g}",
+            "-" * 78,
+            f"{'term':<16s}{'estimate':>14s}{'std err':>13s}{'t':>10s}{'partial F':>12s}"
+            f"{'p':>8s}{'VIF':>9s}",
+            "-" * 78,
+        ]
+        for j, name in enumerate(self.names):
+            vif = self.vif[j]
+            vif_text = "" if np.isnan(vif) else f"{vif:9.3g}"
+            lines.append(
+                f"{name:<16s}{self.estimates[j]:>14.6g}{self.std[j]:>13.4g}"
+                f"{self.t_values[j]:>10.3g}{self.partial_f[j]:>12.4g}"
+                f"{self.p_values[j]:>8.3f}{vif_text:>9s}"
+            )
+        lines.append("=" * 78)
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """Plain-Python dictionary (JSON-ready)."""
+        return {
+            "parameters": [
+                {"name": n, "value": float(v), "std": float(s)}
+                for n, v, s in zip(self.names, self.estimates, self.std, strict=True)
+            ],
+            "r2": float(self.r2),
+            "r2_adjusted": float(self.r2_adjusted),
+            "s2": float(self.s2),
+            "f_overall": float(self.f_overall),
+            "pse": float(self.pse),
+            "n_samples": self.n_samples,
+            "condition_number": float(self.condition_number),
+        }
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array = np.array(array, dtype=float)
+    array.flags.writeable = False
+    return array
+
+
+def _constant_columns(X: np.ndarray) -> np.ndarray:
+    """Mask of columns that are constant and non-zero (a bias term)."""
+    if X.shape[0] == 0:
+        return np.zeros(X.shape[1], dtype=bool)
+    spread = np.ptp(X, axis=0)
+    scale = np.max(np.abs(X), axis=0)
+    return (scale > 0) & (spread <= 1e-12 * scale)
+
+
+def _vif(X: np.ndarray, constant: np.ndarray) -> np.ndarray:
+    """Variance inflation factors: diag of the inverse correlation matrix (NaN for bias)."""
+    vif = np.full(X.shape[1], np.nan)
+    varying = np.flatnonzero(~constant)
+    if varying.size == 0:
+        return vif
+    if varying.size == 1:
+        vif[varying] = 1.0
+        return vif
+    Z = X[:, varying]
+    if constant.any():
+        Z = Z - Z.mean(axis=0)
+    norms = np.linalg.norm(Z, axis=0)
+    norms[norms == 0] = 1.0
+    C = (Z / norms).T @ (Z / norms)
+    try:
+        vif[varying] = np.diag(np.linalg.inv(C))
+    except np.linalg.LinAlgError:
+        vif[varying] = np.inf
+    return vif
+
+
+def least_squares(
+    X: np.ndarray,
+    z: np.ndarray,
+    names: Sequence[str] | None = None,
+    *,
+    sigma2_max: float | None = None,
+    rcond: float = 1e-12,
+) -> LeastSquaresResult:
+    """Fit z ≈ X θ by least squares and compute the regression statistics.
+
+    Args:
+        X: regressor matrix (N, n_p), N > n_p; any units, one column per term.
+        z: response (N,), in the unit of the coefficient being modelled.
+        names: regressor names (default ``x0, x1, ...``).
+        sigma2_max: σ²_max for PSE, in z's unit squared. Default: the variance of z about its
+            mean, (1/N)Σ(z − z̄)² (the mean-square error of the constant-only model, the upper
+            bound used by Morelli for PSE).
+        rcond: X is rejected as rank deficient when its smallest singular value (of the
+            unit-length-scaled columns) is below ``rcond`` times the largest.
+
+    Returns:
+        A frozen ``LeastSquaresResult``.
+    """
+    X = np.asarray(X, dtype=float)
+    z = np.asarray(z, dtype=float)
+    if X.ndim == 1:
+        X = X[:, None]
+    if X.ndim != 2:
+        raise LeastSquaresError(f"X: expected an (N, n_p) matrix, got {describe(X)}")
+    if z.ndim != 1 or z.shape[0] != X.shape[0]:
+        raise LeastSquaresError(
+            f"z: expected a series of {X.shape[0]} samples (the rows of X), got {describe(z)}"
+        )
+    n, p = X.shape
+    if p == 0:
+        raise LeastSquaresError("X: expected at least one regressor column, got none")
+    if n <= p:
+        raise LeastSquaresError(
+            f"X: expected more samples than regressors, got N = {n} and n_p = {p}"
+        )
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(z))):
+        raise LeastSquaresError("X, z: values must be finite")
+    names = tuple(f"x{j}" for j in range(p)) if names is None else tuple(names)
+    if len(names) != p:
+        raise LeastSquaresError(f"names: expected {p} names (columns of X), got {len(names)}")
+
+    # Column scaling to unit length makes the rank test and the condition number unit-free.
+    norms = np.linalg.norm(X, axis=0)
+    if np.any(norms == 0):
+        zero = [names[j] for j in np.flatnonzero(norms == 0)]
+        raise LeastSquaresError(f"X: regressor column(s) {zero} are identically zero")
+    Xs = X / norms
+    Q, R = np.linalg.qr(Xs)
+    singular = np.linalg.svd(R, compute_uv=False)
+    condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else float("inf")
+    if singular[-1] < rcond * singular[0]:
+        raise LeastSquaresError(
+            f"X: regressors {list(names)} are linearly dependent (condition number "
+            f"{condition:.3g} of the unit-length columns)"
+        )
+    # θ_s = R⁻¹ Qᵀ z, θ = θ_s / norms   (equivalent to (XᵀX)⁻¹Xᵀz, [3.4])
+    theta_scaled = np.linalg.solve(R, Q.T @ z)
+    theta = theta_scaled / norms
+    fitted = X @ theta
+    residuals = z - fitted
+    rss = float(residuals @ residuals)
+    constant = _constant_columns(X)
+    has_constant = bool(constant.any())
+    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    s2 = rss / (n - p)
+    # (XᵀX)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹ with D = diag(norms)
+    R_inv = np.linalg.solve(R, np.eye(p))
+    xtx_inv = (R_inv @ R_inv.T) / np.outer(norms, norms)
+    # Cov(θ̂) = s² (XᵀX)⁻¹
+    covariance = s2 * xtx_inv
+    std = np.sqrt(np.diag(covariance))
+    if sigma2_max is None:
+        sigma2_max = float(np.mean((z - z.mean()) ** 2))
+    elif not (np.isfinite(sigma2_max) and sigma2_max >= 0):
+        raise LeastSquaresError(
+            f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}"
+        )
+    return LeastSquaresResult(
+        names=names,
+        estimates=_readonly(theta),
+        std=_readonly(std),
+        covariance=_readonly(covariance),
+        residuals=_readonly(residuals),
+        fitted=_readonly(fitted),
+        rss=rss,
+        tss=tss,
+        n_samples=n,
+        n_parameters=p,
+        has_constant=has_constant,
+        sigma2_max=float(sigma2_max),
+        condition_number=condition,
+        vif=_readonly(_vif(X, constant)),
+    )
