@@ -1,0 +1,736 @@
+"""Loaders: flight-data files and tables into ``FlightData``, with declared channel mapping.
+
+Two steps, each checked:
+
+1. ``read_table(path)`` reads a file into a ``Table`` — a numeric matrix (samples × columns)
+   with optional column names and units. Formats: CSV with a header row, whitespace ASCII
+   with or without header lines (the names line and an optional units line above the
+   numbers, as in the FVSysID ``_withHeader`` files), MATLAB ``.mat`` (SIDPAC's ``fdata``
+   matrix with ``varlab`` labels, a single plain matrix, a chosen variable, or a set of
+   equal-length vectors), and pandas DataFrames (``table_from_dataframe``).
+2. ``to_flight_data(table, time=..., inputs=..., outputs=...)`` builds the ``FlightData``
+   from channel specifications. A specification is a column (1-based number or name) or an
+   expression, with an optional scale, offset and unit conversion::
+
+       {"column": 13, "unit": "deg", "to": "rad"}
+       {"expr": "($29 - $28) / 2", "unit": "deg", "to": "rad"}     # δa = (right − left)/2
+       {"column": "alpha", "subtract": "first"}                     # Δα about the first sample
+
+   value = (source · scale + offset) · unit factor, then ``subtract`` ("first" or "mean")
+   removes a reference value.
+
+Expressions are arithmetic (+ − × ÷, parentheses, numbers) over column references ``$N``
+(1-based column number) and column names; they are parsed here, never passed to ``eval``.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from flightid.data.flightdata import FlightData
+from flightid.data.units import convert_factor
+from flightid.errors import InputError, InputTypeError, describe
+
+__all__ = [
+    "DataFileError",
+    "ChannelError",
+    "ChannelSpec",
+    "Table",
+    "read_table",
+    "table_from_dataframe",
+    "to_flight_data",
+    "load_flight_data",
+    "parse_expression",
+]
+
+
+class DataFileError(InputError):
+    """A data file that is missing, unreadable or not a numeric table."""
+
+
+class ChannelError(InputError):
+    """A channel specification naming an unknown column or malformed expression."""
+
+
+# =====================================================================================
+# Table
+# =====================================================================================
+
+
+@dataclass(frozen=True, eq=False)
+class Table:
+    """A numeric table read from a file.
+
+    Attributes:
+        data: (N, k) float matrix.
+        names: column names (``""`` where the file gives none).
+        units: column units as written in the file (``""`` where unknown).
+        source: where it came from (path or description), for messages.
+        constants: scalar values stored beside the table (e.g. ``sarea`` in SIDPAC files).
+    """
+
+    data: np.ndarray
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    source: str = ""
+    constants: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def n_columns(self) -> int:
+        return int(self.data.shape[1])
+
+    def column_index(self, key: int | str, where: str = "column") -> int:
+        """0-based index of a column given as a 1-based number or a name."""
+        if isinstance(key, bool) or not isinstance(key, (int, str)):
+            raise ChannelError(
+                f"{where}: expected a 1-based column number or a column name, got {describe(key)}"
+            )
+        if isinstance(key, int):
+            if not 1 <= key <= self.n_columns:
+                raise ChannelError(
+                    f"{where}: column {key} does not exist; {self.source or 'the table'} has "
+                    f"columns 1..{self.n_columns}"
+                )
+            return key - 1
+        if key in self.names:
+            return self.names.index(key)
+        folded = [i for i, n in enumerate(self.names) if n.lower() == key.lower()]
+        if len(folded) == 1:
+            return folded[0]
+        known = [n for n in self.names if n]
+        raise ChannelError(
+            f"{where}: no column named {key!r} in {self.source or 'the table'}; "
+            + (f"columns: {known}" if known else "the file has no column names (use numbers)")
+        )
+
+    def column(self, key: int | str, where: str = "column") -> np.ndarray:
+        return self.data[:, self.column_index(key, where)]
+
+
+def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -> Table:
+    data = np.asarray(data, dtype=float)
+    if data.ndim == 1:
+        data = data[:, None]
+    if data.ndim != 2 or data.shape[0] < 2 or data.shape[1] < 1:
+        raise DataFileError(f"{source}: expected a table of at least 2 rows, got {describe(data)}")
+    k = data.shape[1]
+    names = tuple(str(n).strip() for n in (names or [""] * k))
+    units = tuple(str(u).strip() for u in (units or [""] * k))
+    if len(names) != k or len(units) != k:
+        raise DataFileError(
+            f"{source}: {k} data columns but {len(names)} names and {len(units)} units"
+        )
+    data = np.ascontiguousarray(data)
+    data.flags.writeable = False
+    return Table(data, names, units, source, dict(constants or {}))
+
+
+# =====================================================================================
+# Text formats
+# =====================================================================================
+
+
+def _numbers(tokens: Sequence[str]) -> list[float] | None:
+    try:
+        return [float(t.replace("D", "E").replace("d", "e")) for t in tokens]
+    except ValueError:
+        return None
+
+
+def _read_text(path: Path) -> list[str]:
+    try:
+        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+
+
+def read_ascii(path: str | Path) -> Table:
+    """Whitespace-separated numbers, optionally below header lines.
+
+    The data block is the longest run of lines that all parse as numbers with the same count.
+    Above it, the last two text lines with that many tokens are read as names and units
+    (a single such line: names only), as in the FVSysID ``_withHeader`` files.
+    """
+    path = Path(path)
+    lines = _read_text(path)
+    rows: list[list[float]] = []
+    first = None
+    for number, line in enumerate(lines):
+        tokens = line.split()
+        if not tokens:
+            continue
+        values = _numbers(tokens)
+        if values is None:
+            if rows:
+                raise DataFileError(
+                    f"{path}: line {number + 1} is not numeric inside the data block: "
+                    f"{line.strip()[:60]!r}"
+                )
+            continue
+        if rows and len(values) != len(rows[0]):
+            raise DataFileError(
+                f"{path}: line {number + 1} has {len(values)} numbers, the lines above have "
+                f"{len(rows[0])}"
+            )
+        if first is None:
+            first = number
+        rows.append(values)
+    if not rows:
+        raise DataFileError(f"{path}: no numeric rows found (whitespace-separated ASCII expected)")
+    k = len(rows[0])
+    header = [ln.split() for ln in lines[: first or 0] if len(ln.split()) == k]
+    names = header[-2] if len(header) >= 2 else (header[-1] if header else None)
+    units = header[-1] if len(header) >= 2 else None
+    return _finish_table(np.array(rows), names, units, str(path))
+
+
+def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
+    """CSV with one header row of column names (units in brackets are split off:
+    ``alpha [deg]`` or ``alpha (deg)``). The delimiter is sniffed unless given."""
+    path = Path(path)
+    lines = _read_text(path)
+    lines = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
+    if len(lines) < 3:
+        raise DataFileError(f"{path}: expected a header row and at least 2 data rows")
+    if delimiter is None:
+        try:
+            delimiter = csv.Sniffer().sniff(lines[0] + "\n" + lines[1], ",;\t").delimiter
+        except csv.Error:
+            delimiter = ","
+    reader = list(csv.reader(lines, delimiter=delimiter))
+    header = [h.strip() for h in reader[0]]
+    if _numbers(header) is not None:
+        raise DataFileError(f"{path}: the first row must be the header of column names")
+    names, units = [], []
+    for h in header:
+        m = re.fullmatch(r"(.*?)\s*[\[(]([^\])]*)[\])]\s*", h)
+        names.append(m.group(1) if m else h)
+        units.append(m.group(2) if m else "")
+    rows = []
+    for number, row in enumerate(reader[1:], start=2):
+        if len(row) != len(header):
+            raise DataFileError(
+                f"{path}: row {number} has {len(row)} fields, the header has {len(header)}"
+            )
+        values = _numbers([c.strip() or "nan" for c in row])
+        if values is None:
+            raise DataFileError(f"{path}: row {number} is not numeric: {row[:6]}")
+        rows.append(values)
+    return _finish_table(np.array(rows), names, units, str(path))
+
+
+# =====================================================================================
+# MATLAB
+# =====================================================================================
+
+_VARLAB = re.compile(r"^\s*\*?\s*(?P<name>.*?)\s*(?:\((?P<unit>[^)]*)\))?\s*$")
+
+
+def read_mat(path: str | Path, variable: str | None = None) -> Table:
+    """MATLAB .mat (v5; via ``scipy.io.loadmat``).
+
+    * ``variable`` given: that matrix (or vector).
+    * SIDPAC layout: ``fdata`` (N × k) with ``varlab`` labels like ``"* alpha (deg)"``.
+    * one 2-D matrix in the file: that matrix (columns unnamed).
+    * otherwise: all column vectors of the most common length, as named columns.
+    Scalars in the file are kept as ``Table.constants``.
+    """
+    from scipy.io import loadmat
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"{path}: no such file")
+    try:
+        contents = loadmat(str(path))
+    except Exception as exc:  # scipy raises several types for bad files
+        raise DataFileError(f"{path}: not a readable MATLAB file ({exc})") from None
+    arrays = {
+        k: v
+        for k, v in contents.items()
+        if not k.startswith("__") and isinstance(v, np.ndarray) and v.dtype.kind in "fiub"
+    }
+    constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
+    source = str(path)
+    if variable is not None:
+        if variable not in arrays:
+            raise DataFileError(
+                f"{path}: no numeric variable {variable!r}; variables: {sorted(arrays)}"
+            )
+        names = None
+        if variable == "fdata" and "varlab" in contents:
+            names, units = _varlab(contents["varlab"], arrays[variable].shape[1])
+            return _finish_table(arrays[variable], names, units, source, constants)
+        return _finish_table(arrays[variable], names, None, source, constants)
+    if "fdata" in arrays:
+        matrix = arrays["fdata"]
+        names, units = (None, None)
+        if "varlab" in contents:
+            names, units = _varlab(contents["varlab"], matrix.shape[1])
+        return _finish_table(matrix, names, units, source, constants)
+    matrices = {k: v for k, v in arrays.items() if v.ndim == 2 and min(v.shape) > 1}
+    if len(matrices) == 1:
+        ((name, matrix),) = matrices.items()
+        return _finish_table(matrix, None, None, f"{source}:{name}", constants)
+    if len(matrices) > 1:
+        raise DataFileError(
+            f"{path}: several matrices {sorted(matrices)}; name the one to read (variable)"
+        )
+    vectors = {k: v.ravel() for k, v in arrays.items() if v.ndim == 2 and min(v.shape) == 1}
+    vectors = {k: v for k, v in vectors.items() if v.size > 1}
+    if not vectors:
+        raise DataFileError(f"{path}: no numeric matrix or vectors found")
+    lengths = [v.size for v in vectors.values()]
+    n = max(set(lengths), key=lengths.count)
+    chosen = {k: v for k, v in vectors.items() if v.size == n}
+    return _finish_table(
+        np.column_stack(list(chosen.values())), list(chosen), None, source, constants
+    )
+
+
+def _varlab(varlab: np.ndarray, k: int) -> tuple[list[str], list[str]]:
+    labels = [str(v if not isinstance(v, np.ndarray) else v.ravel()[0]) for v in varlab.ravel()]
+    labels = (labels + [""] * k)[:k]
+    names, units = [], []
+    seen: set[str] = set()
+    for label in labels:
+        m = _VARLAB.match(label)
+        name = (m.group("name") if m else label).strip()
+        name = re.sub(r"\s+", "_", name)
+        if name in seen:
+            name = ""
+        seen.add(name)
+        names.append(name)
+        units.append((m.group("unit") or "").strip() if m else "")
+    return names, units
+
+
+# =====================================================================================
+# pandas
+# =====================================================================================
+
+
+def table_from_dataframe(frame: Any, source: str = "DataFrame") -> Table:
+    """A ``Table`` from a pandas DataFrame (numeric columns; names from the column labels)."""
+    try:
+        import pandas as pd
+    except ImportError:  # pragma: no cover - pandas is optional
+        raise InputTypeError(
+            "frame: pandas is not installed; install it to read DataFrames"
+        ) from None
+    if not isinstance(frame, pd.DataFrame):
+        raise InputTypeError(f"frame: expected a pandas DataFrame, got {describe(frame)}")
+    try:
+        data = frame.to_numpy(dtype=float)
+    except (TypeError, ValueError):
+        raise DataFileError(f"{source}: all columns must be numeric") from None
+    return _finish_table(data, [str(c) for c in frame.columns], None, source)
+
+
+# =====================================================================================
+# dispatch
+# =====================================================================================
+
+FORMATS = ("auto", "csv", "ascii", "mat")
+
+
+def read_table(
+    path: str | Path,
+    format: str = "auto",
+    *,
+    variable: str | None = None,
+    delimiter: str | None = None,
+) -> Table:
+    """Read a data file into a ``Table``; ``format`` "auto" picks by extension
+    (.csv → csv, .mat → mat, anything else → whitespace ASCII)."""
+    if format not in FORMATS:
+        raise InputError(f"format: expected one of {list(FORMATS)}, got {format!r}")
+    path = Path(path)
+    if not path.exists():
+        raise DataFileError(f"{path}: no such file")
+    if path.is_dir():
+        raise DataFileError(f"{path}: is a directory, expected a data file")
+    if format == "auto":
+        suffix = path.suffix.lower()
+        format = {".csv": "csv", ".mat": "mat"}.get(suffix, "ascii")
+    if format == "csv":
+        return read_csv(path, delimiter)
+    if format == "mat":
+        return read_mat(path, variable)
+    return read_ascii(path)
+
+
+# =====================================================================================
+# expressions over columns (no eval)
+# =====================================================================================
+
+_EXPR_TOKEN = re.compile(
+    r"\s*(?:(?P<number>\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)"
+    r"|(?P<column>\$\d+)|(?P<name>[A-Za-z_][A-Za-z0-9_.]*)|(?P<op>[-+*/()]))"
+)
+
+
+def _tokens(text: str) -> list[tuple[str, str, int]]:
+    tokens = []
+    position = 0
+    text = text.rstrip()
+    while position < len(text):
+        m = _EXPR_TOKEN.match(text, position)
+        if not m or m.end() == position:
+            raise ChannelError(
+                f"expression {text!r}: unexpected character {text[position:].strip()[:1]!r} at "
+                f"position {position}"
+            )
+        kind = m.lastgroup
+        tokens.append((kind, m.group(kind), m.start(kind)))
+        position = m.end()
+    return tokens
+
+
+class _Parser:
+    """Recursive-descent parser: expr := term (±term)*, term := unary (×÷ unary)*,
+    unary := −unary | atom, atom := NUMBER | $N | NAME | ( expr ). Builds a tree of tuples."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.tokens = _tokens(text)
+        self.i = 0
+
+    def peek(self):
+        return self.tokens[self.i] if self.i < len(self.tokens) else (None, None, len(self.text))
+
+    def take(self):
+        token = self.peek()
+        self.i += 1
+        return token
+
+    def fail(self, what: str):
+        _, value, position = self.peek()
+        got = "the end" if value is None else repr(value)
+        raise ChannelError(
+            f"expression {self.text!r}: expected {what} at position {position}, got {got}"
+        )
+
+    def parse(self):
+        if not self.tokens:
+            raise ChannelError("expression: empty")
+        tree = self.expr()
+        if self.i != len(self.tokens):
+            self.fail("an operator or the end")
+        return tree
+
+    def expr(self):
+        tree = self.term()
+        while self.peek()[1] in ("+", "-"):
+            op = self.take()[1]
+            tree = (op, tree, self.term())
+        return tree
+
+    def term(self):
+        tree = self.unary()
+        while self.peek()[1] in ("*", "/"):
+            op = self.take()[1]
+            tree = (op, tree, self.unary())
+        return tree
+
+    def unary(self):
+        if self.peek()[1] in ("-", "+"):
+            op = self.take()[1]
+            operand = self.unary()
+            return ("neg", operand) if op == "-" else operand
+        return self.atom()
+
+    def atom(self):
+        kind, value, _ = self.peek()
+        if kind == "number":
+            self.take()
+            return ("num", float(value))
+        if kind == "column":
+            self.take()
+            return ("col", int(value[1:]))
+        if kind == "name":
+            self.take()
+            return ("col", value)
+        if value == "(":
+            self.take()
+            tree = self.expr()
+            if self.peek()[1] != ")":
+                self.fail("')'")
+            self.take()
+            return tree
+        self.fail("a number, a column ($N or a name) or '('")
+
+
+def parse_expression(text: str) -> tuple:
+    """Parse an arithmetic expression over columns into a tree (see module docstring)."""
+    if not isinstance(text, str):
+        raise ChannelError(f"expression: expected a string, got {describe(text)}")
+    return _Parser(text).parse()
+
+
+def _evaluate(tree: tuple, table: Table, where: str) -> np.ndarray | float:
+    kind = tree[0]
+    if kind == "num":
+        return tree[1]
+    if kind == "col":
+        return table.column(tree[1], where)
+    if kind == "neg":
+        return -_evaluate(tree[1], table, where)
+    left = _evaluate(tree[1], table, where)
+    right = _evaluate(tree[2], table, where)
+    if kind == "+":
+        return left + right
+    if kind == "-":
+        return left - right
+    if kind == "*":
+        return left * right
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return left / right
+
+
+def expression_columns(tree: tuple) -> list:
+    """Column references used by an expression tree."""
+    if tree[0] == "col":
+        return [tree[1]]
+    if tree[0] == "num":
+        return []
+    return [c for sub in tree[1:] for c in expression_columns(sub)]
+
+
+# =====================================================================================
+# channel specifications
+# =====================================================================================
+
+_SPEC_KEYS = {"column", "expr", "scale", "offset", "unit", "to", "subtract"}
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """How to compute one channel from a table.
+
+    Attributes:
+        column: 1-based column number or column name (or use ``expr``).
+        expr: arithmetic expression over ``$N`` / column names.
+        scale, offset: value = source · scale + offset (in the source unit).
+        unit: the source unit (e.g. ``"deg"``); with ``to`` the values are converted.
+        to: the target unit (e.g. ``"rad"``); the channel's unit in reports.
+        subtract: ``"first"`` or ``"mean"``: remove that reference value (perturbations).
+    """
+
+    column: int | str | None = None
+    expr: str | None = None
+    scale: float = 1.0
+    offset: float = 0.0
+    unit: str = ""
+    to: str = ""
+    subtract: str | None = None
+
+    @classmethod
+    def from_value(cls, value: Any, where: str) -> ChannelSpec:
+        """From a column number/name, an expression string containing an operator, or a
+        mapping with the keys of this class."""
+        if isinstance(value, ChannelSpec):
+            return value
+        if isinstance(value, bool):
+            raise ChannelError(f"{where}: expected a column or a mapping, got {value!r}")
+        if isinstance(value, int):
+            return cls(column=value)
+        if isinstance(value, str):
+            if re.search(r"[-+*/()$]", value):
+                return cls(expr=value)
+            return cls(column=value)
+        if not isinstance(value, Mapping):
+            raise ChannelError(
+                f"{where}: expected a column number, a column name, an expression or a table "
+                f"with keys {sorted(_SPEC_KEYS)}, got {describe(value)}"
+            )
+        unknown = sorted(set(value) - _SPEC_KEYS)
+        if unknown:
+            raise ChannelError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(_SPEC_KEYS)}")
+        if ("column" in value) == ("expr" in value):
+            raise ChannelError(f"{where}: give exactly one of 'column' and 'expr'")
+        for key in ("scale", "offset"):
+            if key in value and (
+                isinstance(value[key], bool) or not isinstance(value[key], (int, float))
+            ):
+                raise ChannelError(f"{where}.{key}: expected a number, got {describe(value[key])}")
+        for key in ("unit", "to", "expr"):
+            if key in value and not isinstance(value[key], str):
+                raise ChannelError(f"{where}.{key}: expected a string, got {describe(value[key])}")
+        if value.get("subtract") not in (None, "first", "mean"):
+            raise ChannelError(
+                f"{where}.subtract: expected 'first' or 'mean', got {value['subtract']!r}"
+            )
+        if "to" in value and "unit" not in value:
+            raise ChannelError(f"{where}.to: give the source unit too ('unit')")
+        spec = cls(**{k: value[k] for k in value})
+        if spec.expr is not None:
+            parse_expression(spec.expr)  # fail early
+        if spec.unit and spec.to:
+            try:
+                convert_factor(spec.unit, spec.to)
+            except InputError as exc:
+                raise ChannelError(f"{where}: {exc}") from None
+        return spec
+
+    @property
+    def target_unit(self) -> str:
+        return self.to or self.unit
+
+    def evaluate(self, table: Table, where: str, keep: np.ndarray | None = None) -> np.ndarray:
+        """The channel's values in the target unit, on the rows ``keep`` (default all)."""
+        if self.expr is not None:
+            try:
+                tree = parse_expression(self.expr)
+            except ChannelError as exc:
+                raise ChannelError(f"{where}: {exc}") from None
+            values = _evaluate(tree, table, where)
+            values = np.broadcast_to(np.asarray(values, dtype=float), (table.n_rows,)).copy()
+        else:
+            values = table.column(self.column, where).copy()
+        values = values * self.scale + self.offset
+        if self.unit and self.to:
+            try:
+                values = values * convert_factor(self.unit, self.to)
+            except InputError as exc:
+                raise ChannelError(f"{where}: {exc}") from None
+        if keep is not None:
+            values = values[keep]
+        if self.subtract == "first":
+            values = values - values[0]
+        elif self.subtract == "mean":
+            values = values - values.mean()
+        bad = ~np.isfinite(values)
+        if bad.any():
+            raise ChannelError(
+                f"{where}: {int(bad.sum())} non-finite value(s) in {table.source or 'the table'}, "
+                f"the first at row {int(np.argmax(bad)) + 1}"
+            )
+        return values
+
+
+def _specs(mapping: Mapping[str, Any] | None, where: str) -> dict[str, ChannelSpec]:
+    if mapping is None:
+        return {}
+    if not isinstance(mapping, Mapping):
+        raise ChannelError(
+            f"{where}: expected a mapping of channel name to column/spec, got {describe(mapping)}"
+        )
+    specs = {}
+    for name, value in mapping.items():
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ChannelError(f"{where}: channel names must be identifiers, got {name!r}")
+        specs[name] = ChannelSpec.from_value(value, f"{where}.{name}")
+    return specs
+
+
+def to_flight_data(
+    table: Table,
+    *,
+    time: Any = 1,
+    inputs: Mapping[str, Any] | None = None,
+    outputs: Mapping[str, Any] | None = None,
+    name: str = "",
+    start: float | None = None,
+    stop: float | None = None,
+    gaps: str = "error",
+    uniform_rtol: float = 1e-6,
+) -> FlightData:
+    """Build ``FlightData`` from a table and channel specifications.
+
+    Args:
+        table: the loaded table.
+        time: spec of the time column (default column 1), in s after conversion. Time is
+            re-gridded as t_0 + k·Δt when the file's stored times are uniform only to
+            within ``1e-4`` relative (single-precision stamps), else ``FlightData`` refuses it.
+        inputs, outputs: ``{channel: spec}`` (see ``ChannelSpec``).
+        name: maneuver label.
+        start, stop: keep ``start ≤ t ≤ stop`` (s, in the time column's values).
+        gaps: ``"error"`` (default) refuses non-uniform time; ``"join"`` treats the rows as
+            consecutive samples at the median interval (files holding several segments).
+    """
+    time_spec = ChannelSpec.from_value(time, "time")
+    if time_spec.unit and not time_spec.to:
+        time_spec = ChannelSpec(**{**time_spec.__dict__, "to": "s"})
+    t = time_spec.evaluate(table, "time")
+    in_specs = _specs(inputs, "inputs")
+    out_specs = _specs(outputs, "outputs")
+    units = {k: s.target_unit for k, s in {**in_specs, **out_specs}.items()}
+    keep = np.ones(t.shape[0], dtype=bool)
+    if start is not None:
+        keep &= t >= start - 1e-9
+    if stop is not None:
+        keep &= t <= stop + 1e-9
+    if keep.sum() < 2:
+        raise InputError(
+            f"start/stop: [{start}, {stop}] keeps fewer than 2 samples of "
+            f"{table.source} (time runs {t[0]:g}..{t[-1]:g} s)"
+        )
+    channels_in = {k: s.evaluate(table, f"inputs.{k}", keep) for k, s in in_specs.items()}
+    channels_out = {k: s.evaluate(table, f"outputs.{k}", keep) for k, s in out_specs.items()}
+    t = t[keep]
+    dt = np.diff(t)
+    if gaps not in ("error", "join"):
+        raise InputError(f"gaps: expected 'error' or 'join', got {gaps!r}")
+    if gaps == "join" and np.all(dt > 0):
+        # Rows are taken as consecutive samples: t_k = t_0 + k·Δt with Δt the median interval
+        # (how the reference tools treat files that hold several recording segments).
+        t = t[0] + np.arange(t.shape[0]) * float(np.median(dt))
+        dt = np.diff(t)
+    if np.all(dt > 0):
+        spread = (dt.max() - dt.min()) / dt.mean()
+        if 0 < spread <= 1e-4:
+            # t_k = t_0 + k·Δt with Δt the mean interval (rounded stored stamps)
+            t = t[0] + np.arange(t.shape[0]) * float(np.round(dt.mean(), 12))
+        elif spread > 1e-4 and gaps == "error":
+            k = int(np.argmax(dt))
+            raise InputError(
+                f"time: {table.source} has a gap or uneven sampling (interval {dt[k]:.6g} s after "
+                f"t = {t[k]:.6g} s, median {np.median(dt):.6g} s); use start/stop to pick one "
+                "segment, or gaps = 'join' to treat the rows as consecutive samples"
+            )
+    return FlightData(
+        t,
+        channels_in,
+        channels_out,
+        units=units,
+        name=name,
+        uniform_rtol=uniform_rtol,
+    )
+
+
+def load_flight_data(
+    path: str | Path,
+    *,
+    time: Any = 1,
+    inputs: Mapping[str, Any] | None = None,
+    outputs: Mapping[str, Any] | None = None,
+    format: str = "auto",
+    variable: str | None = None,
+    name: str | None = None,
+    start: float | None = None,
+    stop: float | None = None,
+    gaps: str = "error",
+) -> FlightData:
+    """``read_table`` then ``to_flight_data``; the maneuver name defaults to the file stem."""
+    table = read_table(path, format, variable=variable)
+    return to_flight_data(
+        table,
+        time=time,
+        inputs=inputs,
+        outputs=outputs,
+        name=Path(path).stem if name is None else name,
+        start=start,
+        stop=stop,
+        gaps=gaps,
+    )

@@ -1,0 +1,137 @@
+"""Unit conversion for flight-data channels: factors to SI, checked by dimension.
+
+A unit is written the way data files write it: ``"deg"``, ``"deg/s"``, ``"DEG/S**2"``,
+``"ft/sec"``, ``"lbf/ft2"``, ``"slug*ft^2"``, ``"g"``. It is parsed (no ``eval``) into a
+factor to SI and a dimension vector over (length, mass, time, angle, force-free):
+
+    value_SI = factor · value
+
+Angles are a dimension of their own here (rad and deg) so that a conversion "deg → m/s" is
+refused. ``convert_factor("deg", "rad")`` returns the multiplier from one unit to another:
+
+    value_to = value_from · factor_from / factor_to
+
+The standard acceleration of gravity g = 9.80665 m/s² (ISO 80000-3) is the unit ``g``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+from flightid.errors import InputError
+
+__all__ = ["UnitError", "parse_unit", "convert_factor", "G0"]
+
+G0 = 9.80665  # m/s², standard gravity (ISO 80000-3)
+
+# Dimension vector order: length, mass, time, angle.
+_L, _M, _T, _A = (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)
+_ONE = (0, 0, 0, 0)
+_FORCE = (1, 1, -2, 0)
+
+# base unit → (factor to SI, dimension)
+_BASE: dict[str, tuple[float, tuple[int, ...]]] = {
+    "1": (1.0, _ONE),
+    "-": (1.0, _ONE),
+    "rad": (1.0, _A),
+    "deg": (math.pi / 180.0, _A),
+    "m": (1.0, _L),
+    "km": (1000.0, _L),
+    "ft": (0.3048, _L),
+    "in": (0.0254, _L),
+    "nmi": (1852.0, _L),
+    "s": (1.0, _T),
+    "sec": (1.0, _T),
+    "min": (60.0, _T),
+    "h": (3600.0, _T),
+    "hr": (3600.0, _T),
+    "kg": (1.0, _M),
+    "slug": (14.5939029372, _M),
+    "lbm": (0.45359237, _M),
+    "n": (1.0, _FORCE),
+    "kn": (1000.0, _FORCE),
+    "lbf": (4.4482216152605, _FORCE),
+    "lb": (4.4482216152605, _FORCE),
+    "pa": (1.0, (-1, 1, -2, 0)),
+    "hpa": (100.0, (-1, 1, -2, 0)),
+    "psf": (47.880258980336, (-1, 1, -2, 0)),
+    "psi": (6894.7572931684, (-1, 1, -2, 0)),
+    "g": (G0, (1, 0, -2, 0)),
+    "kt": (1852.0 / 3600.0, (1, 0, -1, 0)),
+    "kts": (1852.0 / 3600.0, (1, 0, -1, 0)),
+    "knot": (1852.0 / 3600.0, (1, 0, -1, 0)),
+    "kmh": (1.0 / 3.6, (1, 0, -1, 0)),
+    "percent": (0.01, _ONE),
+    "%": (0.01, _ONE),
+}
+_ALIASES = {"degree": "deg", "degrees": "deg", "radian": "rad", "radians": "rad", "meter": "m"}
+
+_TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z%][A-Za-z]*|1|-)(?P<power>(?:\^|\*\*)?-?\d+)?)\s*")
+
+
+class UnitError(InputError):
+    """A unit that cannot be parsed, or a conversion between different dimensions."""
+
+
+def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
+    """(factor to SI, dimension) of a unit string such as ``"deg/s^2"`` or ``"lbf/ft2"``.
+
+    Grammar: ``unit := part (("*" | "/" | ".") part)*``, ``part := NAME [["^" | "**"] INT]``;
+    everything after the first ``/`` divides (``"m/s/s"`` is m·s⁻²). Case is ignored.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise UnitError(f"unit: expected a unit such as 'deg' or 'm/s', got {text!r}")
+    source = text.strip().lower()
+    factor, dimension = 1.0, [0, 0, 0, 0]
+    sign = 1
+    position = 0
+    expect_part = True
+    while position < len(source):
+        if expect_part:
+            match = _TOKEN.match(source, position)
+            if not match or not match.group("name"):
+                raise UnitError(f"unit {text!r}: cannot read a unit name at position {position}")
+            name = _ALIASES.get(match.group("name"), match.group("name"))
+            power_text = match.group("power") or "1"
+            power = int(power_text.lstrip("^*"))
+            if name not in _BASE:
+                raise UnitError(
+                    f"unit {text!r}: unknown unit {name!r}; known: {sorted(_BASE)} "
+                    "(with *, / and powers)"
+                )
+            base_factor, base_dim = _BASE[name]
+            factor *= base_factor ** (sign * power)
+            for k in range(4):
+                dimension[k] += sign * power * base_dim[k]
+            position = match.end()
+            expect_part = False
+        else:
+            char = source[position]
+            if char in "*.":
+                position += 1
+            elif char == "/":
+                sign = -1
+                position += 1
+            elif char.isspace():
+                position += 1
+                continue
+            else:
+                raise UnitError(f"unit {text!r}: unexpected {char!r} at position {position}")
+            expect_part = True
+    if expect_part:
+        raise UnitError(f"unit {text!r}: ends with an operator")
+    return factor, tuple(dimension)
+
+
+def convert_factor(from_unit: str, to_unit: str) -> float:
+    """Multiplier taking values in ``from_unit`` to ``to_unit`` (same dimension required)."""
+    f_from, d_from = parse_unit(from_unit)
+    f_to, d_to = parse_unit(to_unit)
+    if d_from != d_to:
+        raise UnitError(
+            f"unit conversion {from_unit!r} → {to_unit!r}: the units measure different "
+            f"quantities (dimensions L,M,T,angle {d_from} vs {d_to})"
+        )
+    # value_to = value_from · factor_from / factor_to
+    return f_from / f_to
