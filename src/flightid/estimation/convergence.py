@@ -3,6 +3,10 @@
     |ΔJ| ≤ cost_rtol · J + cost_atol                  (|ΔJ/J| < 10⁻³ in the paper)
     |Δθ_j| ≤ param_rtol · max(|θ_j|, typical_j)  ∀ j  (|Δθ_j/θ_j| < 10⁻³; the floor guards θ_j = 0)
 
+A pass may also stop *before* integrating at the new point: when the Gauss–Newton step about
+to be taken meets the parameter test and the cost drop it predicts, ‖AΔθ‖², meets the cost
+test (``step_settled``). Every solver that takes Gauss–Newton steps uses both tests.
+
 ``cost_atol`` (default 0) lets noise-free problems stop once J is negligible, where the
 relative test cannot be met by a quadratically converging method.
 """
@@ -67,6 +71,12 @@ class Convergence:
     def params_settled(self, step: np.ndarray, theta: np.ndarray, typical: np.ndarray) -> bool:
         """|Δθ_j| ≤ param_rtol·max(|θ_j|, typical_j) for every j."""
         return bool(np.all(np.abs(step) <= self.param_rtol * np.maximum(np.abs(theta), typical)))
+
+    def step_settled(self, step, theta: np.ndarray, typical: np.ndarray, cost: float) -> bool:
+        """The next Gauss–Newton step is negligible: parameters and predicted cost drop."""
+        return self.params_settled(step.step, theta, typical) and (
+            step.predicted_reduction <= self.cost_rtol * abs(cost) + self.cost_atol
+        )
 
     def relative_cost_change(self, previous: float, current: float) -> float:
         return abs(previous - current) / max(abs(current), np.finfo(float).tiny)

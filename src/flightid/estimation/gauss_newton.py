@@ -26,6 +26,7 @@ class GaussNewtonStep:
     step: np.ndarray  # Δθ (n_f,), parameter units
     rank: int  # numerical rank of the weighted sensitivity matrix
     condition: float  # condition number of the scaled weighted sensitivities
+    predicted_reduction: float  # J(θ) − J_lin(θ + Δθ), the cost drop the linear model predicts
 
 
 def _weighted(g: np.ndarray, nu: np.ndarray | None, r_diag: np.ndarray):
@@ -59,7 +60,9 @@ def gauss_newton_step(
     coefficients = np.where(keep, (u.T @ b) / np.where(keep, s, 1.0), 0.0)
     step_scaled = vt.T @ coefficients
     condition = float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
-    return GaussNewtonStep(step_scaled * typical, int(keep.sum()), condition)
+    # predicted drop ‖b‖² − ‖b − AΔθ‖² = ‖Uᵀb‖² over the kept directions
+    predicted = float(np.sum(np.where(keep, u.T @ b, 0.0) ** 2))
+    return GaussNewtonStep(step_scaled * typical, int(keep.sum()), condition, predicted)
 
 
 def information_matrix(g: np.ndarray, r_diag: np.ndarray) -> np.ndarray:

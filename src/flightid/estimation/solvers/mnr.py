@@ -53,80 +53,79 @@ class MNR:
     def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
         problem = objective.problem
         conv = objective.convergence
+        g = None  # sensitivities at θ; they do not depend on R, so a new noise cycle reuses them
         if state is not None:
-            theta, outputs = state
+            theta, outputs, g = state
             cost = float(objective.costs_of(outputs)[0])
         else:
             theta = np.array(theta0, dtype=float)
             cost, outputs = objective.evaluate_start(theta)
             objective.record(theta, cost)
+
+        def outcome(iterations, converged, status, message):
+            return SolverOutcome(
+                theta,
+                outputs,
+                cost,
+                iterations,
+                converged,
+                status,
+                message,
+                state=(theta, outputs, g),
+            )
+
         for iteration in range(1, conv.max_iterations + 1):
             if objective.budget_exhausted():
-                return SolverOutcome(
-                    theta,
-                    outputs,
-                    cost,
-                    iteration - 1,
-                    False,
-                    *budget_status(objective),
-                    state=(theta, outputs),
-                )
-            g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
-            nu = problem.residuals(outputs)
-            step = gauss_newton_step(g, nu, objective.r_diag, problem.typical).step
-            accepted = halving_search(objective, theta, cost, step, self.max_halvings)
-            if accepted is None:
-                settled = conv.params_settled(step, theta, problem.typical)
-                status = (
-                    "converged"
-                    if settled
-                    else ("max_evaluations" if objective.budget_exhausted() else "stalled")
-                )
-                message = (
-                    "converged: the Gauss–Newton step is below the parameter tolerance and "
-                    "no shorter step lowers the cost"
-                    if settled
-                    else f"stalled: no step length down to 2^-{self.max_halvings} lowered the cost"
-                )
-                return SolverOutcome(
-                    theta,
-                    outputs,
-                    cost,
+                return outcome(iteration - 1, False, *budget_status(objective))
+            if g is None:
+                g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
+            gn = gauss_newton_step(g, problem.residuals(outputs), objective.r_diag, problem.typical)
+            if conv.step_settled(gn, theta, problem.typical, cost):
+                return outcome(
                     iteration,
-                    settled,
-                    status,
-                    message,
-                    state=(theta, outputs),
+                    True,
+                    "converged",
+                    "converged: the next step and the cost drop it predicts are below tolerance",
+                )
+            accepted = halving_search(objective, theta, cost, gn.step, self.max_halvings)
+            if accepted is None:
+                if conv.params_settled(gn.step, theta, problem.typical):
+                    return outcome(
+                        iteration,
+                        True,
+                        "converged",
+                        "converged: the Gauss–Newton step is below the parameter "
+                        "tolerance and no shorter step lowers the cost",
+                    )
+                if objective.budget_exhausted():
+                    return outcome(iteration, False, *budget_status(objective))
+                return outcome(
+                    iteration,
+                    False,
+                    "stalled",
+                    f"stalled: no step length down to 2^-{self.max_halvings} lowered the cost",
                 )
             new_theta, new_cost, new_outputs, taken = accepted
             relative = conv.relative_cost_change(cost, new_cost)
             settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
                 taken, new_theta, problem.typical
             )
-            theta, cost, outputs = new_theta, new_cost, new_outputs
+            theta, cost, outputs, g = new_theta, new_cost, new_outputs, None
             objective.record(theta, cost)
             noise_settled = objective.maxlik_update(outputs, relative)
             if noise_settled is not None:
                 cost = float(objective.costs_of(outputs)[0])
                 settled = settled and noise_settled
             if settled:
-                return SolverOutcome(
-                    theta,
-                    outputs,
-                    cost,
+                return outcome(
                     iteration,
                     True,
                     "converged",
                     "converged: cost and parameter changes below tolerance",
-                    state=(theta, outputs),
                 )
-        return SolverOutcome(
-            theta,
-            outputs,
-            cost,
+        return outcome(
             conv.max_iterations,
             False,
             "max_iterations",
             f"stopped after {conv.max_iterations} iterations without converging",
-            state=(theta, outputs),
         )

@@ -51,6 +51,7 @@ class _PointSet:
     surface: RecursiveSurface | None = None
     restarts: int = 0
     last_step: np.ndarray | None = field(default=None)
+    fresh: bool = True  # the surface comes from perturbations about the current best point
 
 
 @dataclass(frozen=True)
@@ -217,14 +218,27 @@ class MNRES:
                 g = (slopes / typical[:, None]).T.reshape(
                     problem.n_samples, problem.n_outputs, problem.n_free
                 )
-                step = gauss_newton_step(
-                    g, problem.residuals(outputs), objective.r_diag, typical
-                ).step
+                gn = gauss_newton_step(g, problem.residuals(outputs), objective.r_diag, typical)
+                if conv.step_settled(gn, theta, typical, cost):
+                    return SolverOutcome(
+                        theta,
+                        outputs,
+                        cost,
+                        iteration,
+                        True,
+                        "converged",
+                        "converged: the next step and the cost drop it predicts are below "
+                        "tolerance",
+                        state=state,
+                    )
+                step = gn.step
                 accepted = halving_search(objective, theta, cost, step, self.max_halvings)
             else:
                 step, accepted = None, None
             if accepted is None:
-                if step is not None and conv.params_settled(step, theta, typical):
+                # A surface built from past passes may be stale: only a surface fresh from a
+                # (re)initialisation at this point can declare convergence on a failed step.
+                if step is not None and state.fresh and conv.params_settled(step, theta, typical):
                     return SolverOutcome(
                         theta,
                         outputs,
@@ -267,6 +281,7 @@ class MNRES:
             new_theta, new_cost, new_outputs, taken = accepted
             self._insert(objective, state, new_theta, new_outputs, new_cost, window)
             state.last_step = taken
+            state.fresh = False
             relative = conv.relative_cost_change(cost, new_cost)
             settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
                 taken, new_theta, typical
