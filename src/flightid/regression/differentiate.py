@@ -16,7 +16,7 @@ polynomial fitted to the first/last window is differentiated at the end samples
 Choice of the defaults: order 4, window ≈ 0.4 s of data (21 samples at 50 Hz), at least 7
 samples. Measured on sin(2π f t) sampled at 0.02 s (tests/test_regression_differentiate.py):
 the derivative error, relative to the amplitude 2π f, is below 0.04 % at 0.5 Hz and 0.6 %
-at 1 Hz in the interior (1.5 % at 1 Hz including the end samples), while white noise of
+at 1 Hz in the interior (about 2 % at 1 Hz at the end samples), while white noise of
 standard deviation σ comes out with standard deviation ≈ 0.09 σ/Δt — the same noise
 reduction as a quadratic fit over 0.2 s, whose error at 1 Hz is ten times larger (4.6 %).
 Short-period and Dutch-roll motions of the airplanes here lie well below 1 Hz.
