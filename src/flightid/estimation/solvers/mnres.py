@@ -219,7 +219,10 @@ class MNRES:
                     problem.n_samples, problem.n_outputs, problem.n_free
                 )
                 gn = gauss_newton_step(g, problem.residuals(outputs), objective.r_diag, typical)
-                if conv.step_settled(gn, theta, typical, cost):
+                # The predicted drop is trusted from an interpolating surface (n_f + 1 points)
+                # or a fresh one; a smoothed least-squares plane must prove it with a pass.
+                trusted = state.fresh or state.points.shape[0] == problem.n_free + 1
+                if trusted and conv.step_settled(gn, theta, typical, cost):
                     return SolverOutcome(
                         theta,
                         outputs,
