@@ -652,7 +652,7 @@ def to_flight_data(
         table: the loaded table.
         time: spec of the time column (default column 1), in s after conversion. Time is
             re-gridded as t_0 + k·Δt when the file's stored times are uniform only to
-            within ``1e-4`` relative (single-precision stamps), else ``FlightData`` refuses it.
+            within ``1e-3`` relative (rounded stored stamps), else ``FlightData`` refuses it.
         inputs, outputs: ``{channel: spec}`` (see ``ChannelSpec``).
         name: maneuver label.
         start, stop: keep ``start ≤ t ≤ stop`` (s, in the time column's values).
@@ -689,10 +689,10 @@ def to_flight_data(
         dt = np.diff(t)
     if np.all(dt > 0):
         spread = (dt.max() - dt.min()) / dt.mean()
-        if 0 < spread <= 1e-4:
+        if 0 < spread <= 1e-3:
             # t_k = t_0 + k·Δt with Δt the mean interval (rounded stored stamps)
             t = t[0] + np.arange(t.shape[0]) * float(np.round(dt.mean(), 12))
-        elif spread > 1e-4 and gaps == "error":
+        elif spread > 1e-3 and gaps == "error":
             k = int(np.argmax(dt))
             raise InputError(
                 f"time: {table.source} has a gap or uneven sampling (interval {dt[k]:.6g} s after "

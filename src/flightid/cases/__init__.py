@@ -1,0 +1,25 @@
+"""Case files: a TOML description of an estimation from flight data, checked and run.
+
+from flightid.cases import load_case, run_case
+run = run_case(load_case("examples/cases/hfb320_longitudinal.toml"))
+print(run.estimate.summary())
+"""
+
+from flightid.cases.build import resolve_data_dir
+from flightid.cases.run import CaseRun, Prediction, prepare_case, run_case
+from flightid.cases.spec import Case, CaseError, load_case, parse_case
+from flightid.cases.usermodel import UserModelError, load_user_model
+
+__all__ = [
+    "Case",
+    "CaseError",
+    "CaseRun",
+    "Prediction",
+    "UserModelError",
+    "load_case",
+    "load_user_model",
+    "parse_case",
+    "prepare_case",
+    "resolve_data_dir",
+    "run_case",
+]

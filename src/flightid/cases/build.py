@@ -1,0 +1,425 @@
+"""Build the objects a case describes: maneuvers (FlightData), the model, solver and rules.
+
+Initial states and biases become parameters appended after the model's own, so the model
+functions index θ exactly as they were written:
+
+    x0 of state s in maneuver k:  fixed number, first measured sample, or parameter x0_s[_k]
+    state bias   b_x  (per state s):   ẋ_s = f_s(t, x, u, θ) + b_x,s[k]
+    output bias  b_y  (per output o):  y_o = h_o(t, x, u, θ) + b_y,o[k]
+
+Per-maneuver biases ([_k] suffix, k = 1, 2, ...) see the maneuver through an extra constant
+input channel ``maneuver_number`` (0, 1, ...) added to each maneuver's data.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from flightid.cases.spec import Case, CaseError, ManeuverSpec
+from flightid.cases.usermodel import load_user_model
+from flightid.data.flightdata import FlightData
+from flightid.data.loaders import read_table, to_flight_data
+from flightid.errors import InputError
+from flightid.estimation import FPS, MNR, MNRES, Convergence
+from flightid.model.parameters import Parameter, Parameters
+from flightid.model.statespace import StateSpaceModel
+
+__all__ = [
+    "resolve_data_dir",
+    "load_maneuvers",
+    "base_model",
+    "build_model",
+    "build_solver",
+    "build_convergence",
+    "MANEUVER_CHANNEL",
+]
+
+MANEUVER_CHANNEL = "maneuver_number"
+DEFAULT_DATA_DIR = "../../../shared/data"  # relative to a case in examples/cases
+
+
+def resolve_data_dir(case: Case, override: str | Path | None = None) -> Path:
+    """The data directory: ``override`` (CLI --data-dir), env FLIGHTID_DATA, ``[data].data_dir``
+    relative to the case file, else ``../../../shared/data`` relative to the case file."""
+    if override is not None:
+        return Path(override)
+    if os.environ.get("FLIGHTID_DATA"):
+        return Path(os.environ["FLIGHTID_DATA"])
+    given = case.data.get("data_dir", DEFAULT_DATA_DIR)
+    if not isinstance(given, str):
+        raise CaseError(f"data.data_dir: expected a path string, got {given!r}")
+    path = Path(given)
+    return path if path.is_absolute() else (case.directory / path).resolve()
+
+
+def load_maneuvers(
+    case: Case, data_dir: Path, specs: Sequence[ManeuverSpec] | None = None, key: str = "data"
+) -> list[FlightData]:
+    """Read the case's data files into ``FlightData`` (one per maneuver)."""
+    specs = case.maneuvers if specs is None else specs
+    maneuvers = []
+    for i, spec in enumerate(specs):
+        path = Path(spec.file)
+        path = path if path.is_absolute() else data_dir / path
+        where = f"{key} (maneuver {i + 1} '{spec.name}', {path})"
+        try:
+            table = read_table(path, spec.format, variable=spec.variable)
+            data = to_flight_data(
+                table,
+                time=case.data.get("time", 1),
+                inputs=case.data.get("inputs"),
+                outputs=case.data.get("outputs"),
+                name=spec.name,
+                start=spec.start,
+                stop=spec.stop,
+                gaps=spec.gaps,
+            )
+        except InputError as exc:
+            raise CaseError(f"{where}: {exc}") from None
+        maneuvers.append(data)
+    return maneuvers
+
+
+# ------------------------------------------------------------------------------ base model
+
+
+def base_model(case: Case) -> tuple[StateSpaceModel, str]:
+    """The model before case parameters, x0 and biases: (model, description)."""
+    spec = case.model
+    if "module" in spec:
+        path = Path(spec["module"])
+        path = path if path.is_absolute() else case.directory / path
+        user = load_user_model(path)
+        parameters = Parameters(user.parameters)
+        model = StateSpaceModel(
+            user.states,
+            user.inputs,
+            user.outputs,
+            user.f,
+            user.h,
+            parameters,
+            x0=(0.0,) * len(user.states),
+            name=spec.get("name", path.stem),
+        )
+        return model, f"user module {path.name}"
+    return _builtin_model(case), f"built-in {spec['type']} airplane model"
+
+
+def _builtin_model(case: Case) -> StateSpaceModel:
+    from flightid import aircraft
+
+    spec = case.model
+    try:
+        airplane = aircraft.Airplane(**dict(spec["airplane"]))
+    except TypeError as exc:
+        raise CaseError(f"model.airplane: {exc}") from None
+    except InputError as exc:
+        raise CaseError(f"model.airplane: {exc}") from None
+    aero_spec = {}
+    for coefficient, terms in spec["aero"].items():
+        if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+            raise CaseError(f"model.aero.{coefficient}: expected a list of terms like 'alpha'")
+        aero_spec[coefficient] = terms
+    try:
+        aero = aircraft.AeroModel(aero_spec)
+    except InputError as exc:
+        raise CaseError(f"model.aero: {exc}") from None
+    builder = {
+        "wind_axis_longitudinal": aircraft.wind_axis_longitudinal_model,
+        "longitudinal": aircraft.longitudinal_model,
+        "lateral": aircraft.lateral_model,
+        "six_dof": aircraft.six_dof_model,
+    }[spec["type"]]
+    kwargs: dict[str, Any] = {}
+    for key in ("controls", "outputs"):
+        if key in spec:
+            if not isinstance(spec[key], list):
+                raise CaseError(f"model.{key}: expected a list of names")
+            kwargs[key] = spec[key]
+    try:
+        return builder(airplane, aero, aero.parameters(), name=spec.get("name"), **kwargs)
+    except InputError as exc:
+        raise CaseError(f"model: {exc}") from None
+
+
+# ------------------------------------------------------------------------------ parameters
+
+
+def _apply_parameters(parameters: Parameters, section: Mapping[str, Any]) -> list[Parameter]:
+    items = {p.name: p for p in parameters}
+    for name, value in section.items():
+        if name not in items:
+            raise CaseError(
+                f"parameters.{name}: not a parameter of the model; its parameters: "
+                f"{parameters.names}"
+            )
+        settings = dict(value) if isinstance(value, Mapping) else {"value": value}
+        try:
+            items[name] = replace(items[name], **{k: v for k, v in settings.items()})
+        except InputError as exc:
+            raise CaseError(f"parameters.{name}: {exc}") from None
+    return list(items.values())
+
+
+def _first_measured(maneuver: FlightData, channel: str, where: str) -> float:
+    if channel not in maneuver.input_names and channel not in maneuver.output_names:
+        raise CaseError(
+            f"{where}: 'measured' needs a data channel named {channel!r} in maneuver "
+            f"'{maneuver.name}' (set channel = '...' to use another)"
+        )
+    return float(maneuver.channel(channel)[0])
+
+
+def _initial_states(
+    model: StateSpaceModel,
+    section: Mapping[str, Any],
+    maneuvers: Sequence[FlightData],
+    key: str,
+    allow_estimate: bool = True,
+) -> tuple[list[list], list[Parameter]]:
+    """Per-maneuver x0 specifications and the x0 parameters they need."""
+    unknown = sorted(set(section) - set(model.states) - {"default"})
+    if unknown:
+        raise CaseError(
+            f"{key}.{unknown[0]}: not a state of the model; states: {list(model.states)}"
+        )
+    n_m = len(maneuvers)
+    x0 = [[None] * len(model.states) for _ in range(n_m)]
+    extra: list[Parameter] = []
+    for j, state in enumerate(model.states):
+        where = f"{key}.{state}"
+        value = section.get(state, section.get("default", "measured"))
+        spec = dict(value) if isinstance(value, Mapping) else {"value": value}
+        allowed = {"value", "free", "channel", "scale"}
+        if set(spec) - allowed:
+            raise CaseError(
+                f"{where}: unknown key(s) {sorted(set(spec) - allowed)}; allowed: {sorted(allowed)}"
+            )
+        start = spec.get("value", "measured")
+        free = spec.get("free", False)
+        if start == "estimate":
+            start, free = "measured", True
+        if not isinstance(free, bool):
+            raise CaseError(f"{where}.free: expected true or false")
+        if free and not allow_estimate:
+            raise CaseError(f"{where}: initial states of predicted maneuvers cannot be estimated")
+        channel = spec.get("channel", state)
+        if isinstance(start, list):
+            if len(start) != n_m:
+                raise CaseError(
+                    f"{where}: a list needs one value per maneuver ({n_m}), got {len(start)}"
+                )
+            values = [float(_num(v, f"{where}[{k}]")) for k, v in enumerate(start)]
+        elif start == "measured":
+            values = [_first_measured(m, channel, where) for m in maneuvers]
+        elif isinstance(start, str):
+            raise CaseError(
+                f"{where}: expected a number, a list, 'measured' or 'estimate', got {start!r}"
+            )
+        else:
+            values = [_num(start, where)] * n_m
+        for k, v in enumerate(values):
+            if free:
+                name = f"x0_{state}" if n_m == 1 else f"x0_{state}_{k + 1}"
+                extra.append(Parameter(name, v, free=True, scale=spec.get("scale")))
+                x0[k][j] = name
+            else:
+                x0[k][j] = v
+    return x0, extra
+
+
+def _num(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CaseError(f"{where}: expected a number, got {value!r}")
+    return float(value)
+
+
+def _biases(
+    model: StateSpaceModel, biases: Mapping[str, Mapping[str, Any]], n_m: int
+) -> tuple[np.ndarray, np.ndarray, list[Parameter], bool]:
+    """Index maps (n_m, n_x), (n_m, n_o) into the full θ (−1: no bias) and new parameters."""
+    n_base = len(model.parameters)
+    bx = -np.ones((n_m, len(model.states)), dtype=np.int64)
+    by = -np.ones((n_m, len(model.outputs)), dtype=np.int64)
+    extra: list[Parameter] = []
+    per_maneuver_any = False
+    for kind, names, table, prefix in (
+        ("states", model.states, bx, "bx"),
+        ("outputs", model.outputs, by, "by"),
+    ):
+        for name, value in biases.get(kind, {}).items():
+            where = f"biases.{kind}.{name}"
+            if name not in names:
+                raise CaseError(f"{where}: not one of the model's {kind} {list(names)}")
+            spec = dict(value) if isinstance(value, Mapping) else {"value": value}
+            per = bool(spec.get("per_maneuver", False)) and n_m > 1
+            per_maneuver_any |= per
+            j = names.index(name)
+            for k in range(n_m if per else 1):
+                pname = f"{prefix}_{name}" + (f"_{k + 1}" if per else "")
+                extra.append(
+                    Parameter(
+                        pname,
+                        float(spec.get("value", 0.0)),
+                        free=bool(spec.get("free", True)),
+                        scale=spec.get("scale"),
+                    )
+                )
+                index = n_base + len(extra) - 1
+                if per:
+                    table[k, j] = index
+                else:
+                    table[:, j] = index
+    return bx, by, extra, per_maneuver_any
+
+
+def _compiles(fn, n_x: int, n_u: int, n_p: int) -> bool:
+    """True if numba compiles ``fn`` (tried on zeros)."""
+    try:
+        import numba
+
+        jitted = fn if hasattr(fn, "py_func") else numba.njit(cache=False)(fn)
+        jitted(0.0, np.zeros(n_x), np.zeros(n_u), np.zeros(n_p))
+        return True
+    except Exception:  # numba typing errors have many classes; a wrong model fails later
+        return False
+
+
+def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
+    """f, h with the state and output biases added (numba-compilable closures)."""
+    if compiled:
+        import numba
+
+        f = f if hasattr(f, "py_func") else numba.njit(cache=False)(f)
+        h = h if hasattr(h, "py_func") else numba.njit(cache=False)(h)
+
+    def f_biased(t, x, u, theta):
+        m = int(u[n_u] + 0.5) if per_maneuver else 0
+        dx = f(t, x, u[:n_u], theta)
+        out = np.empty(n_x)
+        for j in range(n_x):
+            # ẋ_j = f_j + b_x,j
+            out[j] = dx[j] + (theta[bx[m, j]] if bx[m, j] >= 0 else 0.0)
+        return out
+
+    def h_biased(t, x, u, theta):
+        m = int(u[n_u] + 0.5) if per_maneuver else 0
+        y = h(t, x, u[:n_u], theta)
+        out = np.empty(n_y)
+        for j in range(n_y):
+            # y_j = h_j + b_y,j
+            out[j] = y[j] + (theta[by[m, j]] if by[m, j] >= 0 else 0.0)
+        return out
+
+    return f_biased, h_biased
+
+
+def build_model(
+    case: Case,
+    maneuvers: Sequence[FlightData],
+    *,
+    base: StateSpaceModel | None = None,
+    initial_state: Mapping[str, Any] | None = None,
+    values: Mapping[str, float] | None = None,
+    key: str = "initial_state",
+) -> tuple[StateSpaceModel, list[FlightData]]:
+    """The case's model for these maneuvers, and the maneuvers (with the maneuver-number
+    channel added when per-maneuver biases need it).
+
+    ``values`` (name → value) replaces parameter values afterwards (prediction with estimates).
+    """
+    base = base_model(case)[0] if base is None else base
+    params = _apply_parameters(base.parameters, case.parameters)
+    n_m = len(maneuvers)
+    bx, by, bias_params, per_maneuver = _biases(base, case.biases, n_m)
+    section = case.initial_state if initial_state is None else initial_state
+    x0, x0_params = _initial_states(base, section, maneuvers, key, allow_estimate=values is None)
+    try:
+        parameters = Parameters(params + bias_params + x0_params)
+    except InputError as exc:
+        raise CaseError(f"parameters: {exc}") from None
+    f, h, inputs = base.f, base.h, base.inputs
+    if bias_params:
+        n_u = len(base.inputs)
+        compiled = case.estimation.get("compiled", True) and all(
+            _compiles(fn, len(base.states), n_u, len(base.parameters)) for fn in (base.f, base.h)
+        )
+        f, h = _biased_functions(
+            base.f,
+            base.h,
+            len(base.states),
+            len(base.outputs),
+            n_u,
+            bx,
+            by,
+            per_maneuver,
+            compiled,
+        )
+        if per_maneuver:
+            inputs = (*base.inputs, MANEUVER_CHANNEL)
+            maneuvers = [_with_maneuver_channel(m, k) for k, m in enumerate(maneuvers)]
+    if values is not None:
+        parameters = parameters.with_values({k: v for k, v in values.items() if k in parameters})
+    try:
+        model = StateSpaceModel(
+            base.states, inputs, base.outputs, f, h, parameters, x0=x0, name=base.name
+        )
+    except InputError as exc:
+        raise CaseError(f"model: {exc}") from None
+    _check_channels(model, maneuvers)
+    return model, list(maneuvers)
+
+
+def _with_maneuver_channel(maneuver: FlightData, k: int) -> FlightData:
+    inputs = {n: maneuver.input(n) for n in maneuver.input_names}
+    inputs[MANEUVER_CHANNEL] = np.full(maneuver.n_samples, float(k))
+    outputs = {n: maneuver.output(n) for n in maneuver.output_names}
+    return FlightData(maneuver.time, inputs, outputs, units=maneuver.units, name=maneuver.name)
+
+
+def _check_channels(model: StateSpaceModel, maneuvers: Sequence[FlightData]) -> None:
+    for maneuver in maneuvers:
+        channels = set(maneuver.input_names) | set(maneuver.output_names)
+        missing_in = [n for n in model.inputs if n not in channels]
+        if missing_in:
+            raise CaseError(
+                f"data.inputs: the model needs input channel(s) {missing_in}; the case defines "
+                f"{sorted(channels)}"
+            )
+        missing_out = [n for n in model.outputs if n not in maneuver.output_names]
+        if missing_out:
+            raise CaseError(
+                f"data.outputs: the model's outputs {missing_out} are not measured output "
+                f"channels; data.outputs has {list(maneuver.output_names)}"
+            )
+
+
+# ------------------------------------------------------------------------------ estimation
+
+
+def build_solver(case: Case) -> MNRES | MNR | FPS:
+    name = case.estimation.get("solver", "mnres")
+    cls = {"mnres": MNRES, "mnr": MNR, "fps": FPS}[name]
+    settings = dict(case.estimation.get("solver_settings", {}))
+    try:
+        return cls(**settings)
+    except TypeError as exc:
+        raise CaseError(f"estimation.solver_settings: {exc} (solver {name})") from None
+    except InputError as exc:
+        raise CaseError(f"estimation.solver_settings: {exc}") from None
+
+
+def build_convergence(case: Case) -> Convergence:
+    settings = dict(case.estimation.get("convergence", {}))
+    try:
+        return Convergence(**settings)
+    except TypeError as exc:
+        raise CaseError(f"estimation.convergence: {exc}") from None
+    except InputError as exc:
+        raise CaseError(f"estimation.convergence: {exc}") from None

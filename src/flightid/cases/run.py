@@ -1,0 +1,235 @@
+"""Run a case: load data, build the model, estimate, predict other maneuvers.
+
+Prediction check (verification on data not used for estimation): the estimated model is
+simulated on each prediction maneuver (initial states at the first measured values unless
+``[prediction.initial_state]`` says otherwise) and compared per output:
+
+    RMS error   e_o = √( (1/N) Σ_i (z_io − y_io)² )
+    R²_o        = 1 − Σ_i (z_io − y_io)² / Σ_i (z_io − z̄_o)²
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from flightid.cases.build import (
+    base_model,
+    build_convergence,
+    build_model,
+    build_solver,
+    load_maneuvers,
+    resolve_data_dir,
+)
+from flightid.cases.spec import Case, CaseError
+from flightid.data.flightdata import FlightData
+from flightid.errors import SimulationError
+from flightid.estimation import Estimate, estimate
+from flightid.model.statespace import StateSpaceModel
+from flightid.simulate import simulate
+
+__all__ = ["CaseRun", "Prediction", "prepare_case", "run_case"]
+
+Progress = Callable[[str], None]
+
+
+def stderr_progress(message: str) -> None:
+    print(f"flightid: {message}", file=sys.stderr, flush=True)
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Measured and predicted outputs of one prediction maneuver, with fit numbers."""
+
+    name: str
+    time: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    output_names: tuple[str, ...]
+    rms: np.ndarray
+    r2: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {
+            "maneuver": self.name,
+            "samples": int(self.time.shape[0]),
+            "outputs": list(self.output_names),
+            "rms_error": [float(v) for v in self.rms],
+            "r2": [float(v) for v in self.r2],
+        }
+
+
+@dataclass(frozen=True)
+class CaseRun:
+    """Everything a run produced."""
+
+    case: Case
+    data_dir: Path
+    model: StateSpaceModel
+    maneuvers: tuple[FlightData, ...]
+    estimate: Estimate
+    predictions: tuple[Prediction, ...] = field(default_factory=tuple)
+    model_description: str = ""
+
+    def to_dict(self) -> dict:
+        """The core's JSON entry, plus ``case``, ``maneuvers`` and ``prediction``."""
+        entry = self.estimate.to_dict()
+        entry["case"] = {
+            "title": self.case.title,
+            "file": str(self.case.path),
+            "model": self.model_description,
+        }
+        entry["maneuvers"] = [
+            {"name": m.name, "samples": m.n_samples, "dt": m.dt} for m in self.maneuvers
+        ]
+        entry["prediction"] = [p.to_dict() for p in self.predictions]
+        return entry
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A case ready to estimate (``flightid validate`` stops here)."""
+
+    case: Case
+    data_dir: Path
+    model: StateSpaceModel
+    maneuvers: tuple[FlightData, ...]
+    prediction_maneuvers: tuple[FlightData, ...]
+    base: StateSpaceModel
+    model_description: str
+
+
+def prepare_case(case: Case, data_dir: str | Path | None = None) -> Prepared:
+    """Load all data and build the model, solver and rules (raises ``CaseError``)."""
+    directory = resolve_data_dir(case, data_dir)
+    if not directory.is_dir():
+        raise CaseError(
+            f"data.data_dir: the data directory {directory} does not exist (set data.data_dir, "
+            "FLIGHTID_DATA or --data-dir)"
+        )
+    maneuvers = load_maneuvers(case, directory)
+    base, description = base_model(case)
+    model, maneuvers = build_model(case, maneuvers, base=base)
+    build_solver(case)
+    build_convergence(case)
+    r = case.estimation.get("R")
+    if r is not None and len(r) != len(model.outputs):
+        raise CaseError(
+            f"estimation.R: {len(r)} variances for {len(model.outputs)} outputs "
+            f"{list(model.outputs)}"
+        )
+    prediction = (
+        load_maneuvers(case, directory, case.prediction, key="prediction")
+        if case.prediction
+        else []
+    )
+    per_maneuver = [
+        v
+        for kind in ("states", "outputs")
+        for v in case.biases.get(kind, {}).values()
+        if isinstance(v, dict) and v.get("per_maneuver")
+    ]
+    if prediction and per_maneuver:
+        raise CaseError("prediction: not available with per-maneuver biases")
+    return Prepared(case, directory, model, tuple(maneuvers), tuple(prediction), base, description)
+
+
+def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
+    case = prepared.case
+    values = dict(zip(result.names, result.values, strict=True))
+    predictions = []
+    for maneuver in prepared.prediction_maneuvers:
+        model, (data,) = build_model(
+            case,
+            [maneuver],
+            base=prepared.base,
+            initial_state=case.prediction_initial_state,
+            values=values,
+            key="prediction.initial_state",
+        )
+        try:
+            y = simulate(model, data, method=case.estimation.get("method", "rk4"))
+        except SimulationError as exc:
+            raise CaseError(f"prediction ({maneuver.name}): {exc}") from None
+        z = np.column_stack([data.output(n) for n in model.outputs])
+        residual = z - y
+        # RMS error and R² per output
+        rms = np.sqrt(np.mean(residual**2, axis=0))
+        total = np.sum((z - z.mean(axis=0)) ** 2, axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r2 = 1.0 - np.sum(residual**2, axis=0) / total
+        predictions.append(
+            Prediction(maneuver.name, data.time, z, y, tuple(model.outputs), rms, r2)
+        )
+    return predictions
+
+
+def run_case(
+    case: Case,
+    data_dir: str | Path | None = None,
+    progress: Progress | None = None,
+    heartbeat_s: float = 5.0,
+) -> CaseRun:
+    """Prepare, estimate and predict; ``progress`` receives one-line messages."""
+    say = progress or (lambda message: None)
+    started = _time.perf_counter()
+    say(f"case {case.title!r}: loading data and building the model")
+    prepared = prepare_case(case, data_dir)
+    model = prepared.model
+    say(
+        f"{len(prepared.maneuvers)} maneuver(s), {sum(m.n_samples for m in prepared.maneuvers)} "
+        f"samples; {len(model.parameters.free_names)} free parameters; "
+        f"solver {case.estimation.get('solver', 'mnres')}, noise "
+        f"{case.estimation.get('noise', 'max')}"
+    )
+    done = threading.Event()
+
+    def heartbeat() -> None:
+        while not done.wait(heartbeat_s):
+            say(f"estimating ... {_time.perf_counter() - started:.0f} s")
+
+    thread = None
+    if progress is not None:
+        thread = threading.Thread(target=heartbeat, daemon=True)
+        thread.start()
+    try:
+        result = estimate(
+            model,
+            list(prepared.maneuvers),
+            solver=build_solver(case),
+            method=case.estimation.get("method", "rk4"),
+            noise=case.estimation.get("noise", "max"),
+            R=case.estimation.get("R"),
+            convergence=build_convergence(case),
+            compiled=bool(case.estimation.get("compiled", True)),
+        )
+    finally:
+        done.set()
+        if thread is not None:
+            thread.join()
+    say(
+        f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "
+        f"evaluations, cost {result.cost:.6g}, {result.wall_time_s:.1f} s"
+    )
+    predictions = _predict(prepared, result) if prepared.prediction_maneuvers else []
+    for p in predictions:
+        numbers = ", ".join(
+            f"{n}: RMS {e:.4g}, R² {r:.3f}"
+            for n, e, r in zip(p.output_names, p.rms, p.r2, strict=True)
+        )
+        say(f"prediction on {p.name}: {numbers}")
+    return CaseRun(
+        case,
+        prepared.data_dir,
+        model,
+        prepared.maneuvers,
+        result,
+        tuple(predictions),
+        prepared.model_description,
+    )
