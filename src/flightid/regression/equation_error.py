@@ -230,8 +230,8 @@ def equation_error_signals(
     Recognised channel names (SI or ft units, angles rad, rates rad/s, accelerations g):
     ``V, alpha, beta, p, q, r, pdot, qdot, rdot, ax, ay, az, qbar`` and any control
     (``de``, ``da``, ``dr``, ...), which is passed through. Returns the input channels plus
-    CX, CY, CZ (from the accelerations present), Cl, Cm, Cn (from the rates present) and
-    phat, qhat, rhat.
+    CX, CY, CZ (from the accelerations present), Cm (from q), Cl and Cn (when p and r are
+    present and ṗ, ṙ are measured or ``dt`` is given to differentiate) and phat, qhat, rhat.
     """
     signals = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
     if "qbar" not in signals:
@@ -249,7 +249,9 @@ def equation_error_signals(
         zeros = np.zeros_like(rates[1])
         p = rates[0] if rates[0] is not None else zeros
         r = rates[2] if rates[2] is not None else zeros
-        which = ("Cm",) if rates[0] is None and rates[2] is None else ("Cl", "Cm", "Cn")
+        lateral = rates[0] is not None and rates[2] is not None
+        lateral = lateral and (dt is not None or ("pdot" in signals and "rdot" in signals))
+        which = ("Cl", "Cm", "Cn") if lateral else ("Cm",)
         signals.update(
             moment_coefficients(
                 p,
