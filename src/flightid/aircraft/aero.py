@@ -1,0 +1,235 @@
+"""Aerodynamic models linear in their parameters, written the way an engineer writes them.
+
+Each aerodynamic coefficient is a sum of named derivatives times regressors [RP-1153 2.16–2.18]:
+
+    C(t) = θ0 + θ1 x1(t) + … + θ_{n−1} x_{n−1}(t)
+
+where every regressor x_j is a term of the ``flightid.model.terms`` language — a product of
+signal powers such as ``"beta"``, ``"alpha*phat"``, ``"beta^3"``, ``"alpha*dr"`` or the
+constant ``"1"`` — built from states, inputs and the non-dimensional rates
+p̂ = p b / 2V, q̂ = q c̄ / 2V, r̂ = r b / 2V.
+
+Coefficients (body axes, stability axes):
+
+    CX, CY, CZ  force coefficients along body x, y, z
+    CD, CL      drag and lift (may replace CX, CZ; converted with α, RP-1153 2.15)
+    Cl, Cm, Cn  rolling, pitching and yawing moment coefficients
+
+Parameter names follow NASA notation: coefficient, underscore, the term's signals joined by
+underscores with powers appended — ``Cl`` × ``"beta"`` → ``Cl_beta`` (C_lβ),
+``CY`` × ``"alpha*beta"`` → ``CY_alpha_beta`` (C_Yαβ), ``CY`` × ``"beta^3"`` → ``CY_beta3``
+(C_Yβ³), ``Cn`` × ``"1"`` → ``Cn_0``.
+
+Inside the compiled equations of motion the model is carried as numeric tables
+(``AeroTables``): for every term the coefficient it belongs to, the index of its parameter in
+the full parameter vector θ, and its factors (signal index, power). No Python object reaches
+the compiled functions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightid.errors import InputError, InputTypeError, describe
+from flightid.model.parameters import Parameter, Parameters
+from flightid.model.terms import Term, TermError, parse_terms
+
+__all__ = ["AeroModel", "AeroTables", "COEFFICIENTS", "parameter_name"]
+
+# Order of the coefficient vector inside the compiled equations.
+COEFFICIENTS = ("CX", "CY", "CZ", "CD", "CL", "Cl", "Cm", "Cn")
+
+
+def parameter_name(coefficient: str, term: Term) -> str:
+    """NASA-style parameter name, e.g. ("Cl", alpha*phat) → "Cl_alpha_phat"; constant → "Cl_0"."""
+    if term.is_constant:
+        return f"{coefficient}_0"
+    parts = [name if power == 1 else f"{name}{power}" for name, power in term.factors]
+    return f"{coefficient}_" + "_".join(parts)
+
+
+@dataclass(frozen=True)
+class AeroTables:
+    """Numeric form of an ``AeroModel`` for the compiled equations (all int64 / float64).
+
+    term_coef[k]     index into ``COEFFICIENTS`` of term k's coefficient
+    term_param[k]    index of term k's parameter in the full parameter vector θ
+    factor_start     factors of term k are entries factor_start[k] : factor_start[k+1]
+    factor_signal    signal index of each factor
+    factor_power     integer power of each factor
+    """
+
+    term_coef: np.ndarray
+    term_param: np.ndarray
+    factor_start: np.ndarray
+    factor_signal: np.ndarray
+    factor_power: np.ndarray
+
+
+class AeroModel:
+    """Per-coefficient lists of regressor terms, linear in the parameters.
+
+    Args:
+        coefficients: mapping ``{coefficient: [term, ...]}``, e.g.
+            ``{"Cl": ["1", "beta", "phat", "rhat", "da", "dr", "alpha*phat"]}``; terms are
+            strings of the term language or ``Term`` objects.
+
+    Raises:
+        InputError: unknown coefficient, CX/CZ mixed with CD/CL, or an empty term list.
+        TermError: a malformed or repeated term.
+    """
+
+    def __init__(self, coefficients: Mapping[str, Sequence[str | Term]]) -> None:
+        if not isinstance(coefficients, Mapping):
+            raise InputTypeError(
+                "coefficients: expected a mapping {coefficient: [terms]}, "
+                f"got {describe(coefficients)}"
+            )
+        parsed: dict[str, tuple[Term, ...]] = {}
+        for name, terms in coefficients.items():
+            if name not in COEFFICIENTS:
+                raise InputError(
+                    f"coefficients: unknown coefficient {name!r}; expected one of {COEFFICIENTS}"
+                )
+            if isinstance(terms, str):
+                raise InputTypeError(
+                    f"coefficients[{name!r}]: expected a list of terms, got the string {terms!r}"
+                )
+            texts = [t.label if isinstance(t, Term) else t for t in terms]
+            if not texts:
+                raise InputError(f"coefficients[{name!r}]: expected at least one term, got none")
+            parsed[name] = tuple(parse_terms(texts))
+        body = {"CX", "CZ"} & set(parsed)
+        wind = {"CD", "CL"} & set(parsed)
+        if body and wind:
+            raise InputError(
+                f"coefficients: give the longitudinal forces either in body axes (CX, CZ) or as "
+                f"drag and lift (CD, CL), not both; got {sorted(body | wind)}"
+            )
+        self._terms = parsed
+
+    # ------------------------------------------------------------------ views
+    @property
+    def coefficients(self) -> tuple[str, ...]:
+        return tuple(self._terms)
+
+    def terms(self, coefficient: str) -> tuple[Term, ...]:
+        if coefficient not in self._terms:
+            raise KeyError(
+                f"no coefficient {coefficient!r} in this model; it has {list(self._terms)}"
+            )
+        return self._terms[coefficient]
+
+    @property
+    def parameter_names(self) -> list[str]:
+        """Parameter names in model order (coefficients as given, terms as given)."""
+        return [parameter_name(c, t) for c, terms in self._terms.items() for t in terms]
+
+    @property
+    def signals(self) -> tuple[str, ...]:
+        """Names of all signals the terms use, in first-use order."""
+        seen: dict[str, None] = {}
+        for terms in self._terms.values():
+            for term in terms:
+                for name in term.signals:
+                    seen.setdefault(name, None)
+        return tuple(seen)
+
+    @property
+    def spec(self) -> dict[str, list[str]]:
+        """The model as ``{coefficient: [term text, ...]}`` (canonical term labels)."""
+        return {c: [t.label for t in terms] for c, terms in self._terms.items()}
+
+    def __add__(self, other: AeroModel) -> AeroModel:
+        """Union of two models with different coefficients (e.g. longitudinal + lateral)."""
+        if not isinstance(other, AeroModel):
+            return NotImplemented
+        shared = sorted(set(self._terms) & set(other._terms))
+        if shared:
+            raise InputError(f"aero models: both define the coefficients {shared}")
+        return AeroModel({**self.spec, **other.spec})
+
+    def __repr__(self) -> str:
+        inner = "; ".join(
+            f"{c} = "
+            + " + ".join(parameter_name(c, t) + ("" if t.is_constant else f"·{t}") for t in terms)
+            for c, terms in self._terms.items()
+        )
+        return f"AeroModel({inner})"
+
+    # ------------------------------------------------------------------ parameters
+    def parameters(
+        self,
+        values: Mapping[str, float] | None = None,
+        *,
+        fixed: Sequence[str] = (),
+        scales: Mapping[str, float] | None = None,
+    ) -> Parameters:
+        """``Parameters`` for this model: values default to 0, all free except ``fixed``."""
+        names = self.parameter_names
+        values = dict(values or {})
+        scales = dict(scales or {})
+        for argument, given in (("values", values), ("scales", scales), ("fixed", fixed)):
+            unknown = sorted(set(given) - set(names))
+            if unknown:
+                raise InputError(
+                    f"{argument}: unknown parameter names {unknown}; this model's parameters: "
+                    f"{names}"
+                )
+        return Parameters(
+            Parameter(n, float(values.get(n, 0.0)), free=n not in fixed, scale=scales.get(n))
+            for n in names
+        )
+
+    # ------------------------------------------------------------------ numeric forms
+    def tables(self, signal_names: Sequence[str], parameters: Parameters) -> AeroTables:
+        """Numeric tables against a signal list and the model's full parameter vector."""
+        signal_index = {name: i for i, name in enumerate(signal_names)}
+        term_coef, term_param, start = [], [], [0]
+        factor_signal, factor_power = [], []
+        for coefficient, terms in self._terms.items():
+            for term in terms:
+                pname = parameter_name(coefficient, term)
+                if pname not in parameters:
+                    raise InputError(
+                        f"parameters: the aerodynamic model needs a parameter {pname!r}; "
+                        f"got {parameters.names}"
+                    )
+                for name, power in term.factors:
+                    if name not in signal_index:
+                        raise TermError(
+                            f"coefficient {coefficient!r}, term {term.label!r}: unknown signal "
+                            f"{name!r}; available signals: {list(signal_names)}"
+                        )
+                    factor_signal.append(signal_index[name])
+                    factor_power.append(power)
+                term_coef.append(COEFFICIENTS.index(coefficient))
+                term_param.append(parameters.index(pname))
+                start.append(len(factor_signal))
+        as_int = lambda v: np.array(v, dtype=np.int64)  # noqa: E731
+        return AeroTables(
+            as_int(term_coef),
+            as_int(term_param),
+            as_int(start),
+            as_int(factor_signal),
+            as_int(factor_power),
+        )
+
+    def regressors(self, coefficient: str, signals: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Regressor matrix (N, n_terms) of one coefficient from signal time histories."""
+        terms = self.terms(coefficient)
+        n = len(next(iter(signals.values()))) if signals else 0
+        return np.column_stack([t.evaluate(signals, n) for t in terms])
+
+    def evaluate(
+        self, signals: Mapping[str, np.ndarray], values: Mapping[str, float]
+    ) -> dict[str, np.ndarray]:
+        """Coefficient time histories {coefficient: C(t)} for parameter values by name."""
+        out = {}
+        for coefficient, terms in self._terms.items():
+            theta = np.array([values[parameter_name(coefficient, t)] for t in terms])
+            out[coefficient] = self.regressors(coefficient, signals) @ theta
+        return out

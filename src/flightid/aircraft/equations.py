@@ -1,0 +1,227 @@
+"""Rigid-body equations of motion of an airplane, in a form numba compiles and Python runs.
+
+Body axes, rigid body, XZ plane of symmetry, no spinning rotors, flat non-rotating earth
+[RP-1153 2.5–2.15]. The attitude is carried by the three direction cosines of the body axes
+with respect to the local vertical,
+
+    l_xz = −sin Θ,   l_yz = sin Φ cos Θ,   l_zz = cos Φ cos Θ,
+
+and the body state is X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) (m/s, rad/s, –). With
+q̄ = ½ρV², F = (X, Y, Z) the aerodynamic plus thrust force and (L, M, N) the moments:
+
+    du/dt = −q w + r v + g l_xz + X/m                                   [2.5]
+    dv/dt = −r u + p w + g l_yz + Y/m                                   [2.6]
+    dw/dt = −p v + q u + g l_zz + Z/m                                   [2.7]
+    dp/dt = (I_z F1 + I_xz F2)/Γ                                        [2.8]
+    dq/dt = ((I_z − I_x) p r + I_xz (r² − p²) + M)/I_y                  [2.9]
+    dr/dt = (I_xz F1 + I_x F2)/Γ                                        [2.10]
+    F1 = (I_y − I_z) q r + I_xz p q + L,   F2 = (I_x − I_y) p q − I_xz q r + N
+    Γ = I_x I_z − I_xz²
+    dl_xz/dt = r l_yz − q l_zz                                          [2.11]
+    dl_yz/dt = −r l_xz + p l_zz                                         [2.12]
+    dl_zz/dt = q l_xz − p l_yz                                          [2.13]
+
+Forces from the coefficients, thrust T inclined α_T above the body x axis [2.14–2.15]:
+
+    X = q̄ S (C_X + C_L sin α − C_D cos α) + T cos α_T
+    Y = q̄ S C_Y
+    Z = q̄ S (C_Z − C_L cos α − C_D sin α) − T sin α_T
+    L = q̄ S b C_l,   M = q̄ S c̄ C_m,   N = q̄ S b C_n
+
+(a model gives either C_X, C_Z or C_D, C_L; the absent ones are zero).
+
+Outputs [2.19–2.26]: V = √(u²+v²+w²), α = atan(w/u), β = asin(v/V), Θ = asin(−l_xz),
+Φ = atan(l_yz/l_zz) (four-quadrant), a_x,y,z = (X, Y, Z)/(m g) in g units, p, q, r.
+
+Wind-axis longitudinal form (states V, α, Θ, q; β = Φ = p = r = 0), obtained from the body
+equations with u = V cos α, w = V sin α:
+
+    dV/dt = (X cos α + Z sin α)/m − g sin(Θ − α)
+    dα/dt = q + (Z cos α − X sin α)/(m V) + g cos(Θ − α)/V
+    dΘ/dt = q
+    dq/dt = M / I_y
+
+Every function here is decorated with ``register_jitable``: called from Python it is plain
+Python, called from a numba-compiled model function it is compiled inline.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba.extending import register_jitable
+
+__all__ = [
+    "SIGNALS",
+    "BODY_STATES",
+    "OUTPUTS",
+    "CONSTANTS",
+    "signals_from_body",
+    "aero_coefficients",
+    "forces_and_moments",
+    "rigid_body_derivatives",
+    "body_outputs",
+    "wind_axis_derivatives",
+]
+
+# Body state X, in order.
+BODY_STATES = ("u", "v", "w", "p", "q", "r", "l_xz", "l_yz", "l_zz")
+# Standard signals available to aerodynamic terms; model inputs not listed here follow them.
+SIGNALS = (
+    "V", "alpha", "beta", "u", "v", "w", "p", "q", "r", "phat", "qhat", "rhat", "theta", "phi",
+)  # fmt: skip
+N_STANDARD_SIGNALS = len(SIGNALS)
+# Full output vector, in order; models pick a subset.
+OUTPUTS = ("V", "alpha", "beta", "theta", "phi", "ax", "ay", "az", "p", "q", "r")
+# Constant vector layout (closed over by the model functions).
+CONSTANTS = ("mass", "Ix", "Iy", "Iz", "Ixz", "S", "b", "cbar", "rho", "g", "alpha_T")
+
+
+@register_jitable
+def signals_from_body(X, U, extra_input, b, cbar):
+    """Signal vector (see ``SIGNALS``) from the body state X and the input vector U."""
+    n_extra = extra_input.shape[0]
+    sig = np.empty(14 + n_extra)
+    u = X[0]
+    v = X[1]
+    w = X[2]
+    # V = sqrt(u² + v² + w²)                                         [2.19]
+    V = math.sqrt(u * u + v * v + w * w)
+    sig[0] = V
+    # α = atan(w/u)                                                   [2.21]
+    sig[1] = math.atan2(w, u)
+    # β = asin(v/V)                                                   [2.20]
+    sig[2] = math.asin(v / V)
+    sig[3] = u
+    sig[4] = v
+    sig[5] = w
+    sig[6] = X[3]
+    sig[7] = X[4]
+    sig[8] = X[5]
+    # p̂ = p b/2V, q̂ = q c̄/2V, r̂ = r b/2V
+    sig[9] = X[3] * b / (2.0 * V)
+    sig[10] = X[4] * cbar / (2.0 * V)
+    sig[11] = X[5] * b / (2.0 * V)
+    # Θ = asin(−l_xz), Φ = atan(l_yz/l_zz)                           [2.22–2.23]
+    sig[12] = math.asin(max(-1.0, min(1.0, -X[6])))
+    sig[13] = math.atan2(X[7], X[8])
+    for j in range(n_extra):
+        sig[14 + j] = U[extra_input[j]]
+    return sig
+
+
+@register_jitable
+def aero_coefficients(sig, theta, term_coef, term_param, factor_start, factor_signal, factor_power):
+    """Coefficient vector (CX, CY, CZ, CD, CL, Cl, Cm, Cn): C = Σ θ_k Π signal^power [2.16]."""
+    C = np.zeros(8)
+    for k in range(term_coef.shape[0]):
+        value = theta[term_param[k]]
+        for j in range(factor_start[k], factor_start[k + 1]):
+            value *= sig[factor_signal[j]] ** factor_power[j]
+        C[term_coef[k]] += value
+    return C
+
+
+@register_jitable
+def forces_and_moments(C, alpha, V, thrust, consts):
+    """Body-axis forces (X, Y, Z) in N and moments (L, M, N) in N·m [2.14–2.15]."""
+    S = consts[5]
+    # q̄ = ½ ρ V²
+    qbar = 0.5 * consts[8] * V * V
+    sa = math.sin(alpha)
+    ca = math.cos(alpha)
+    alpha_T = consts[10]
+    out = np.empty(6)
+    # X = q̄S(C_X + C_L sin α − C_D cos α) + T cos α_T
+    out[0] = qbar * S * (C[0] + C[4] * sa - C[3] * ca) + thrust * math.cos(alpha_T)
+    # Y = q̄S C_Y
+    out[1] = qbar * S * C[1]
+    # Z = q̄S(C_Z − C_L cos α − C_D sin α) − T sin α_T
+    out[2] = qbar * S * (C[2] - C[4] * ca - C[3] * sa) - thrust * math.sin(alpha_T)
+    # L = q̄Sb C_l, M = q̄Sc̄ C_m, N = q̄Sb C_n
+    out[3] = qbar * S * consts[6] * C[5]
+    out[4] = qbar * S * consts[7] * C[6]
+    out[5] = qbar * S * consts[6] * C[7]
+    return out
+
+
+@register_jitable
+def rigid_body_derivatives(X, F, consts):
+    """dX/dt of the body state X under forces/moments F = (X, Y, Z, L, M, N) [2.5–2.13]."""
+    m = consts[0]
+    Ix = consts[1]
+    Iy = consts[2]
+    Iz = consts[3]
+    Ixz = consts[4]
+    g = consts[9]
+    u = X[0]
+    v = X[1]
+    w = X[2]
+    p = X[3]
+    q = X[4]
+    r = X[5]
+    lxz = X[6]
+    lyz = X[7]
+    lzz = X[8]
+    D = np.empty(9)
+    # du/dt = −q w + r v + g l_xz + X/m                               [2.5]
+    D[0] = -q * w + r * v + g * lxz + F[0] / m
+    # dv/dt = −r u + p w + g l_yz + Y/m                               [2.6]
+    D[1] = -r * u + p * w + g * lyz + F[1] / m
+    # dw/dt = −p v + q u + g l_zz + Z/m                               [2.7]
+    D[2] = -p * v + q * u + g * lzz + F[2] / m
+    # Γ = I_x I_z − I_xz²; F1, F2 as in the module docstring
+    gamma = Ix * Iz - Ixz * Ixz
+    F1 = (Iy - Iz) * q * r + Ixz * p * q + F[3]
+    F2 = (Ix - Iy) * p * q - Ixz * q * r + F[5]
+    # dp/dt = (I_z F1 + I_xz F2)/Γ                                    [2.8]
+    D[3] = (Iz * F1 + Ixz * F2) / gamma
+    # dq/dt = ((I_z − I_x) p r + I_xz (r² − p²) + M)/I_y              [2.9]
+    D[4] = ((Iz - Ix) * p * r + Ixz * (r * r - p * p) + F[4]) / Iy
+    # dr/dt = (I_xz F1 + I_x F2)/Γ                                    [2.10]
+    D[5] = (Ixz * F1 + Ix * F2) / gamma
+    # direction cosines                                               [2.11–2.13]
+    D[6] = r * lyz - q * lzz
+    D[7] = -r * lxz + p * lzz
+    D[8] = q * lxz - p * lyz
+    return D
+
+
+@register_jitable
+def body_outputs(X, F, sig, consts):
+    """Full output vector (V, α, β, Θ, Φ, a_x, a_y, a_z, p, q, r) [2.19–2.26]."""
+    mg = consts[0] * consts[9]
+    out = np.empty(11)
+    out[0] = sig[0]
+    out[1] = sig[1]
+    out[2] = sig[2]
+    out[3] = sig[12]
+    out[4] = sig[13]
+    # a = F/(m g), g units                                            [2.24–2.26]
+    out[5] = F[0] / mg
+    out[6] = F[1] / mg
+    out[7] = F[2] / mg
+    out[8] = X[3]
+    out[9] = X[4]
+    out[10] = X[5]
+    return out
+
+
+@register_jitable
+def wind_axis_derivatives(V, alpha, theta_pitch, q, F, consts):
+    """d(V, α, Θ, q)/dt of the wind-axis longitudinal form (see the module docstring)."""
+    m = consts[0]
+    g = consts[9]
+    sa = math.sin(alpha)
+    ca = math.cos(alpha)
+    D = np.empty(4)
+    # dV/dt = (X cos α + Z sin α)/m − g sin(Θ − α)
+    D[0] = (F[0] * ca + F[2] * sa) / m - g * math.sin(theta_pitch - alpha)
+    # dα/dt = q + (Z cos α − X sin α)/(m V) + g cos(Θ − α)/V
+    D[1] = q + (F[2] * ca - F[0] * sa) / (m * V) + g * math.cos(theta_pitch - alpha) / V
+    # dΘ/dt = q
+    D[2] = q
+    # dq/dt = M/I_y
+    D[3] = F[4] / consts[2]
+    return D

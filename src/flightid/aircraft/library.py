@@ -1,0 +1,72 @@
+"""Published airplane data.
+
+Ryan Navion (four-seat general-aviation airplane), from R. C. Nelson, *Flight Stability and
+Automatic Control*, 2nd ed., McGraw-Hill, 1998, Appendix B (geometric, mass and aerodynamic
+data of the Navion; the data go back to Teper, *Aircraft Stability and Control Data*, Systems
+Technology Inc. TR 176-1, 1969). Flight condition of the data: sea level, u0 = 176 ft/s.
+
+    W = 2750 lb, S = 184 ft², b = 33.4 ft, c̄ = 5.7 ft,
+    I_x = 1048, I_y = 3000, I_z = 3530 slug·ft², I_xz = 0
+
+Longitudinal derivatives (stability axes, per rad): C_L = 0.41, C_D = 0.05, C_Lα = 4.44,
+C_Dα = 0.33, C_mα = −0.683, C_Lq = 3.8, C_mq = −9.96, C_Lδe = 0.355, C_mδe = −0.923
+(C_mα̇ = −4.36 is not used: α̇ is not a signal of these models).
+"""
+
+from __future__ import annotations
+
+from flightid.aircraft.aero import AeroModel
+from flightid.aircraft.airplane import Airplane
+from flightid.aircraft.units import FT, FT2, SLUG_FT2, isa_density, lb_weight_to_kg
+
+__all__ = ["navion", "navion_longitudinal_aero", "NAVION_TRIM_SPEED"]
+
+# Nelson (1998), Appendix B, Navion flight condition: u0 = 176 ft/s at sea level.
+NAVION_TRIM_SPEED = 176.0 * FT  # m/s (53.64 m/s)
+
+
+def navion(*, altitude: float = 0.0, thrust_input: str | None = "thrust") -> Airplane:
+    """The Navion (Nelson 1998, Appendix B), SI units; ISA density at ``altitude`` (m)."""
+    return Airplane(
+        mass=lb_weight_to_kg(2750.0),  # W = 2750 lb
+        Ix=1048.0 * SLUG_FT2,
+        Iy=3000.0 * SLUG_FT2,
+        Iz=3530.0 * SLUG_FT2,
+        Ixz=0.0,
+        S=184.0 * FT2,
+        b=33.4 * FT,
+        cbar=5.7 * FT,
+        density=isa_density(altitude),
+        thrust_input=thrust_input,
+        thrust_inclination=0.0,
+        name="Navion",
+    )
+
+
+def navion_longitudinal_aero(elevator: str = "de") -> tuple[AeroModel, dict[str, float]]:
+    """Linear longitudinal aerodynamic model of the Navion and its values (Nelson 1998, App. B).
+
+    C_D = C_D0 + C_Dα α;  C_L = C_L0 + C_Lα α + C_Lq q̂ + C_Lδe δe;
+    C_m = C_m0 + C_mα α + C_mq q̂ + C_mδe δe, with α measured from the reference (trim) body
+    axis, so C_L0 = 0.41 and C_D0 = 0.05 are the trim values and C_m0 = 0.
+    """
+    aero = AeroModel(
+        {
+            "CD": ["1", "alpha"],
+            "CL": ["1", "alpha", "qhat", elevator],
+            "Cm": ["1", "alpha", "qhat", elevator],
+        }
+    )
+    values = {
+        "CD_0": 0.05,
+        "CD_alpha": 0.33,
+        "CL_0": 0.41,
+        "CL_alpha": 4.44,
+        "CL_qhat": 3.8,
+        f"CL_{elevator}": 0.355,
+        "Cm_0": 0.0,
+        "Cm_alpha": -0.683,
+        "Cm_qhat": -9.96,
+        f"Cm_{elevator}": -0.923,
+    }
+    return aero, values

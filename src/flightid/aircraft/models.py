@@ -1,0 +1,340 @@
+"""State-space models of an airplane: 6-DOF, decoupled longitudinal and lateral, wind axes.
+
+Every builder returns a ``flightid.model.StateSpaceModel`` whose ``f`` and ``h`` are fresh
+closures over numeric tables only (constants, index maps, the aerodynamic term tables), so the
+simulator can numba-compile them and the pure-Python path runs the very same code.
+
+Models (RP-1153 §2.A, METHOD.md §3):
+
+* ``six_dof_model``: states u v w p q r l_xz l_yz l_zz.
+* ``longitudinal_model``: states u w q l_xz l_yz l_zz; the measured lateral motion v, p, r
+  enters as inputs [2.27–2.29].
+* ``lateral_model``: states v p r l_xz l_yz l_zz; the measured longitudinal motion u, w, q
+  enters as inputs [2.30–2.32].
+* ``wind_axis_longitudinal_model``: states V alpha theta q.
+
+Units: m/s, rad, rad/s; the thrust input (if the airplane names one) in N; controls in the
+units the aerodynamic model's derivatives assume (rad for the paper's examples).
+Outputs are chosen by name from V, alpha, beta, theta, phi, ax, ay, az (g units), p, q, r.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from flightid.aircraft.aero import AeroModel
+from flightid.aircraft.airplane import Airplane
+from flightid.aircraft.equations import (
+    BODY_STATES,
+    OUTPUTS,
+    SIGNALS,
+    aero_coefficients,
+    body_outputs,
+    forces_and_moments,
+    rigid_body_derivatives,
+    signals_from_body,
+    wind_axis_derivatives,
+)
+from flightid.errors import InputError, InputTypeError, describe
+from flightid.model.parameters import Parameters
+from flightid.model.statespace import StateSpaceModel
+
+__all__ = [
+    "six_dof_model",
+    "longitudinal_model",
+    "lateral_model",
+    "wind_axis_longitudinal_model",
+    "DEFAULT_OUTPUTS",
+]
+
+# Model kind → (states, measured inputs taken from the other axis, default outputs)
+_KINDS = {
+    "6dof": (BODY_STATES, (), OUTPUTS),
+    "longitudinal": (
+        ("u", "w", "q", "l_xz", "l_yz", "l_zz"),
+        ("v", "p", "r"),
+        ("V", "alpha", "q", "theta", "ax", "az"),
+    ),
+    "lateral": (
+        ("v", "p", "r", "l_xz", "l_yz", "l_zz"),
+        ("u", "w", "q"),
+        ("beta", "p", "r", "phi", "ay"),
+    ),
+    "wind": (("V", "alpha", "theta", "q"), (), ("V", "alpha", "theta", "q", "ax", "az")),
+}
+DEFAULT_OUTPUTS = {kind: spec[2] for kind, spec in _KINDS.items()}
+
+
+def _constants(airplane: Airplane) -> np.ndarray:
+    return np.array(
+        [
+            airplane.mass,
+            airplane.Ix,
+            airplane.Iy,
+            airplane.Iz,
+            airplane.Ixz,
+            airplane.S,
+            airplane.b,
+            airplane.cbar,
+            airplane.rho,
+            airplane.g,
+            airplane.thrust_inclination,
+        ],
+        dtype=float,
+    )
+
+
+def _body_functions(src_state, src_input, deriv_index, out_index, extra_input, thrust_index,
+                    tables, consts):  # fmt: skip
+    """f and h closures of a body-axis model (6-DOF or decoupled)."""
+    tc = tables.term_coef
+    tp = tables.term_param
+    fs = tables.factor_start
+    fsig = tables.factor_signal
+    fpow = tables.factor_power
+    n_states = deriv_index.shape[0]
+    n_outputs = out_index.shape[0]
+
+    def f(t, x, u, theta):
+        # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
+        X = np.empty(9)
+        for i in range(9):
+            if src_state[i] >= 0:
+                X[i] = x[src_state[i]]
+            else:
+                X[i] = u[src_input[i]]
+        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
+        F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
+        D = rigid_body_derivatives(X, F, consts)
+        dx = np.empty(n_states)
+        for i in range(n_states):
+            dx[i] = D[deriv_index[i]]
+        return dx
+
+    def h(t, x, u, theta):
+        X = np.empty(9)
+        for i in range(9):
+            if src_state[i] >= 0:
+                X[i] = x[src_state[i]]
+            else:
+                X[i] = u[src_input[i]]
+        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
+        F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
+        full = body_outputs(X, F, sig, consts)
+        y = np.empty(n_outputs)
+        for i in range(n_outputs):
+            y[i] = full[out_index[i]]
+        return y
+
+    return f, h
+
+
+def _wind_functions(out_index, extra_input, thrust_index, tables, consts):
+    """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q)."""
+    tc = tables.term_coef
+    tp = tables.term_param
+    fs = tables.factor_start
+    fsig = tables.factor_signal
+    fpow = tables.factor_power
+    n_outputs = out_index.shape[0]
+
+    def f(t, x, u, theta):
+        V = x[0]
+        alpha = x[1]
+        # body state of symmetric flight: u = V cos α, w = V sin α, l_xz = −sin Θ, l_zz = cos Θ
+        X = np.zeros(9)
+        X[0] = V * np.cos(alpha)
+        X[2] = V * np.sin(alpha)
+        X[4] = x[3]
+        X[6] = -np.sin(x[2])
+        X[8] = np.cos(x[2])
+        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
+        F = forces_and_moments(C, alpha, V, thrust, consts)
+        return wind_axis_derivatives(V, alpha, x[2], x[3], F, consts)
+
+    def h(t, x, u, theta):
+        V = x[0]
+        alpha = x[1]
+        X = np.zeros(9)
+        X[0] = V * np.cos(alpha)
+        X[2] = V * np.sin(alpha)
+        X[4] = x[3]
+        X[6] = -np.sin(x[2])
+        X[8] = np.cos(x[2])
+        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
+        F = forces_and_moments(C, alpha, V, thrust, consts)
+        full = body_outputs(X, F, sig, consts)
+        y = np.empty(n_outputs)
+        for i in range(n_outputs):
+            y[i] = full[out_index[i]]
+        return y
+
+    return f, h
+
+
+def _build(
+    kind: str,
+    airplane: Airplane,
+    aero: AeroModel,
+    parameters: Parameters | None,
+    controls: Sequence[str] | None,
+    outputs: Sequence[str] | None,
+    x0,
+    name: str | None,
+) -> StateSpaceModel:
+    if not isinstance(airplane, Airplane):
+        raise InputTypeError(f"airplane: expected an Airplane, got {describe(airplane)}")
+    if not isinstance(aero, AeroModel):
+        raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
+    states, measured, default_outputs = _KINDS[kind]
+    if controls is None:
+        # the aerodynamic model's signals that are not standard signals, in first-use order
+        controls = tuple(s for s in aero.signals if s not in SIGNALS and s != airplane.thrust_input)
+    if isinstance(controls, str):
+        raise InputTypeError(f"controls: expected a list of names, got the string {controls!r}")
+    controls = tuple(controls)
+    clash = sorted(set(controls) & (set(SIGNALS) | set(states)))
+    if clash:
+        raise InputError(
+            f"controls: {clash} are names of standard signals or states; choose other names"
+        )
+    inputs = controls
+    outputs = tuple(default_outputs if outputs is None else outputs)
+    # thrust acts on u, w and a_x, a_z only: the lateral model takes it only for those outputs
+    needs_thrust = kind != "lateral" or bool({"ax", "az"} & set(outputs))
+    if needs_thrust and airplane.thrust_input is not None and airplane.thrust_input not in inputs:
+        inputs = inputs + (airplane.thrust_input,)
+    inputs = inputs + measured
+    unknown = [o for o in outputs if o not in OUTPUTS]
+    if unknown:
+        raise InputError(f"outputs: unknown output names {unknown}; available: {list(OUTPUTS)}")
+    if kind == "wind":
+        bad = [o for o in outputs if o in ("beta", "phi", "ay", "p", "r")]
+        if bad:
+            raise InputError(
+                f"outputs: the wind-axis longitudinal model has no lateral outputs, got {bad}"
+            )
+    if parameters is None:
+        parameters = aero.parameters()
+    elif not isinstance(parameters, Parameters):
+        parameters = Parameters(parameters)
+    missing = [n for n in aero.parameter_names if n not in parameters]
+    if missing:
+        raise InputError(
+            f"parameters: missing the aerodynamic model's parameters {missing}; "
+            f"use aero.parameters(values) to build them"
+        )
+    # signal list: the standard signals, then the non-standard inputs (controls, thrust)
+    extra = [i for i, n in enumerate(inputs) if n not in SIGNALS]
+    signal_names = SIGNALS + tuple(inputs[i] for i in extra)
+    tables = aero.tables(signal_names, parameters)
+    consts = _constants(airplane)
+    extra_input = np.array(extra, dtype=np.int64)
+    thrust_index = inputs.index(airplane.thrust_input) if airplane.thrust_input in inputs else -1
+    out_index = np.array([OUTPUTS.index(o) for o in outputs], dtype=np.int64)
+    if kind == "wind":
+        f, h = _wind_functions(out_index, extra_input, thrust_index, tables, consts)
+    else:
+        src_state = np.array(
+            [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
+        )
+        src_input = np.array(
+            [inputs.index(s) if s in measured else -1 for s in BODY_STATES], dtype=np.int64
+        )
+        deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
+        f, h = _body_functions(
+            src_state, src_input, deriv_index, out_index, extra_input, thrust_index, tables,
+            consts,
+        )  # fmt: skip
+    return StateSpaceModel(
+        states=states,
+        inputs=inputs,
+        outputs=outputs,
+        f=f,
+        h=h,
+        parameters=parameters,
+        x0=tuple(x0) if x0 is not None else (),
+        name=name or f"{airplane.name} {kind}",
+    )
+
+
+def six_dof_model(
+    airplane: Airplane,
+    aero: AeroModel,
+    parameters: Parameters | None = None,
+    *,
+    controls: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    x0=None,
+    name: str | None = None,
+) -> StateSpaceModel:
+    """Body-axis 6-DOF model, states (u, v, w, p, q, r, l_xz, l_yz, l_zz) [2.5–2.13].
+
+    Args:
+        airplane: mass, inertia, geometry, density, thrust line.
+        aero: the aerodynamic model; its parameters must be in ``parameters``.
+        parameters: full parameter set (default: the aero model's parameters, all zero).
+        controls: control input names (default: the aero model's non-standard signals).
+        outputs: output names (default all: V, alpha, beta, theta, phi, ax, ay, az, p, q, r).
+        x0: initial state (numbers or parameter names), e.g. from ``trim``.
+    """
+    return _build("6dof", airplane, aero, parameters, controls, outputs, x0, name)
+
+
+def longitudinal_model(
+    airplane: Airplane,
+    aero: AeroModel,
+    parameters: Parameters | None = None,
+    *,
+    controls: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    x0=None,
+    name: str | None = None,
+) -> StateSpaceModel:
+    """Decoupled longitudinal model: states (u, w, q, l_xz, l_yz, l_zz); the measured lateral
+    motion v (m/s), p, r (rad/s) enters as inputs [2.27–2.29]. Default outputs V, alpha, q,
+    theta, ax, az. Arguments as for ``six_dof_model``."""
+    return _build("longitudinal", airplane, aero, parameters, controls, outputs, x0, name)
+
+
+def lateral_model(
+    airplane: Airplane,
+    aero: AeroModel,
+    parameters: Parameters | None = None,
+    *,
+    controls: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    x0=None,
+    name: str | None = None,
+) -> StateSpaceModel:
+    """Decoupled lateral model: states (v, p, r, l_xz, l_yz, l_zz); the measured longitudinal
+    motion u, w (m/s) and q (rad/s) enters as inputs [2.30–2.32]. Default outputs beta, p, r,
+    phi, ay. (With V and α measured instead, u = V cos α cos β and w = V sin α cos β.)
+    Arguments as for ``six_dof_model``."""
+    return _build("lateral", airplane, aero, parameters, controls, outputs, x0, name)
+
+
+def wind_axis_longitudinal_model(
+    airplane: Airplane,
+    aero: AeroModel,
+    parameters: Parameters | None = None,
+    *,
+    controls: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    x0=None,
+    name: str | None = None,
+) -> StateSpaceModel:
+    """Wind-axis longitudinal model: states (V, alpha, theta, q) (m/s, rad, rad, rad/s) of
+    symmetric flight. Default outputs V, alpha, theta, q, ax, az. Arguments as for
+    ``six_dof_model``."""
+    return _build("wind", airplane, aero, parameters, controls, outputs, x0, name)
