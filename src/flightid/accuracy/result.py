@@ -1,0 +1,201 @@
+"""``AccuracyResult``: what ``assess`` found, and its JSON form ``accuracy_json``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flightid.accuracy.nonlinearity import Nonlinearity
+from flightid.accuracy.profile import ProfileLimits
+from flightid.accuracy.search import SearchLimits
+
+__all__ = ["AccuracyResult", "accuracy_json"]
+
+
+@dataclass(frozen=True, eq=False)
+class AccuracyResult:
+    """Accuracy statements for the free parameters of an estimate.
+
+    All intervals are (n_f, 2) arrays [lower, upper] over the *free* parameters, in their
+    units, at ``level`` and of ``kind`` (individual or simultaneous, see ``levels``).
+
+    Attributes:
+        names: free-parameter names.
+        level, kind, distribution: the confidence statement.
+        center: the estimate θ̂ the Cramér–Rao intervals are centred on.
+        theta_min, cost_min: the polished minimum of J the likelihood region is measured from.
+        s2: residual variance factor [5.30]; n_data: N·n_o; n_free: n_p.
+        delta: contour level Δ; delta_beale: Δ with Beale's correction [5.28].
+        std: Cramér–Rao bounds σ_j = √(M⁻¹)_jj (as in the estimate, under its R).
+        std_scaled: s·σ_j, the standard errors the t intervals use (= σ_j when R = R̂).
+        std_coloured: standard errors corrected for coloured residuals.
+        coloured_lag: the autocorrelation lag L used by the correction.
+        covariance, covariance_coloured, correlation: (n_f × n_f).
+        ci_cr: ellipsoid projection θ̂ ± √(Δ C_jj) [5.24–5.27].
+        ci_cr_simultaneous: the same at the simultaneous level, whatever ``kind`` is.
+        ci_cr_coloured: θ̂ ± √(Δ/s² · C^col_jj) (the coloured covariance already holds s²).
+        ci_cr_beale: θ̂ ± √(Δ_B C_jj).
+        nonlinearity: Beale's N_φ and its parts.
+        profile, search: likelihood-region limits, or None if not run.
+        evaluations: integrations spent per part ("polish", "beale", "profile", "search").
+        warnings: messages (also issued as ``AccuracyWarning``).
+    """
+
+    names: tuple[str, ...]
+    level: float
+    kind: str
+    distribution: str
+    center: np.ndarray
+    theta_min: np.ndarray
+    cost_min: float
+    s2: float
+    n_data: int
+    n_free: int
+    delta: float
+    delta_beale: float
+    std: np.ndarray
+    std_scaled: np.ndarray
+    std_coloured: np.ndarray
+    coloured_lag: int
+    covariance: np.ndarray
+    covariance_coloured: np.ndarray
+    correlation: np.ndarray
+    ci_cr: np.ndarray
+    ci_cr_simultaneous: np.ndarray
+    ci_cr_coloured: np.ndarray
+    ci_cr_beale: np.ndarray
+    nonlinearity: Nonlinearity
+    profile: ProfileLimits | None
+    search: SearchLimits | None
+    evaluations: dict = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def ci_profile(self) -> np.ndarray | None:
+        return None if self.profile is None else self.profile.intervals
+
+    @property
+    def ci_search(self) -> np.ndarray | None:
+        return None if self.search is None else self.search.intervals
+
+    def interval(self, name: str, method: str = "cr") -> tuple[float, float]:
+        """(lower, upper) of one free parameter by ``method`` (cr, cr_coloured, cr_beale,
+        cr_simultaneous, profile, search)."""
+        table = getattr(self, f"ci_{method}")
+        if table is None:
+            raise KeyError(f"method {method!r} was not run")
+        j = self.names.index(name)
+        return float(table[j, 0]), float(table[j, 1])
+
+    def summary(self) -> str:
+        """A table of the intervals beside each other."""
+        from flightid.report.text import format_table
+
+        def cell(pair) -> str:
+            lo, hi = pair
+            return f"[{lo:.4g}, {hi:.4g}]"
+
+        headers = ["parameter", "estimate", "s·σ (CR)", "σ coloured", f"CR {self.level:g}"]
+        headers += ["CR Beale"]
+        if self.profile is not None:
+            headers.append("profile")
+        if self.search is not None:
+            headers.append("search")
+        rows = []
+        for j, name in enumerate(self.names):
+            row = [
+                name,
+                f"{self.center[j]:.6g}",
+                f"{self.std_scaled[j]:.3g}",
+                f"{self.std_coloured[j]:.3g}",
+                cell(self.ci_cr[j]),
+                cell(self.ci_cr_beale[j]),
+            ]
+            if self.profile is not None:
+                row.append(cell(self.profile.intervals[j]))
+            if self.search is not None:
+                row.append(cell(self.search.intervals[j]))
+            rows.append(row)
+        lines = [
+            f"{self.kind} {self.level:g} intervals ({self.distribution}); s² = {self.s2:.4g}, "
+            f"Δ = {self.delta:.4g}, Beale Δ = {self.delta_beale:.4g}, "
+            f"N_φ = {self.nonlinearity.n_phi:.3g}, coloured-residual lag L = {self.coloured_lag}",
+            format_table(headers, rows),
+            "evaluations: " + ", ".join(f"{k} {v}" for k, v in self.evaluations.items()),
+        ]
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def _pair(values) -> list:
+    """[lo, hi] with JSON-safe numbers: infinite or NaN ends become None."""
+    return [float(v) if np.isfinite(v) else None for v in values]
+
+
+def accuracy_json(estimate, accuracy: AccuracyResult) -> dict:
+    """``estimate.to_dict()`` with the accuracy statements merged in.
+
+    Each free parameter entry gains ``ci_cr``, ``ci_cr_simultaneous``, ``ci_cr_coloured``,
+    ``ci_cr_beale``, ``std_scaled``, ``std_coloured`` and, when run, ``ci_profile`` and
+    ``ci_search`` (each a [lower, upper] pair; an unbounded end is null). Fixed parameters
+    get null intervals.
+    Top level: ``confidence_level``, ``interval_kind``, ``distribution``, ``nonlinearity``
+    (``N_phi``, ``beale_factor``, ...) and ``accuracy`` (levels, lag, evaluations, warnings,
+    statuses).
+    """
+    document = estimate.to_dict()
+    free_names = list(accuracy.names)
+    for entry in document["parameters"]:
+        name = entry["name"]
+        if name not in free_names:
+            for key in ("ci_cr", "ci_cr_simultaneous", "ci_cr_coloured", "ci_cr_beale"):
+                entry[key] = None
+            if accuracy.profile is not None:
+                entry["ci_profile"] = None
+            if accuracy.search is not None:
+                entry["ci_search"] = None
+            entry["std_scaled"] = entry["std_coloured"] = None
+            continue
+        j = free_names.index(name)
+        entry["ci_cr"] = _pair(accuracy.ci_cr[j])
+        entry["ci_cr_simultaneous"] = _pair(accuracy.ci_cr_simultaneous[j])
+        entry["ci_cr_coloured"] = _pair(accuracy.ci_cr_coloured[j])
+        entry["ci_cr_beale"] = _pair(accuracy.ci_cr_beale[j])
+        for key, value in (
+            ("std_scaled", accuracy.std_scaled[j]),
+            ("std_coloured", accuracy.std_coloured[j]),
+        ):
+            entry[key] = float(value) if np.isfinite(value) else None
+        if accuracy.profile is not None:
+            entry["ci_profile"] = _pair(accuracy.profile.intervals[j])
+            entry["profile_status"] = list(accuracy.profile.statuses[j])
+        if accuracy.search is not None:
+            entry["ci_search"] = _pair(accuracy.search.intervals[j])
+    document["confidence_level"] = float(accuracy.level)
+    document["interval_kind"] = accuracy.kind
+    document["distribution"] = accuracy.distribution
+    document["nonlinearity"] = accuracy.nonlinearity.to_dict()
+    details = {
+        "s2": float(accuracy.s2),
+        "delta": float(accuracy.delta),
+        "delta_beale": float(accuracy.delta_beale),
+        "cost_min": float(accuracy.cost_min),
+        "coloured_lag": int(accuracy.coloured_lag),
+        "evaluations": {k: int(v) for k, v in accuracy.evaluations.items()},
+        "warnings": list(accuracy.warnings),
+        "correlation": [
+            [float(v) if np.isfinite(v) else None for v in row] for row in accuracy.correlation
+        ],
+    }
+    if accuracy.search is not None:
+        details["search"] = {
+            "evaluations": int(accuracy.search.evaluations),
+            "inside_points": int(accuracy.search.inside),
+            "seed": int(accuracy.search.seed),
+            "settled": [[bool(v) for v in row] for row in accuracy.search.settled],
+        }
+    if accuracy.profile is not None:
+        details["profile"] = {"evaluations": int(accuracy.profile.total_evaluations)}
+    document["accuracy"] = details
+    return document
