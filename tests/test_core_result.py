@@ -123,3 +123,22 @@ def test_cli_example2_case2_text_table(capsys):
     assert main(["paper", "example2", "--case", "2"]) == 0
     out = capsys.readouterr().out
     assert "table III" in out and "mnres (paper)" in out
+
+
+def test_quickstart_example_runs_and_recovers_its_parameters(capsys):
+    import runpy
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "quickstart.py"
+    runpy.run_path(str(script), run_name="__main__")
+    out = capsys.readouterr().out
+    assert "status: converged" in out
+    # the truth is k = 9, c = 0.3, b = 2 (set in the script)
+    rows = {
+        line.split()[0]: float(line.split()[1])
+        for line in out.splitlines()
+        if line.split() and line.split()[0] in ("k", "c", "b")
+    }
+    assert rows["k"] == pytest.approx(9.0, rel=0.01)
+    assert rows["c"] == pytest.approx(0.3, rel=0.05)
+    assert rows["b"] == pytest.approx(2.0, rel=0.01)

@@ -153,3 +153,29 @@ def test_evaluation_budget_stops_with_a_status():
     assert not result.converged
     assert result.status == "max_evaluations"
     assert result.equivalent_evaluations <= 45
+
+
+def test_recursive_constant_window_surface_matches_batch_fit_over_the_same_points():
+    from flightid.estimation.surface import RecursiveSurface, algebraic_surface, batch_surface
+
+    rng = np.random.default_rng(5)
+    n_f, m, window = 4, 30, 7
+    points = rng.normal(size=(20, n_f))
+    slopes_true = rng.normal(size=(n_f, m))
+    outputs = points @ slopes_true + 0.1 * np.sin(points @ rng.normal(size=(n_f, m)))
+    reference = points[0]
+    surface = RecursiveSurface(points[:window], outputs[:window], reference)
+    for k in range(window, 20):
+        # one point in, the oldest out [3.9–3.10]
+        surface.replace(points[k], outputs[k], points[k - window], outputs[k - window])
+        rows = slice(k - window + 1, k + 1)
+        expected = batch_surface(points[rows], outputs[rows], reference, 1e12)
+        np.testing.assert_allclose(surface.slopes(), expected, rtol=1e-9, atol=1e-12)
+    # through exactly n_f + 1 points the least-squares plane is the algebraic interpolant
+    exact = batch_surface(points[: n_f + 1], outputs[: n_f + 1], reference, 1e12)
+    np.testing.assert_allclose(
+        algebraic_surface(points[: n_f + 1], outputs[: n_f + 1], 0, 1e12),
+        exact,
+        rtol=1e-9,
+        atol=1e-12,
+    )

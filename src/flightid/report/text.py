@@ -34,7 +34,7 @@ def estimate_summary(result) -> str:
                     name,
                     f"{value:.6g}",
                     f"{std:.3g}",
-                    f"{relative:.1f}" if np.isfinite(relative) else "-",
+                    f"{relative:.2f}" if np.isfinite(relative) else "-",
                     f"{result.initial[i]:.6g}",
                     "",
                 ]
