@@ -335,6 +335,7 @@ def build_model(
     ``values`` (name → value) replaces parameter values afterwards (prediction with estimates).
     """
     base = base_model(case)[0] if base is None else base
+    _check_channels(base, maneuvers)
     params = _apply_parameters(base.parameters, case.parameters)
     n_m = len(maneuvers)
     bx, by, bias_params, per_maneuver = _biases(base, case.biases, n_m)

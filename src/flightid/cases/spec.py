@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from flightid.data.loaders import ChannelSpec
 from flightid.errors import InputError
 
 __all__ = ["CaseError", "Case", "ManeuverSpec", "load_case", "parse_case"]
@@ -226,8 +227,14 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
     data = _table(raw["data"], "data")
     _known(data, _DATA, "data")
     for key in ("inputs", "outputs"):
-        if key in data:
-            _table(data[key], f"data.{key}")
+        for name, value in _table(data.get(key, {}), f"data.{key}").items():
+            try:
+                ChannelSpec.from_value(value, f"data.{key}.{name}")
+            except InputError as exc:
+                message = str(exc)
+                if not message.startswith("data."):
+                    message = f"data.{key}.{name}: {message}"
+                raise CaseError(message) from None
     if "outputs" not in data or not data["outputs"]:
         raise CaseError("data.outputs: missing; name the measured output channels")
     maneuvers = _maneuvers(data, "data", data)

@@ -27,12 +27,12 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from flightid.errors import InputError
+from flightid.cases.spec import CaseError
 
 __all__ = ["UserModel", "load_user_model", "UserModelError"]
 
 
-class UserModelError(InputError):
+class UserModelError(CaseError):
     """A model module that cannot be imported or lacks a required definition."""
 
 

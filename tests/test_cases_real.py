@@ -1,0 +1,59 @@
+"""The five standard cases on the real flight data in ../shared/data (skipped if absent).
+
+Each must converge from its stated start values. Run times (incl. numba compilation, one
+core): ATTAS short period ≈ 3 s, Twin Otter ≈ 4 s, ATTAS two maneuvers ≈ 5 s, ATTAS lateral
+≈ 6 s, HFB-320 ≈ 10 s. The three longest are marked slow to keep the default suite short.
+No published estimates are compared: the book's tables are not available here.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flightid.cases import load_case, run_case
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("FLIGHTID_DATA", ROOT / "../shared/data"))
+pytestmark = pytest.mark.skipif(
+    not (DATA / "fvsysid").is_dir() or not (DATA / "sidpac_twin_otter").is_dir(),
+    reason=f"real flight data not found at {DATA} (set FLIGHTID_DATA)",
+)
+
+
+def _run(name: str):
+    return run_case(load_case(ROOT / "examples/cases" / f"{name}.toml"), DATA)
+
+
+@pytest.mark.parametrize(
+    ("name", "n_free"),
+    [
+        ("attas_short_period", 8),
+        pytest.param("hfb320_longitudinal", 11, marks=pytest.mark.slow),
+        pytest.param("attas_lateral", 22, marks=pytest.mark.slow),
+        pytest.param("attas_lateral_two_maneuvers", 12, marks=pytest.mark.slow),
+    ],
+)
+def test_standard_case_converges(name, n_free):
+    run = _run(name)
+    est = run.estimate
+    assert est.converged, est.message
+    assert int(est.free.sum()) == n_free
+    free_std = est.std[est.free]
+    assert np.all(np.isfinite(free_std)) and np.all(free_std > 0)
+    # close fits: the residual RMS of every output is well below the output's own spread
+    spread = np.std(est.measured, axis=0)
+    assert np.all(est.fit_error() < 0.35 * spread), (est.fit_error(), spread)
+
+
+def test_twin_otter_with_prediction_on_017():
+    run = _run("twin_otter_longitudinal")
+    assert run.estimate.converged, run.estimate.message
+    (prediction,) = run.predictions
+    assert prediction.name.endswith("017")
+    assert prediction.output_names == ("alpha", "q", "az")
+    # the estimated model predicts the other maneuver well (measured: R² 0.987, 0.992, 0.966)
+    assert np.all(prediction.r2 > 0.9)
