@@ -74,6 +74,8 @@ __all__ = [
     "OUTPUTS",
     "PAPER_ESTIMATES",
     "SIMULATION_VALUES",
+    "cli_main",
+    "comparison_table",
     "example3_data",
     "example3_json",
     "example3_model",
@@ -187,8 +189,8 @@ def example3_inputs(t: np.ndarray | None = None) -> dict[str, np.ndarray]:
     return {"da": da, "dr": dr, "de": de}
 
 
-@functools.lru_cache(maxsize=2)
-def _truth(compiled: bool = True):
+@functools.lru_cache(maxsize=1)
+def _truth(compiled: bool = False):
     """Trim, the 6-DOF run and the longitudinal input histories (cached: compiles once)."""
     airplane = navion()
     lon_aero, lon_values = navion_longitudinal_aero()
@@ -202,6 +204,7 @@ def _truth(compiled: bool = True):
     for name, series in perturbation.items():
         inputs[name] = inputs[name] + series
     data6 = FlightData(t, inputs, name="example 3, 6-DOF")
+    # one run: the pure-Python kernel is quicker than compiling the 6-DOF (same numbers)
     y6 = simulate(model6.with_x0(tuple(trim.x)), data6, compiled=compiled)
     full = {name: y6[:, i] for i, name in enumerate(model6.outputs)}
     V, alpha, beta = full["V"], full["alpha"], full["beta"]
@@ -214,14 +217,13 @@ def _truth(compiled: bool = True):
     return trim, t, inputs, longitudinal, full
 
 
-def example3_model(values: Mapping[str, float] | None = None) -> StateSpaceModel:
-    """The decoupled lateral model of example 3 (inputs da, dr, u, w, q; outputs β, p, r, Φ,
-    a_y), started from the trim state, with parameter ``values`` (default: start values)."""
+@functools.lru_cache(maxsize=1)
+def _lateral_base() -> StateSpaceModel:
+    """The lateral model built once, so every copy shares f/h (and one compiled kernel)."""
     trim = _truth()[0]
     aero = AeroModel(LATERAL_TERMS)
-    values = example3_start_values() if values is None else dict(values)
     parameters = Parameters(
-        Parameter(n, values[n], scale=max(abs(SIMULATION_VALUES[n]), _SCALE_FLOOR))
+        Parameter(n, SIMULATION_VALUES[n], scale=max(abs(SIMULATION_VALUES[n]), _SCALE_FLOOR))
         for n in aero.parameter_names
     )
     x0 = body_state(trim.V, trim.alpha, trim.beta, trim.theta, trim.phi)
@@ -235,6 +237,14 @@ def example3_model(values: Mapping[str, float] | None = None) -> StateSpaceModel
         x0=tuple(float(x0[i]) for i in (1, 3, 5, 6, 7, 8)),
         name="RP-1153 example 3 (Navion, decoupled lateral)",
     )
+
+
+def example3_model(values: Mapping[str, float] | None = None) -> StateSpaceModel:
+    """The decoupled lateral model of example 3 (inputs da, dr, u, w, q; outputs β, p, r, Φ,
+    a_y), started from the trim state, with parameter ``values`` (default: start values)."""
+    base = _lateral_base()
+    values = example3_start_values() if values is None else dict(values)
+    return base.with_parameters(base.parameters.with_values(values))
 
 
 def example3_start_values(fraction: float = START_FRACTION) -> dict[str, float]:
@@ -366,19 +376,51 @@ def comparison_table(run: dict) -> str:
     return "\n".join(lines)
 
 
-def example3_json(case: int, seed: int = 3, run: dict | None = None) -> dict:
+def example3_json(case: int, seed: int = 3, run: dict | None = None, accuracy=None) -> dict:
     """The JSON contract of ``flightid paper example3 --case N --json``.
 
     ``{"example": 3, "case": N, "seed": s, "results": [estimate.to_dict() with each parameter
-    also carrying "true" (simulation value) and "paper" (table V estimate)]}``.
+    also carrying "true" (simulation value) and "paper" (table V estimate)]}``; with an
+    ``AccuracyResult`` from ``flightid.accuracy.assess`` the entry is ``accuracy_json``'s.
     """
     run = run_example3(case, seed) if run is None else run
-    entry = run["estimate"].to_dict()
+    if accuracy is None:
+        entry = run["estimate"].to_dict()
+    else:
+        from flightid.accuracy import accuracy_json
+
+        entry = accuracy_json(run["estimate"], accuracy)
     for parameter in entry["parameters"]:
         parameter["true"] = SIMULATION_VALUES[parameter["name"]]
         parameter["paper"] = PAPER_ESTIMATES[run["case"]][parameter["name"]]
     entry["within_3sigma"] = run["within_3sigma"]
     return {"example": 3, "case": run["case"], "seed": run["seed"], "results": [entry]}
+
+
+def cli_main(args) -> int:
+    """``flightid paper example3``: args.case, args.seed (None: 3), args.json, args.plot
+    (directory or None), args.accuracy (None, "profile", "search" or "all")."""
+    import json
+    import sys
+
+    seed = 3 if getattr(args, "seed", None) is None else int(args.seed)
+    run = run_example3(args.case, seed)
+    accuracy = None
+    if getattr(args, "accuracy", None):
+        from flightid.accuracy import assess
+
+        accuracy = assess(run["estimate"], run["data"], methods=args.accuracy, seed=seed)
+    if getattr(args, "plot", None):
+        for path in plot_example3(run, args.plot):
+            print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
+    if args.json:
+        json.dump(example3_json(args.case, seed, run, accuracy), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(comparison_table(run))
+        if accuracy is not None:
+            print(accuracy.summary())
+    return 0
 
 
 def plot_example3(run: dict, directory: str | Path) -> list[Path]:
