@@ -52,9 +52,20 @@ def residual_autocovariance(
     gamma = np.zeros((max_lag + 1, n_o, n_o))
     for segment in _segments(maneuver_index, n):
         part = nu[segment]
-        for k in range(min(max_lag, part.shape[0] - 1) + 1):
-            # R̂_ν(k) += Σ_i ν_i ν_{i+k}ᵀ over this maneuver
-            gamma[k] += part[: part.shape[0] - k].T @ part[k:]
+        m = part.shape[0]
+        lags = min(max_lag, m - 1) + 1
+        if lags <= 32:
+            for k in range(lags):
+                # R̂_ν(k) += Σ_i ν_i ν_{i+k}ᵀ over this maneuver
+                gamma[k] += part[: m - k].T @ part[k:]
+        else:
+            # the same sums for all lags at once: Σ_i ν_i,o ν_{i+k},q = IFFT(conj(F_o) F_q)[k]
+            size = 1 << int(np.ceil(np.log2(2 * m)))
+            spectrum = np.fft.rfft(part, n=size, axis=0)
+            cross = np.fft.irfft(
+                np.conj(spectrum)[:, :, None] * spectrum[:, None, :], n=size, axis=0
+            )
+            gamma[:lags] += cross[:lags]
     return gamma / n
 
 
@@ -129,7 +140,9 @@ def coloured_covariance(
         m = part.shape[0]
         for k in range(min(lag, m - 1) + 1):
             # S_k = Σ_i A_iᵀ R̂_ν(k) A_{i+k}
-            s_k = np.einsum("iop,oq,iqr->pr", part[: m - k], gamma[k], part[k:])
+            s_k = np.tensordot(
+                part[: m - k], np.einsum("oq,iqr->ior", gamma[k], part[k:]), axes=([0, 1], [0, 1])
+            )
             middle += s_k if k == 0 else s_k + s_k.T
     # Cov = M⁻¹ [Σ_i Σ_j G_iᵀ R⁻¹ R̂_ν(i − j) R⁻¹ G_j] M⁻¹
     sandwich = c @ middle @ c

@@ -133,8 +133,10 @@ def _boundary_along(
         inside = excess <= delta
         lo[idx[inside]], w_lo[idx[inside]] = s[idx[inside]], w[inside]
         hi[idx[~inside]], w_hi[idx[~inside]] = s[idx[~inside]], w[~inside]
-        done = np.abs(w - target) <= rtol * target
+        # settled: an inside point within rtol of the contour, or a collapsed bracket
+        done = inside & (w >= (1.0 - rtol) * target)
         done |= inside & (s[idx] >= r_max)
+        done |= np.isfinite(hi[idx]) & ((hi[idx] - lo[idx]) <= 1e-9 * hi[idx])
         active[idx[done]] = False
         # next trial: secant on w through the bracket (or from the inside end outward)
         for k in np.flatnonzero(active):
