@@ -66,6 +66,9 @@ def _methods(methods: str | Iterable[str]) -> tuple[str, ...]:
         else:
             raise InputError(f"methods: expected names from {METHODS} or 'all', got {name!r}")
     chosen.add("cr")
+    if "search" in chosen:
+        # the profile costs a small fraction of the search and is its reference
+        chosen.add("profile")
     return tuple(m for m in METHODS if m in chosen)
 
 
@@ -113,6 +116,7 @@ def assess(
     progress: bool | None = None,
     compiled: bool = True,
     warn: bool = True,
+    parameters: Sequence[str] | None = None,
 ) -> AccuracyResult:
     """Accuracy of ``estimate``: Cramér–Rao, coloured-residual, Beale, profile, search.
 
@@ -122,7 +126,7 @@ def assess(
             ``OutputErrorProblem`` already built on them with ``estimate.model``.
         level: confidence level 1 − α.
         methods: any of ``"cr"``, ``"profile"``, ``"search"`` or ``"all"`` (``"cr"`` and N_φ
-            are always computed).
+            are always computed; ``"search"`` brings ``"profile"`` with it).
         kind: ``"individual"`` (one parameter at a time, default) or ``"simultaneous"`` (the
             paper's joint region, k = n_p F_α(n_p, N n_o − n_p)); applies to ``ci_cr``, profile
             and search alike.
@@ -137,6 +141,8 @@ def assess(
         progress: progress bar on stderr for the search (None: when stderr is a terminal).
         compiled: numba kernels for the rebuilt problem.
         warn: issue the warnings as ``AccuracyWarning`` (they are in the result either way).
+        parameters: free-parameter names whose profile limits to compute (default all; the
+            others get NaN profile intervals). The search always covers all.
 
     Returns:
         ``AccuracyResult``.
@@ -212,7 +218,16 @@ def assess(
     profile = search = None
     if "profile" in chosen:
         before = contour.evaluations
-        profile = profile_limits(contour, covariance)
+        if parameters is None:
+            subset = None
+        else:
+            unknown = [p for p in parameters if p not in names]
+            if unknown:
+                raise InputError(
+                    f"parameters: {unknown} are not free parameters; free: {list(names)}"
+                )
+            subset = [names.index(p) for p in parameters]
+        profile = profile_limits(contour, covariance, parameters=subset)
         evaluations["profile"] = contour.evaluations - before
         for j, (lower, upper) in enumerate(profile.statuses):
             for side, status in (("lower", lower), ("upper", upper)):
