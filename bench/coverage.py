@@ -12,9 +12,9 @@ and for every free parameter we record whether the true value lies inside the in
 
 Cases: ``ex2`` (RP-1153 example 2 case 2: linear system, σ = 10⁻³, 3 s); ``ex2x30`` (the same
 with 30× the noise, σ = 0.03, to make the problem nonlinear); ``exp`` (y = a e^(−bt) + c,
-σ = 0.1, 4 s at 0.1 s: nonlinear in b); ``ex3`` (RP-1153 example 3 case 2, the nonlinear
-lateral airplane; profile limits only for ``--ex3-profile`` parameters, as each of its 19
-profiles costs ≈ 120 simulations of 481 samples).
+σ = 0.1, 4 s at 0.1 s: nonlinear in b); ``expx3`` (the same with σ = 0.3); ``ex3`` (RP-1153
+example 3 case 2, the nonlinear lateral airplane; profile limits only for CY_beta, Cl_beta
+and the two nonlinear derivatives, as each of its 19 profiles costs ≈ 120 simulations).
 
 Usage::
 
@@ -67,13 +67,13 @@ def _ex2_case(sigma: float):
     return make
 
 
-def _exp_case():
+def _exp_case(sigma: float = 0.1):
     from test_accuracy_models import EXP_TRUE, exp_data, exp_model
 
     def make(seed: int):
         return (
             exp_model(),
-            exp_data(0.1, seed),
+            exp_data(sigma, seed),
             "rk4",
             dict(zip("abc", EXP_TRUE, strict=True)),
             None,
@@ -136,6 +136,7 @@ CASES = {
     "ex2": lambda: _ex2_case(1e-3),
     "ex2x30": lambda: _ex2_case(3e-2),
     "exp": _exp_case,
+    "expx3": lambda: _exp_case(0.3),
     "ex3": lambda: _ex3_case(EX3_PROFILE),
 }
 
@@ -166,14 +167,61 @@ def _table(case: str, rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def make_figures(directory: Path) -> list[Path]:
+    """The docs' figures: profile of c and the (b, c) slice for the exponential case (seed 3),
+    and the profile of θ1 for example 2 case 2."""
+    from flightid.accuracy import assess, cost_slice, profile_curve, region_contour
+    from flightid.estimation import MNR, estimate
+    from flightid.paper.examples12 import example2_data, example_model
+    from flightid.report.accuracy_figures import plot_profile, plot_region_slice
+    from test_accuracy_models import exp_estimate
+
+    paths = []
+    result, data = exp_estimate(sigma=0.1, seed=3)
+    accuracy = assess(result, data, methods="profile", warn=False)
+    contour = region_contour(result, data, accuracy)
+    for j in (1, 2):
+        lo, hi = accuracy.ci_profile[j]
+        span = hi - lo
+        grid = np.linspace(lo - 0.5 * span, hi + 0.5 * span, 41)
+        curve = profile_curve(contour, accuracy.covariance, j, grid)
+        name = accuracy.names[j]
+        paths.append(plot_profile(curve, accuracy, directory / f"accuracy_profile_exp_{name}.png"))
+    b_lo, b_hi = accuracy.ci_profile[1]
+    c_lo, c_hi = accuracy.ci_profile[2]
+    grid_b = np.linspace(b_lo - 0.6 * (b_hi - b_lo), b_hi + 0.6 * (b_hi - b_lo), 81)
+    grid_c = np.linspace(c_lo - 0.6 * (c_hi - c_lo), c_hi + 0.6 * (c_hi - c_lo), 81)
+    piece = cost_slice(contour, 1, 2, grid_b, grid_c)
+    paths.append(plot_region_slice(piece, accuracy, directory / "accuracy_slice_exp_b_c.png"))
+
+    data = example2_data(2, 1)
+    result = estimate(example_model(), data, MNR(), method="euler", noise="max")
+    accuracy = assess(result, data, methods="profile", warn=False)
+    contour = region_contour(result, data, accuracy)
+    lo, hi = accuracy.ci_profile[0]
+    grid = np.linspace(lo - 0.5 * (hi - lo), hi + 0.5 * (hi - lo), 31)
+    curve = profile_curve(contour, accuracy.covariance, 0, grid)
+    paths.append(plot_profile(curve, accuracy, directory / "accuracy_profile_ex2_theta1.png"))
+    return paths
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--n", type=int, default=200, help="noise realisations per case")
-    parser.add_argument("--case", nargs="+", default=["ex2", "ex2x30", "exp"], choices=CASES)
+    parser.add_argument(
+        "--case", nargs="+", default=["ex2", "ex2x30", "exp", "expx3"], choices=CASES
+    )
     parser.add_argument("--seed", type=int, default=1000, help="first noise seed")
     parser.add_argument("--workers", type=int, default=2, help="processes")
     parser.add_argument("--json", type=Path, default=None, help="write raw results here")
+    parser.add_argument(
+        "--figures", type=Path, default=None, help="only draw the docs' figures into this folder"
+    )
     args = parser.parse_args(argv)
+    if args.figures is not None:
+        for path in make_figures(args.figures):
+            print(path)
+        return 0
     report = {}
     for case in args.case:
         started = time.perf_counter()

@@ -206,6 +206,8 @@ def assess(
         max_lag=max_lag,
         maneuver_index=estimate.maneuver_index,
     )
+    # R̂_ν(0) divides by N; scale by N·n_o/(N·n_o − n_p) as s² [5.30] does for the plain bound
+    covariance_coloured = covariance_coloured * (n_data / (n_data - n_free))
     std_coloured = np.sqrt(np.abs(np.diag(covariance_coloured)))
     # the coloured covariance carries the residual level itself, so its level is Δ / s²
     ci_coloured = ellipsoid_intervals(center, covariance_coloured, delta / s2)
