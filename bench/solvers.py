@@ -1,6 +1,6 @@
 """Simulations to the optimum and wall time: MNRES, MNR, FPS and scipy's least_squares.
 
-    python bench/solvers.py [--repeat 3] [--markdown]
+    python -P bench/solvers.py [--repeat 3]
 
 All methods minimise the same weighted cost J = Σ νᵀR⁻¹ν (R fixed, so the optima coincide)
 through the same simulator (``OutputErrorProblem``, numba RK4/Euler kernels), which counts

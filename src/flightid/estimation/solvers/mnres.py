@@ -49,7 +49,9 @@ class _PointSet:
     costs: np.ndarray  # (n,)
     reference: np.ndarray  # expansion reference of the least-squares forms (n_f,)
     surface: RecursiveSurface | None = None
-    restarts: int = 0
+    restarts: int = 0  # restarts so far in this run
+    failures: int = 0  # consecutive restarts without an accepted step
+    corrections: int = 0  # failed trials inserted since the last accepted step
     last_step: np.ndarray | None = field(default=None)
     fresh: bool = True  # the surface comes from perturbations about the current best point
 
@@ -66,16 +68,20 @@ class MNRES:
         importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7).
         max_halvings: step halvings before a restart.
         max_condition: largest acceptable condition number of the (scaled) point cloud.
-        max_restarts: restarts at most before declaring a stall.
+        learn_from_failures: failed full steps whose points enter the surface before the
+            step is halved (0: halve at once, as the paper's step-size control).
+        max_restarts: consecutive restarts without progress before declaring a stall; each
+            such restart perturbs 10 times less than the previous one.
     """
 
     form: str = "algebraic"
     window: int | None = None
-    initial_perturbation: float = 0.01
+    initial_perturbation: float = 0.001
     importance_scaling: bool = True
     max_halvings: int = 3
     max_condition: float = 1e8
-    max_restarts: int = 20
+    max_restarts: int = 6
+    learn_from_failures: int = 2
 
     name = "mnres"
 
@@ -101,6 +107,7 @@ class MNRES:
             "max_halvings": self.max_halvings,
             "max_condition": self.max_condition,
             "max_restarts": self.max_restarts,
+            "learn_from_failures": self.learn_from_failures,
         }
 
     # ------------------------------------------------------------------ helpers
@@ -151,13 +158,16 @@ class MNRES:
         theta: np.ndarray,
         g: np.ndarray | None,
         last_step: np.ndarray | None,
+        failures: int,
     ) -> np.ndarray:
-        """Perturbations for a restart: importance-scaled, shrinking with the last step."""
+        """Perturbations for a restart: importance-scaled, shrinking with the last step and
+        by a factor 10 for each consecutive restart that found no lower cost."""
         magnitude = np.maximum(np.abs(theta), objective.typical)
         size = self.initial_perturbation
         if last_step is not None:
             # 10 × the last relative step, between 1e-5 and the initial perturbation
             size = float(np.clip(10.0 * np.max(np.abs(last_step) / magnitude), 1e-5, size))
+        size = max(size * 0.1**failures, 1e-8)
         relative = np.full(theta.shape, size)
         if self.importance_scaling and g is not None:
             diagonal = np.diag(information_matrix(g, objective.r_diag)) * magnitude**2
@@ -235,7 +245,32 @@ class MNRES:
                         state=state,
                     )
                 step = gn.step
-                accepted = halving_search(objective, theta, cost, step, self.max_halvings)
+                if self.learn_from_failures and state.corrections < self.learn_from_failures:
+                    # Try the full step once; if it fails, its outputs still teach the surface
+                    # about the direction where it was wrong: the point enters the set (the
+                    # highest-cost point leaves) and the pass is repeated.
+                    trial = theta + step
+                    trial_costs, trial_outputs = objective.evaluate(trial[None, :])
+                    if trial_costs[0] < cost:
+                        accepted = (trial, float(trial_costs[0]), trial_outputs[0], step)
+                    elif np.isfinite(trial_costs[0]):
+                        self._insert(
+                            objective,
+                            state,
+                            trial,
+                            trial_outputs[0],
+                            float(trial_costs[0]),
+                            window,
+                            replace_only=True,
+                        )
+                        state.corrections += 1
+                        continue
+                    else:
+                        accepted = halving_search(
+                            objective, theta, cost, 0.5 * step, self.max_halvings - 1
+                        )
+                else:
+                    accepted = halving_search(objective, theta, cost, step, self.max_halvings)
             else:
                 step, accepted = None, None
             if accepted is None:
@@ -263,7 +298,7 @@ class MNRES:
                         *budget_status(objective),
                         state=state,
                     )
-                if state.restarts >= self.max_restarts:
+                if state.failures >= self.max_restarts:
                     return SolverOutcome(
                         theta,
                         outputs,
@@ -271,20 +306,25 @@ class MNRES:
                         iteration,
                         False,
                         "stalled",
-                        f"stalled: no lower cost found after {self.max_restarts} restarts",
+                        f"stalled: {self.max_restarts} restarts in a row found no lower cost",
                         state=state,
                     )
-                deltas = self._restart_deltas(objective, theta, g, state.last_step)
-                last_step = state.last_step
+                deltas = self._restart_deltas(objective, theta, g, state.last_step, state.failures)
+                previous = state
                 state = self._initialise(
-                    objective, theta, outputs, cost, deltas, state.restarts + 1
+                    objective, theta, outputs, cost, deltas, previous.restarts + 1
                 )
-                state.last_step = last_step
+                state.last_step = previous.last_step
+                # a perturbed point that lowers the cost is progress too
+                progress = float(np.min(state.costs)) < cost
+                state.failures = 0 if progress else previous.failures + 1
                 continue
             new_theta, new_cost, new_outputs, taken = accepted
             self._insert(objective, state, new_theta, new_outputs, new_cost, window)
             state.last_step = taken
             state.fresh = False
+            state.failures = 0
+            state.corrections = 0
             relative = conv.relative_cost_change(cost, new_cost)
             settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
                 taken, new_theta, typical
@@ -325,10 +365,12 @@ class MNRES:
         outputs: np.ndarray,
         cost: float,
         window: int,
+        replace_only: bool = False,
     ) -> None:
-        """The new point enters; the highest-cost point leaves once the window is full."""
+        """The new point enters; the highest-cost point leaves once the window is full (or
+        at once with ``replace_only``)."""
         typical = objective.typical
-        if state.points.shape[0] < window:
+        if state.points.shape[0] < window and not replace_only:
             if state.surface is not None:
                 state.surface.add(theta / typical, outputs.reshape(-1))
             state.points = np.vstack([state.points, theta[None]])
