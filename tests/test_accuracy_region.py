@@ -126,3 +126,24 @@ def test_accuracy_json_contract(exp_case):
         assert len(entry["ci_cr"]) == 2 and len(entry["ci_search"]) == 2
         assert entry["ci_cr"][0] < entry["value"] < entry["ci_cr"][1]
     assert document["method"] == result.solver  # the estimate's own keys are kept
+
+
+@pytest.mark.slow
+def test_example2_noisy_profile_matches_a_long_search():
+    # RP-1153 example 2 case 2 with 30× the noise (σ = 0.03): 6 parameters, nonlinear in θ
+    from flightid.data import FlightData
+    from flightid.estimation import MNR, estimate
+    from flightid.paper.examples12 import example2_data, example_model
+    from flightid.paper.linear_system import TRUE_VALUES, linear_model
+    from flightid.simulate import simulate
+
+    base = example2_data(2, 1)
+    clean = simulate(linear_model(TRUE_VALUES), base, method="euler")
+    z = clean + (base.outputs - clean) * 30.0
+    data = FlightData(base.time, {"u": base.input("u")}, {"x1": z[:, 0], "x2": z[:, 1]})
+    result = estimate(example_model(), data, MNR(), method="euler", noise="max")
+    accuracy = assess(result, data, methods="all", budget=100_000, seed=3, warn=False)
+    centre = accuracy.theta_min[:, None]
+    np.testing.assert_allclose(accuracy.ci_profile - centre, accuracy.ci_search - centre, rtol=0.05)
+    assert accuracy.search.settled.all()
+    assert accuracy.evaluations["profile"] * 10 <= accuracy.evaluations["search"]
