@@ -6,7 +6,19 @@ import numpy as np
 
 from flightid.estimation.objective import Objective
 
-__all__ = ["halving_search", "budget_status"]
+__all__ = ["halving_search", "budget_status", "limit_step"]
+
+
+def limit_step(
+    step: np.ndarray, theta: np.ndarray, typical: np.ndarray, max_relative_step: float
+) -> np.ndarray:
+    """Scale Δθ down (direction kept) so no |Δθ_j| exceeds max_relative_step·max(|θ_j|, typ_j).
+
+    Far from the optimum a Gauss–Newton step along a poorly determined direction can be many
+    times the parameters' size and carry the search into a distant basin; this bounds it.
+    """
+    ratio = np.max(np.abs(step) / (max_relative_step * np.maximum(np.abs(theta), typical)))
+    return step / ratio if ratio > 1.0 else step
 
 
 def halving_search(

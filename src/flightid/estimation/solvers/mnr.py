@@ -9,6 +9,7 @@ equivalent evaluations plus one per halving.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy as np
 from flightid.errors import InputError
 from flightid.estimation.gauss_newton import gauss_newton_step
 from flightid.estimation.objective import Objective, SolverOutcome
-from flightid.estimation.solvers.common import budget_status, halving_search
+from flightid.estimation.solvers.common import budget_status, halving_search, limit_step
 
 __all__ = ["MNR"]
 
@@ -29,11 +30,15 @@ class MNR:
         relative_step: finite-difference step, relative to max(|θ_j|, typical_j).
         central: central differences (2·n_f integrations per pass) instead of forward.
         max_halvings: step-size halvings tried before declaring a stall.
+        max_relative_step: no parameter moves more than this fraction of max(|θ_j|, scale_j)
+            in one pass (the step is shortened, its direction kept); off by default: on the
+            benchmark problems a bound of 0.5 cost MNR 1.3–2× more simulations.
     """
 
     relative_step: float = 1e-6
     central: bool = False
     max_halvings: int = 10
+    max_relative_step: float = math.inf
 
     name = "mnr"
 
@@ -48,6 +53,7 @@ class MNR:
             "relative_step": self.relative_step,
             "central": self.central,
             "max_halvings": self.max_halvings,
+            "max_relative_step": self.max_relative_step,
         }
 
     def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
@@ -87,7 +93,8 @@ class MNR:
                     "converged",
                     "converged: the next step and the cost drop it predicts are below tolerance",
                 )
-            accepted = halving_search(objective, theta, cost, gn.step, self.max_halvings)
+            step = limit_step(gn.step, theta, problem.typical, self.max_relative_step)
+            accepted = halving_search(objective, theta, cost, step, self.max_halvings)
             if accepted is None:
                 if conv.params_settled(gn.step, theta, problem.typical):
                     return outcome(

@@ -25,6 +25,7 @@ the paper's version had no such safeguards and oscillated on example 2, case 2.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,7 +33,7 @@ import numpy as np
 from flightid.errors import EstimationError, InputError
 from flightid.estimation.gauss_newton import gauss_newton_step, information_matrix
 from flightid.estimation.objective import Objective, SolverOutcome
-from flightid.estimation.solvers.common import budget_status, halving_search
+from flightid.estimation.solvers.common import budget_status, halving_search, limit_step
 from flightid.estimation.surface import RecursiveSurface, algebraic_surface, batch_surface
 
 __all__ = ["MNRES"]
@@ -67,6 +68,8 @@ class MNRES:
         initial_perturbation: first perturbation, relative to max(|θ_j|, typical_j).
         importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7).
         max_halvings: step halvings before a restart.
+        max_relative_step: no parameter moves more than this fraction of max(|θ_j|, scale_j)
+            in one pass (off by default; see MNR).
         max_condition: largest acceptable condition number of the (scaled) point cloud.
         learn_from_failures: failed full steps whose points enter the surface before the
             step is halved (0: halve at once, as the paper's step-size control).
@@ -79,6 +82,7 @@ class MNRES:
     initial_perturbation: float = 0.001
     importance_scaling: bool = True
     max_halvings: int = 3
+    max_relative_step: float = math.inf
     max_condition: float = 1e8
     max_restarts: int = 6
     learn_from_failures: int = 2
@@ -105,6 +109,7 @@ class MNRES:
             "initial_perturbation": self.initial_perturbation,
             "importance_scaling": self.importance_scaling,
             "max_halvings": self.max_halvings,
+            "max_relative_step": self.max_relative_step,
             "max_condition": self.max_condition,
             "max_restarts": self.max_restarts,
             "learn_from_failures": self.learn_from_failures,
@@ -244,7 +249,7 @@ class MNRES:
                         "tolerance",
                         state=state,
                     )
-                step = gn.step
+                step = limit_step(gn.step, theta, typical, self.max_relative_step)
                 if self.learn_from_failures and state.corrections < self.learn_from_failures:
                     # Try the full step once; if it fails, its outputs still teach the surface
                     # about the direction where it was wrong: the point enters the set (the
