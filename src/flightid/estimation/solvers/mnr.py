@@ -53,7 +53,9 @@ class MNR:
             "relative_step": self.relative_step,
             "central": self.central,
             "max_halvings": self.max_halvings,
-            "max_relative_step": self.max_relative_step,
+            "max_relative_step": None
+            if math.isinf(self.max_relative_step)
+            else self.max_relative_step,
         }
 
     def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:

@@ -109,7 +109,9 @@ class MNRES:
             "initial_perturbation": self.initial_perturbation,
             "importance_scaling": self.importance_scaling,
             "max_halvings": self.max_halvings,
-            "max_relative_step": self.max_relative_step,
+            "max_relative_step": None
+            if math.isinf(self.max_relative_step)
+            else self.max_relative_step,
             "max_condition": self.max_condition,
             "max_restarts": self.max_restarts,
             "learn_from_failures": self.learn_from_failures,
