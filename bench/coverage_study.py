@@ -18,7 +18,7 @@ and the two nonlinear derivatives, as each of its 19 profiles costs ≈ 120 simu
 
 Usage::
 
-    python bench/coverage.py [--n 200] [--case ex2 ex2x30 exp ex3] [--workers 2]
+    python bench/coverage_study.py [--n 200] [--case ex2 ex2x30 exp ex3] [--workers 2]
 
 Prints one table per case (coverage per method: mean over parameters, and the smallest and
 largest per-parameter coverage) and the N_φ distribution; ``--json FILE`` keeps the raw counts.
@@ -38,9 +38,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-# This file is named like the ``coverage`` package, which numba imports: keep bench/ off the
-# import path so that ``import coverage`` inside numba finds the real package.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != ROOT / "bench"]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "tests"))
 
