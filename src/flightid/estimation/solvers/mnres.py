@@ -68,6 +68,7 @@ class MNRES:
         initial_perturbation: first perturbation, relative to max(|θ_j|, typical_j).
         importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7).
         max_halvings: step halvings before a restart.
+        fresh_halvings: step halvings from a freshly (re)initialised surface.
         max_relative_step: no parameter moves more than this fraction of max(|θ_j|, scale_j)
             in one pass (off by default; see MNR).
         max_condition: largest acceptable condition number of the (scaled) point cloud.
@@ -82,6 +83,7 @@ class MNRES:
     initial_perturbation: float = 0.001
     importance_scaling: bool = True
     max_halvings: int = 3
+    fresh_halvings: int = 10
     max_relative_step: float = math.inf
     max_condition: float = 1e8
     max_restarts: int = 6
@@ -109,6 +111,7 @@ class MNRES:
             "initial_perturbation": self.initial_perturbation,
             "importance_scaling": self.importance_scaling,
             "max_halvings": self.max_halvings,
+            "fresh_halvings": self.fresh_halvings,
             "max_relative_step": None
             if math.isinf(self.max_relative_step)
             else self.max_relative_step,
@@ -252,6 +255,13 @@ class MNRES:
                         state=state,
                     )
                 step = limit_step(gn.step, theta, typical, self.max_relative_step)
+                # a fresh surface is as good as a finite-difference gradient: search its step
+                # as far down as MNR does before giving up on it
+                halvings = (
+                    max(self.max_halvings, self.fresh_halvings)
+                    if state.fresh
+                    else self.max_halvings
+                )
                 if self.learn_from_failures and state.corrections < self.learn_from_failures:
                     # Try the full step once; if it fails, its outputs still teach the surface
                     # about the direction where it was wrong: the point enters the set (the
@@ -273,11 +283,9 @@ class MNRES:
                         state.corrections += 1
                         continue
                     else:
-                        accepted = halving_search(
-                            objective, theta, cost, 0.5 * step, self.max_halvings - 1
-                        )
+                        accepted = halving_search(objective, theta, cost, 0.5 * step, halvings - 1)
                 else:
-                    accepted = halving_search(objective, theta, cost, step, self.max_halvings)
+                    accepted = halving_search(objective, theta, cost, step, halvings)
             else:
                 step, accepted = None, None
             if accepted is None:
