@@ -6,12 +6,19 @@ from the likelihood region.
 """
 
 from flightid.data import FlightData
+from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate
 from flightid.model import Parameter, Parameters, StateSpaceModel
 from flightid.simulate import Simulator, simulate
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "Convergence",
+    "Estimate",
+    "FPS",
+    "MNR",
+    "MNRES",
+    "estimate",
     "FlightData",
     "Parameter",
     "Parameters",

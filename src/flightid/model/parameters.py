@@ -37,7 +37,8 @@ class Parameter:
         name: identifier, e.g. ``"Cl_beta"``.
         value: current (start) value, in the parameter's own unit.
         free: True if the parameter is estimated, False if held fixed.
-        scale: typical magnitude (> 0); default ``max(|value|, 1e-3)``... see ``typical``.
+        scale: typical magnitude (> 0), in the parameter's unit; when None, ``typical`` is
+            ``max(|value|, 1e-3)``.
         lower, upper: optional bounds used by the search methods (not by the Newton steps).
         unit: free text, for reports.
     """

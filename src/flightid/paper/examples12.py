@@ -142,24 +142,28 @@ class ExampleRun:
         return document
 
 
+SOLVERS = {"fps": FPS(), "mnr": MNR(), "mnres": MNRES()}
+
+
+def _run(data: FlightData, methods, convergence: Convergence, compiled: bool) -> tuple:
+    """Every requested solver on the linear system (Euler, R = I fixed)."""
+    return tuple(
+        estimate(
+            example_model(),
+            data,
+            SOLVERS[name],
+            method="euler",
+            noise="fixed",
+            convergence=convergence,
+            compiled=compiled,
+        )
+        for name in methods
+    )
+
+
 def run_example1(methods=("fps", "mnr", "mnres"), compiled: bool = True) -> ExampleRun:
     """Example 1 with the requested solvers."""
-    data = example1_data()
-    solvers = {"fps": FPS(), "mnr": MNR(), "mnres": MNRES()}
-    results = []
-    for name in methods:
-        results.append(
-            estimate(
-                example_model(),
-                data,
-                solvers[name],
-                method="euler",
-                noise="fixed",
-                convergence=EXAMPLE1_CONVERGENCE,
-                compiled=compiled,
-            )
-        )
-    return ExampleRun(1, None, tuple(results))
+    return ExampleRun(1, None, _run(example1_data(), methods, EXAMPLE1_CONVERGENCE, compiled))
 
 
 def run_example2(
@@ -167,21 +171,7 @@ def run_example2(
 ) -> ExampleRun:
     """Example 2, case 1 or 2, with the requested solvers."""
     data = example2_data(case, seed)
-    solvers = {"fps": FPS(), "mnr": MNR(), "mnres": MNRES()}
-    results = []
-    for name in methods:
-        results.append(
-            estimate(
-                example_model(),
-                data,
-                solvers[name],
-                method="euler",
-                noise="fixed",
-                convergence=EXAMPLE2_CONVERGENCE,
-                compiled=compiled,
-            )
-        )
-    return ExampleRun(2, case, tuple(results))
+    return ExampleRun(2, case, _run(data, methods, EXAMPLE2_CONVERGENCE, compiled))
 
 
 def comparison_table(run: ExampleRun) -> str:

@@ -39,6 +39,7 @@ from flightid.estimation.surface import RecursiveSurface, algebraic_surface, bat
 __all__ = ["MNRES"]
 
 _FORMS = ("algebraic", "batch", "recursive")
+_LEARNT = object()  # marker: a failed trial point entered the surface; repeat the pass
 
 
 @dataclass
@@ -215,24 +216,31 @@ class MNRES:
             )
         else:
             state.costs = objective.costs_of(state.outputs)
+
+        def finish(iterations: int, converged: bool, status: str, message: str):
+            best = int(np.argmin(state.costs))
+            return SolverOutcome(
+                state.points[best],
+                state.outputs[best],
+                float(state.costs[best]),
+                iterations,
+                converged,
+                status,
+                message,
+                state=state,
+            )
+
         g = None
         for iteration in range(1, conv.max_iterations + 1):
             base = int(np.argmin(state.costs))
             theta, cost, outputs = state.points[base], state.costs[base], state.outputs[base]
             if objective.budget_exhausted():
-                return SolverOutcome(
-                    theta,
-                    outputs,
-                    cost,
-                    iteration - 1,
-                    False,
-                    *budget_status(objective),
-                    state=state,
-                )
+                return finish(iteration - 1, False, *budget_status(objective))
             try:
                 slopes = self._slopes(objective, state, base)
             except EstimationError:
-                slopes = None
+                slopes = None  # the point cloud has collapsed: restart below
+            step, accepted = None, None
             if slopes is not None:
                 # ∂y/∂θ = ∂y/∂ϑ / typical, reshaped to (N, n_o, n_f)
                 g = (slopes / typical[:, None]).T.reshape(
@@ -243,96 +251,38 @@ class MNRES:
                 # or a fresh one; a smoothed least-squares plane must prove it with a pass.
                 trusted = state.fresh or state.points.shape[0] == problem.n_free + 1
                 if trusted and conv.step_settled(gn, theta, typical, cost):
-                    return SolverOutcome(
-                        theta,
-                        outputs,
-                        cost,
+                    return finish(
                         iteration,
                         True,
                         "converged",
-                        "converged: the next step and the cost drop it predicts are below "
-                        "tolerance",
-                        state=state,
+                        "converged: the next step and the cost drop it predicts are "
+                        "below tolerance",
                     )
                 step = limit_step(gn.step, theta, typical, self.max_relative_step)
-                # a fresh surface is as good as a finite-difference gradient: search its step
-                # as far down as MNR does before giving up on it
-                halvings = (
-                    max(self.max_halvings, self.fresh_halvings)
-                    if state.fresh
-                    else self.max_halvings
-                )
-                if self.learn_from_failures and state.corrections < self.learn_from_failures:
-                    # Try the full step once; if it fails, its outputs still teach the surface
-                    # about the direction where it was wrong: the point enters the set (the
-                    # highest-cost point leaves) and the pass is repeated.
-                    trial = theta + step
-                    trial_costs, trial_outputs = objective.evaluate(trial[None, :])
-                    if trial_costs[0] < cost:
-                        accepted = (trial, float(trial_costs[0]), trial_outputs[0], step)
-                    elif np.isfinite(trial_costs[0]):
-                        self._insert(
-                            objective,
-                            state,
-                            trial,
-                            trial_outputs[0],
-                            float(trial_costs[0]),
-                            window,
-                            replace_only=True,
-                        )
-                        state.corrections += 1
-                        continue
-                    else:
-                        accepted = halving_search(objective, theta, cost, 0.5 * step, halvings - 1)
-                else:
-                    accepted = halving_search(objective, theta, cost, step, halvings)
-            else:
-                step, accepted = None, None
+                accepted = self._try_step(objective, state, theta, cost, step, window)
+                if accepted is _LEARNT:
+                    continue
             if accepted is None:
                 # A surface built from past passes may be stale: only a surface fresh from a
                 # (re)initialisation at this point can declare convergence on a failed step.
                 if step is not None and state.fresh and conv.params_settled(step, theta, typical):
-                    return SolverOutcome(
-                        theta,
-                        outputs,
-                        cost,
+                    return finish(
                         iteration,
                         True,
                         "converged",
-                        "converged: the step is below the parameter tolerance and no shorter "
-                        "step lowers the cost",
-                        state=state,
+                        "converged: the step is below the parameter tolerance and no "
+                        "shorter step lowers the cost",
                     )
                 if objective.budget_exhausted():
-                    return SolverOutcome(
-                        theta,
-                        outputs,
-                        cost,
-                        iteration,
-                        False,
-                        *budget_status(objective),
-                        state=state,
-                    )
+                    return finish(iteration, False, *budget_status(objective))
                 if state.failures >= self.max_restarts:
-                    return SolverOutcome(
-                        theta,
-                        outputs,
-                        cost,
+                    return finish(
                         iteration,
                         False,
                         "stalled",
                         f"stalled: {self.max_restarts} restarts in a row found no lower cost",
-                        state=state,
                     )
-                deltas = self._restart_deltas(objective, theta, g, state.last_step, state.failures)
-                previous = state
-                state = self._initialise(
-                    objective, theta, outputs, cost, deltas, previous.restarts + 1
-                )
-                state.last_step = previous.last_step
-                # a perturbed point that lowers the cost is progress too
-                progress = float(np.min(state.costs)) < cost
-                state.failures = 0 if progress else previous.failures + 1
+                state = self._restart(objective, state, theta, outputs, cost, g)
                 continue
             new_theta, new_cost, new_outputs, taken = accepted
             self._insert(objective, state, new_theta, new_outputs, new_cost, window)
@@ -350,27 +300,72 @@ class MNRES:
                 state.costs = objective.costs_of(state.outputs)
                 settled = settled and noise_settled
             if settled:
-                return SolverOutcome(
-                    new_theta,
-                    new_outputs,
-                    float(np.min(state.costs)),
+                return finish(
                     iteration,
                     True,
                     "converged",
                     "converged: cost and parameter changes below tolerance",
-                    state=state,
                 )
-        base = int(np.argmin(state.costs))
-        return SolverOutcome(
-            state.points[base],
-            state.outputs[base],
-            float(state.costs[base]),
+        return finish(
             conv.max_iterations,
             False,
             "max_iterations",
             f"stopped after {conv.max_iterations} iterations without converging",
-            state=state,
         )
+
+    def _try_step(
+        self,
+        objective: Objective,
+        state: _PointSet,
+        theta: np.ndarray,
+        cost: float,
+        step: np.ndarray,
+        window: int,
+    ):
+        """Integrate along the step: an accepted (θ, J, y, Δθ), None, or ``_LEARNT``."""
+        # a fresh surface is as good as a finite-difference gradient: search its step as far
+        # down as MNR does before giving up on it
+        halvings = max(self.max_halvings, self.fresh_halvings) if state.fresh else self.max_halvings
+        if not (self.learn_from_failures and state.corrections < self.learn_from_failures):
+            return halving_search(objective, theta, cost, step, halvings)
+        # Try the full step once; if it fails, its outputs still teach the surface about the
+        # direction where it was wrong: the point enters the set (the highest-cost point
+        # leaves) and the pass is repeated.
+        trial = theta + step
+        trial_costs, trial_outputs = objective.evaluate(trial[None, :])
+        if trial_costs[0] < cost:
+            return trial, float(trial_costs[0]), trial_outputs[0], step
+        if np.isfinite(trial_costs[0]):
+            self._insert(
+                objective,
+                state,
+                trial,
+                trial_outputs[0],
+                float(trial_costs[0]),
+                window,
+                replace_only=True,
+            )
+            state.corrections += 1
+            return _LEARNT
+        return halving_search(objective, theta, cost, 0.5 * step, halvings - 1)
+
+    def _restart(
+        self,
+        objective: Objective,
+        previous: _PointSet,
+        theta: np.ndarray,
+        outputs: np.ndarray,
+        cost: float,
+        g: np.ndarray | None,
+    ) -> _PointSet:
+        """New perturbations about the best point (n_f integrations)."""
+        deltas = self._restart_deltas(objective, theta, g, previous.last_step, previous.failures)
+        state = self._initialise(objective, theta, outputs, cost, deltas, previous.restarts + 1)
+        state.last_step = previous.last_step
+        # a perturbed point that lowers the cost is progress too
+        progress = float(np.min(state.costs)) < cost
+        state.failures = 0 if progress else previous.failures + 1
+        return state
 
     def _insert(
         self,
