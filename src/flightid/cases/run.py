@@ -1,4 +1,10 @@
-"""Run a case: load data, build the model, estimate, predict other maneuvers.
+"""Run a case: load data, build the model, estimate, assess accuracy, predict other maneuvers.
+
+Accuracy (``[accuracy] methods`` or ``run_case(..., accuracy=...)``): after the estimation
+``flightid.accuracy.assess`` computes, at ``accuracy.confidence``, the Cramér–Rao intervals and
+Beale's N_φ (always) and the profile-likelihood and random-search limits when asked; the
+search is seeded (``accuracy.seed``, default 0) and bounded by ``accuracy.budget``
+(equivalent evaluations, default ``DEFAULT_BUDGET``).
 
 Prediction check (verification on data not used for estimation): the estimated model is
 simulated on each prediction maneuver (initial states at the first measured values unless
@@ -10,15 +16,17 @@ simulated on each prediction maneuver (initial states at the first measured valu
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 import time as _time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from flightid.accuracy import AccuracyResult, accuracy_json, assess
 from flightid.cases.build import (
     base_model,
     build_convergence,
@@ -27,16 +35,24 @@ from flightid.cases.build import (
     load_maneuvers,
     resolve_data_dir,
 )
-from flightid.cases.spec import Case, CaseError
+from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.data.flightdata import FlightData
 from flightid.errors import SimulationError
 from flightid.estimation import Estimate, estimate
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate import simulate
 
-__all__ = ["CaseRun", "Prediction", "prepare_case", "run_case"]
+__all__ = [
+    "DEFAULT_BUDGET",
+    "CaseRun",
+    "Prediction",
+    "accuracy_methods",
+    "prepare_case",
+    "run_case",
+]
 
 Progress = Callable[[str], None]
+DEFAULT_BUDGET = 50_000  # random-search budget, equivalent evaluations
 
 
 def stderr_progress(message: str) -> None:
@@ -76,10 +92,19 @@ class CaseRun:
     estimate: Estimate
     predictions: tuple[Prediction, ...] = field(default_factory=tuple)
     model_description: str = ""
+    accuracy: AccuracyResult | None = None
 
     def to_dict(self) -> dict:
-        """The core's JSON entry, plus ``case``, ``maneuvers`` and ``prediction``."""
-        entry = self.estimate.to_dict()
+        """The core's JSON entry, plus ``case``, ``maneuvers`` and ``prediction``.
+
+        With an accuracy assessment the entry is ``accuracy_json(estimate, accuracy)``: each
+        parameter gains ``ci_cr``, ``ci_profile``, ``ci_search`` (when run), ...; the top
+        level ``confidence_level``, ``nonlinearity`` ({"N_phi", ...}) and ``accuracy``.
+        """
+        if self.accuracy is None:
+            entry = self.estimate.to_dict()
+        else:
+            entry = accuracy_json(self.estimate, self.accuracy)
         entry["case"] = {
             "title": self.case.title,
             "file": str(self.case.path),
@@ -170,15 +195,105 @@ def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
     return predictions
 
 
+def accuracy_methods(case: Case, override: str | Sequence[str] | None = None) -> tuple[str, ...]:
+    """The accuracy methods to run: ``override`` (e.g. the CLI's ``--accuracy``) if given,
+    else the case's ``accuracy.methods``; ``()`` (or ``"none"``) runs no assessment."""
+    methods = case.accuracy.get("methods", ()) if override is None else override
+    if isinstance(methods, str):
+        methods = (methods,)
+    methods = tuple(methods)
+    if methods in ((), ("none",)):
+        return ()
+    unknown = [m for m in methods if m not in ACCURACY_METHODS]
+    if unknown:
+        raise CaseError(
+            f"accuracy.methods: expected names from {list(ACCURACY_METHODS)}, got {unknown}"
+        )
+    return methods
+
+
+@contextlib.contextmanager
+def _heartbeat(say: Progress | None, label: str, interval_s: float) -> Iterator[None]:
+    """Call ``say`` every ``interval_s`` seconds with the elapsed time while the body runs."""
+    if say is None:
+        yield
+        return
+    started = _time.perf_counter()
+    done = threading.Event()
+
+    def beat() -> None:
+        while not done.wait(interval_s):
+            say(f"{label} ... {_time.perf_counter() - started:.0f} s")
+
+    thread = threading.Thread(target=beat, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
+def _assess(
+    case: Case,
+    result: Estimate,
+    maneuvers: Sequence[FlightData],
+    methods: tuple[str, ...],
+    say: Progress,
+    progress: Progress | None,
+    heartbeat_s: float,
+) -> AccuracyResult:
+    settings = case.accuracy
+    level = float(settings.get("confidence", 0.95))
+    budget = int(settings.get("budget", DEFAULT_BUDGET))
+    seed = int(settings.get("seed", 0))
+    searching = "search" in methods or "all" in methods
+    say(
+        f"accuracy: {', '.join(methods)} at level {level:g}"
+        + (f" (search: seed {seed}, budget {budget} evaluations)" if searching else "")
+    )
+    # the search draws its own progress bar on a terminal; elsewhere the heartbeat speaks
+    bar = progress is not None and sys.stderr.isatty()
+    with _heartbeat(None if bar else progress, "assessing accuracy", heartbeat_s):
+        accuracy = assess(
+            result,
+            list(maneuvers),
+            level=level,
+            methods=methods,
+            kind=settings.get("kind", "individual"),
+            distribution=settings.get("distribution", "t"),
+            seed=seed,
+            budget=budget,
+            progress=bar,
+            compiled=bool(case.estimation.get("compiled", True)),
+            warn=False,
+        )
+    spent = ", ".join(f"{k} {v}" for k, v in accuracy.evaluations.items())
+    say(f"accuracy: N_phi = {accuracy.nonlinearity.n_phi:.3g}; evaluations {spent}")
+    for message in accuracy.warnings:
+        say(f"accuracy warning: {message}")
+    return accuracy
+
+
 def run_case(
     case: Case,
     data_dir: str | Path | None = None,
     progress: Progress | None = None,
     heartbeat_s: float = 5.0,
+    accuracy: str | Sequence[str] | None = None,
 ) -> CaseRun:
-    """Prepare, estimate and predict; ``progress`` receives one-line messages."""
+    """Prepare, estimate, assess accuracy and predict; ``progress`` receives one-line messages.
+
+    Args:
+        case: a checked case (``load_case``).
+        data_dir: the data directory (overrides the case's).
+        progress: receives progress messages (None: silent).
+        heartbeat_s: seconds between "still running" messages.
+        accuracy: accuracy methods (``"cr"``, ``"profile"``, ``"search"``, ``"all"`` or a
+            list; ``"none"`` for no assessment); None: the case's ``accuracy.methods``.
+    """
     say = progress or (lambda message: None)
-    started = _time.perf_counter()
+    methods = accuracy_methods(case, accuracy)
     say(f"case {case.title!r}: loading data and building the model")
     prepared = prepare_case(case, data_dir)
     model = prepared.model
@@ -188,17 +303,7 @@ def run_case(
         f"solver {case.estimation.get('solver', 'mnres')}, noise "
         f"{case.estimation.get('noise', 'max')}"
     )
-    done = threading.Event()
-
-    def heartbeat() -> None:
-        while not done.wait(heartbeat_s):
-            say(f"estimating ... {_time.perf_counter() - started:.0f} s")
-
-    thread = None
-    if progress is not None:
-        thread = threading.Thread(target=heartbeat, daemon=True)
-        thread.start()
-    try:
+    with _heartbeat(progress, "estimating", heartbeat_s):
         result = estimate(
             model,
             list(prepared.maneuvers),
@@ -209,13 +314,14 @@ def run_case(
             convergence=build_convergence(case),
             compiled=bool(case.estimation.get("compiled", True)),
         )
-    finally:
-        done.set()
-        if thread is not None:
-            thread.join()
     say(
         f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "
         f"evaluations, cost {result.cost:.6g}, {result.wall_time_s:.1f} s"
+    )
+    assessed = (
+        _assess(case, result, prepared.maneuvers, methods, say, progress, heartbeat_s)
+        if methods
+        else None
     )
     predictions = _predict(prepared, result) if prepared.prediction_maneuvers else []
     for p in predictions:
@@ -232,4 +338,5 @@ def run_case(
         result,
         tuple(predictions),
         prepared.model_description,
+        assessed,
     )

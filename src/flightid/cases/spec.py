@@ -24,7 +24,9 @@ the walk-through and every key)::
 
     [biases.states] / [biases.outputs]      # name = start | {value, free, per_maneuver}
     [estimation]                            # solver, method, noise (R policy), R, settings
-    [accuracy]                              # confidence, bound_factor, correlation_warning
+    [accuracy]                              # confidence, bound_factor, correlation_warning,
+                                            # methods (["cr", "profile", "search"]), budget,
+                                            # seed, kind, distribution
     [prediction]                            # maneuvers to predict with the estimated model
     [output]                                # figures, report
 
@@ -80,7 +82,19 @@ _DATA = {
 _MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps"}
 _MODEL = {"module", "type", "airplane", "aero", "controls", "outputs", "name"}
 _ESTIMATION = {"solver", "method", "noise", "R", "solver_settings", "convergence", "compiled"}
-_ACCURACY = {"confidence", "bound_factor", "correlation_warning"}
+_ACCURACY = {
+    "confidence",
+    "bound_factor",
+    "correlation_warning",
+    "methods",
+    "budget",
+    "seed",
+    "kind",
+    "distribution",
+}
+ACCURACY_METHODS = ("cr", "profile", "search", "all")
+INTERVAL_KINDS = ("individual", "simultaneous")
+DISTRIBUTIONS = ("t", "normal")
 _PREDICTION = {"file", "files", "maneuvers", "initial_state"}
 _OUTPUT = {"figures", "report", "dir"}
 SOLVERS = ("mnres", "mnr", "fps")
@@ -312,6 +326,22 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
     if _number(accuracy.get("bound_factor", 1.0), "accuracy.bound_factor") <= 0:
         raise CaseError("accuracy.bound_factor: expected a positive number")
     _number(accuracy.get("correlation_warning", 0.9), "accuracy.correlation_warning")
+    methods = accuracy.get("methods", [])
+    if isinstance(methods, str):
+        methods = [methods]
+    if not isinstance(methods, list):
+        raise CaseError(
+            f"accuracy.methods: expected a list of names from {list(ACCURACY_METHODS)}, "
+            f"got {methods!r}"
+        )
+    for i, method in enumerate(methods):
+        _string(method, f"accuracy.methods[{i}]", ACCURACY_METHODS)
+    for key, smallest, what in (("budget", 1, "a positive"), ("seed", 0, "a non-negative")):
+        value = accuracy.get(key, smallest)
+        if isinstance(value, bool) or not isinstance(value, int) or value < smallest:
+            raise CaseError(f"accuracy.{key}: expected {what} integer, got {value!r}")
+    _string(accuracy.get("kind", "individual"), "accuracy.kind", INTERVAL_KINDS)
+    _string(accuracy.get("distribution", "t"), "accuracy.distribution", DISTRIBUTIONS)
 
     prediction_raw = _table(raw.get("prediction", {}), "prediction")
     _known(prediction_raw, _PREDICTION, "prediction")

@@ -6,7 +6,8 @@
     out_dir/estimates.csv    name, value, CR bound, interval, start, free
     out_dir/figures/*.png    measured vs predicted and residuals per maneuver, prediction
                              maneuvers, convergence history, correlation matrix
-    out_dir/report.html      everything above on one page
+    out_dir/report.html      everything above on one page, and the accuracy assessment when
+                             the run has one (CR, profile and search intervals, N_φ)
 
 Intervals: θ̂_j ± k·z_{(1+c)/2}·σ_j with σ_j the Cramér–Rao bound, c the confidence level and
 k the ``bound_factor`` of the case (1 by default; flight-test practice often uses 3–5 because
@@ -287,6 +288,8 @@ def render_html(run, figures: dict[str, list[str]]) -> str:
             classes,
         )
     )
+    if getattr(run, "accuracy", None) is not None:
+        parts.append(_accuracy_section(run))
     noise_rows = [
         [html.escape(n), _fmt(r, 4), _fmt(e, 4)]
         for n, r, e in zip(est.output_names, est.r_diag, est.fit_error(), strict=True)
@@ -341,6 +344,58 @@ def render_html(run, figures: dict[str, list[str]]) -> str:
             parts.append("<p><img src='figures/correlation.png' style='max-width:700px'></p>")
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _interval(pair) -> str:
+    """ "[lower, upper]"; an open side (no limit found) shows as ∓∞, an unknown one as —."""
+    lower, upper = (float(v) for v in pair)
+    low = "−∞" if lower == -np.inf else _fmt(lower) if np.isfinite(lower) else "—"
+    high = "+∞" if upper == np.inf else _fmt(upper) if np.isfinite(upper) else "—"
+    return f"[{low}, {high}]"
+
+
+def _accuracy_section(run) -> str:
+    """Estimate, CR, profile and search intervals of every free parameter, with N_φ."""
+    acc = run.accuracy
+    ran = [m for m in ("profile", "search") if getattr(acc, m) is not None]
+    headers = ["parameter", "estimate", "s·σ", "CR interval"]
+    headers += [f"{m} interval" for m in ran]
+    rows = []
+    for j, name in enumerate(acc.names):
+        row = [html.escape(name), _fmt(acc.center[j]), _fmt(acc.std_scaled[j], 3)]
+        row.append(_interval(acc.ci_cr[j]))
+        row += [_interval(getattr(acc, f"ci_{m}")[j]) for m in ran]
+        rows.append(row)
+    n_phi = acc.nonlinearity.n_phi
+    spent = ", ".join(f"{k} {v}" for k, v in acc.evaluations.items())
+    facts = [
+        ["confidence level", f"{acc.level:g} ({acc.kind}, {acc.distribution} quantiles)"],
+        ["methods", ", ".join(["Cramér–Rao", *ran])],
+        ["Beale's nonlinearity N_φ", _fmt(n_phi, 3)],
+        ["Beale factor on the contour level", _fmt(acc.nonlinearity.beale_factor, 6)],
+        ["s², contour level Δ", f"{_fmt(acc.s2, 4)}, {_fmt(acc.delta, 4)}"],
+        ["evaluations", html.escape(spent)],
+    ]
+    if acc.search is not None:
+        settled = int(acc.search.settled.sum())
+        facts.append(
+            [
+                "search",
+                f"seed {acc.search.seed}, {settled} of {acc.search.settled.size} extremes settled",
+            ]
+        )
+    text = [
+        "<h2>Accuracy</h2>",
+        "<p>Cramér–Rao intervals project the information-matrix ellipsoid; profile and search "
+        "limits are the extremes of each parameter on the likelihood contour "
+        "J(θ) − J(θ̂) = Δ (flightid.accuracy). Search limits are inner bounds.</p>",
+        _table(["item", "value"], facts),
+        _table(headers, rows),
+    ]
+    if acc.warnings:
+        items = "".join(f"<li>{html.escape(w)}</li>" for w in acc.warnings)
+        text.append(f"<ul class='bad'>{items}</ul>")
+    return "\n".join(text)
 
 
 def write_report(run, out_dir: Path) -> Path:
