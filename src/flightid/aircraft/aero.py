@@ -5,9 +5,10 @@ Each aerodynamic coefficient is a sum of named derivatives times regressors [RP-
     C(t) = θ0 + θ1 x1(t) + … + θ_{n−1} x_{n−1}(t)
 
 where every regressor x_j is a term of the ``flightid.model.terms`` language — a product of
-signal powers such as ``"beta"``, ``"alpha*phat"``, ``"beta^3"``, ``"alpha*dr"`` or the
-constant ``"1"`` — built from states, inputs and the non-dimensional rates
-p̂ = p b / 2V, q̂ = q c̄ / 2V, r̂ = r b / 2V.
+signal powers such as ``"beta"``, ``"alpha*phat"``, ``"beta^3"``, ``"alpha*dr"``, a
+first-order spline in α such as ``"spline1(alpha,0.15)"`` = max(α − 0.15, 0), or the constant
+``"1"`` — built from states, inputs and the non-dimensional rates p̂ = p b / 2V, q̂ = q c̄ / 2V,
+r̂ = r b / 2V.
 
 Coefficients (body axes, stability axes):
 
@@ -18,11 +19,14 @@ Coefficients (body axes, stability axes):
 Parameter names follow NASA notation: coefficient, underscore, the term's signals joined by
 underscores with powers appended — ``Cl`` × ``"beta"`` → ``Cl_beta`` (C_lβ),
 ``CY`` × ``"alpha*beta"`` → ``CY_alpha_beta`` (C_Yαβ), ``CY`` × ``"beta^3"`` → ``CY_beta3``
-(C_Yβ³), ``Cn`` × ``"1"`` → ``Cn_0``.
+(C_Yβ³), ``Cn`` × ``"1"`` → ``Cn_0``. A spline factor is written as its signal, ``_s`` and the
+knot with "." as "p" and "-" as "m": ``CL`` × ``"spline1(alpha,0.15)"`` → ``CL_alpha_s0p15``
+(C_L of (α − 0.15)₊), ``Cm`` × ``"spline1(alpha,-0.05)"`` → ``Cm_alpha_sm0p05``.
 
 Inside the compiled equations of motion the model is carried as numeric tables
 (``AeroTables``): for every term the coefficient it belongs to, the index of its parameter in
-the full parameter vector θ, and its factors (signal index, power). No Python object reaches
+the full parameter vector θ, and its factors (signal index, power, spline flag and knot). No
+Python object reaches
 the compiled functions.
 """
 
@@ -35,7 +39,7 @@ import numpy as np
 
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.model.parameters import Parameter, Parameters
-from flightid.model.terms import Term, TermError, parse_terms
+from flightid.model.terms import Spline, Term, TermError, parse_terms
 
 __all__ = ["AeroModel", "AeroTables", "COEFFICIENTS", "parameter_name"]
 
@@ -44,11 +48,11 @@ COEFFICIENTS = ("CX", "CY", "CZ", "CD", "CL", "Cl", "Cm", "Cn")
 
 
 def parameter_name(coefficient: str, term: Term) -> str:
-    """NASA-style parameter name, e.g. ("Cl", alpha*phat) → "Cl_alpha_phat"; constant → "Cl_0"."""
-    if term.is_constant:
-        return f"{coefficient}_0"
-    parts = [name if power == 1 else f"{name}{power}" for name, power in term.factors]
-    return f"{coefficient}_" + "_".join(parts)
+    """NASA-style parameter name, e.g. ("Cl", alpha*phat) → "Cl_alpha_phat"; constant → "Cl_0";
+    ("CL", spline1(alpha,0.15)) → "CL_alpha_s0p15"."""
+    # Term.identifier: "0" for the constant, "alpha_beta3" for α·β³, "alpha_s0p15" for
+    # spline1(alpha,0.15) (see flightid.model.terms)
+    return f"{coefficient}_{term.identifier}"
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,8 @@ class AeroTables:
     factor_start     factors of term k are entries factor_start[k] : factor_start[k+1]
     factor_signal    signal index of each factor
     factor_power     integer power of each factor
+    factor_spline    1 if the factor is the spline (x − knot)₊ of its signal, 0 if the signal
+    factor_knot      the spline's knot (0 for plain signals), signal units
     """
 
     term_coef: np.ndarray
@@ -67,6 +73,8 @@ class AeroTables:
     factor_start: np.ndarray
     factor_signal: np.ndarray
     factor_power: np.ndarray
+    factor_spline: np.ndarray
+    factor_knot: np.ndarray
 
 
 class AeroModel:
@@ -189,7 +197,7 @@ class AeroModel:
         """Numeric tables against a signal list and the model's full parameter vector."""
         signal_index = {name: i for i, name in enumerate(signal_names)}
         term_coef, term_param, start = [], [], [0]
-        factor_signal, factor_power = [], []
+        factor_signal, factor_power, factor_spline, factor_knot = [], [], [], []
         for coefficient, terms in self._terms.items():
             for term in terms:
                 pname = parameter_name(coefficient, term)
@@ -198,7 +206,9 @@ class AeroModel:
                         f"parameters: the aerodynamic model needs a parameter {pname!r}; "
                         f"got {parameters.names}"
                     )
-                for name, power in term.factors:
+                for key, power in term.factors:
+                    spline = isinstance(key, Spline)
+                    name = key.signal if spline else key
                     if name not in signal_index:
                         raise TermError(
                             f"coefficient {coefficient!r}, term {term.label!r}: unknown signal "
@@ -206,6 +216,8 @@ class AeroModel:
                         )
                     factor_signal.append(signal_index[name])
                     factor_power.append(power)
+                    factor_spline.append(1 if spline else 0)
+                    factor_knot.append(key.knot if spline else 0.0)
                 term_coef.append(COEFFICIENTS.index(coefficient))
                 term_param.append(parameters.index(pname))
                 start.append(len(factor_signal))
@@ -216,6 +228,8 @@ class AeroModel:
             as_int(start),
             as_int(factor_signal),
             as_int(factor_power),
+            as_int(factor_spline),
+            np.array(factor_knot, dtype=np.float64),
         )
 
     def regressors(self, coefficient: str, signals: Mapping[str, np.ndarray]) -> np.ndarray:

@@ -112,13 +112,24 @@ def signals_from_body(X, U, extra_input, b, cbar):
 
 
 @register_jitable
-def aero_coefficients(sig, theta, term_coef, term_param, factor_start, factor_signal, factor_power):
-    """Coefficient vector (CX, CY, CZ, CD, CL, Cl, Cm, Cn): C = Σ θ_k Π signal^power [2.16]."""
+def aero_coefficients(
+    sig, theta, term_coef, term_param, factor_start, factor_signal, factor_power, factor_spline,
+    factor_knot,
+):  # fmt: skip
+    """Coefficient vector (CX, CY, CZ, CD, CL, Cl, Cm, Cn): C = Σ θ_k Π factor^power [2.16].
+
+    The tables are those of ``flightid.aircraft.aero.AeroTables``; a factor is its signal x,
+    or the first-order spline (x − knot)₊ = max(x − knot, 0) where ``factor_spline`` is 1.
+    """
     C = np.zeros(8)
     for k in range(term_coef.shape[0]):
         value = theta[term_param[k]]
         for j in range(factor_start[k], factor_start[k + 1]):
-            value *= sig[factor_signal[j]] ** factor_power[j]
+            x = sig[factor_signal[j]]
+            if factor_spline[j] == 1:
+                # (x − k)₊ = max(x − k, 0)
+                x = max(x - factor_knot[j], 0.0)
+            value *= x ** factor_power[j]
         C[term_coef[k]] += value
     return C
 

@@ -94,6 +94,8 @@ def _body_functions(src_state, src_input, deriv_index, out_index, extra_input, t
     fs = tables.factor_start
     fsig = tables.factor_signal
     fpow = tables.factor_power
+    fspl = tables.factor_spline
+    fknot = tables.factor_knot
     n_states = deriv_index.shape[0]
     n_outputs = out_index.shape[0]
 
@@ -106,7 +108,7 @@ def _body_functions(src_state, src_input, deriv_index, out_index, extra_input, t
             else:
                 X[i] = u[src_input[i]]
         sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
         thrust = u[thrust_index] if thrust_index >= 0 else 0.0
         F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
         D = rigid_body_derivatives(X, F, consts)
@@ -123,7 +125,7 @@ def _body_functions(src_state, src_input, deriv_index, out_index, extra_input, t
             else:
                 X[i] = u[src_input[i]]
         sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
         thrust = u[thrust_index] if thrust_index >= 0 else 0.0
         F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
         full = body_outputs(X, F, sig, consts)
@@ -142,6 +144,8 @@ def _wind_functions(out_index, extra_input, thrust_index, tables, consts):
     fs = tables.factor_start
     fsig = tables.factor_signal
     fpow = tables.factor_power
+    fspl = tables.factor_spline
+    fknot = tables.factor_knot
     n_outputs = out_index.shape[0]
 
     def f(t, x, u, theta):
@@ -155,7 +159,7 @@ def _wind_functions(out_index, extra_input, thrust_index, tables, consts):
         X[6] = -np.sin(x[2])
         X[8] = np.cos(x[2])
         sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
         thrust = u[thrust_index] if thrust_index >= 0 else 0.0
         F = forces_and_moments(C, alpha, V, thrust, consts)
         return wind_axis_derivatives(V, alpha, x[2], x[3], F, consts)
@@ -170,7 +174,7 @@ def _wind_functions(out_index, extra_input, thrust_index, tables, consts):
         X[6] = -np.sin(x[2])
         X[8] = np.cos(x[2])
         sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow)
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
         thrust = u[thrust_index] if thrust_index >= 0 else 0.0
         F = forces_and_moments(C, alpha, V, thrust, consts)
         full = body_outputs(X, F, sig, consts)

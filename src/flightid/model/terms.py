@@ -1,24 +1,45 @@
 """Regressor terms written the way an engineer writes them, parsed without ``eval``.
 
-A term is a product of signals raised to non-negative integer powers, or the constant 1:
+A term is a product of factors raised to non-negative integer powers, or the constant 1. A
+factor is a signal or a first-order spline of a signal:
 
-    "1"            constant (bias) term
-    "alpha"        a signal
-    "alpha*beta"   a product
-    "beta^3"       a power (also "beta**3")
-    "alpha*phat"   products with non-dimensional rates, controls, ...
+    "1"                       constant (bias) term
+    "alpha"                   a signal
+    "alpha*beta"              a product
+    "beta^3"                  a power (also "beta**3")
+    "alpha*phat"              products with non-dimensional rates, controls, ...
+    "spline1(alpha,0.15)"     first-order spline (α − 0.15)₊ = max(α − 0.15, 0)
+    "spline1(alpha,0.15)^2"   second-order spline (α − 0.15)₊²
+    "phat*spline1(alpha,0.1)" a spline times a signal (e.g. roll damping changing past stall)
+
+The spline factor is the usual flight-test form of a nonlinearity that sets in past a knot
+(stall, flow separation): (x − k)₊ = max(x − k, 0) is zero below the knot k and
+grows linearly above it, so C = θ₀ + θ₁ α + θ₂ (α − k)₊ is a broken line with slope θ₁ below k
+and θ₁ + θ₂ above. The knot is a number in the units of the signal (rad for α); it is part of
+the model structure, not a parameter.
 
 Grammar (whitespace ignored):
 
-    term   := "1" | factor ("*" factor)*
-    factor := NAME [("^" | "**") INTEGER]
+    term    := "1" | factor ("*" factor)*
+    factor  := basis [("^" | "**") INTEGER]
+    basis   := NAME | "spline1" "(" NAME "," NUMBER ")"
+    NUMBER  := ["+" | "-"] digits ["." digits] [("e" | "E") ["+" | "-"] digits]
 
-Anything else is a ``TermError`` naming the text and the position of the problem. Signals are
-looked up by name at evaluation time; an unknown signal is a ``TermError`` too.
+Repeated factors merge (``alpha*alpha`` is ``alpha^2``). Anything else is a ``TermError``
+naming the text and the position of the problem. Signals are looked up by name at evaluation
+time; an unknown signal is a ``TermError`` too.
+
+A ``Term`` keeps its factors as ``(key, power)`` pairs; the key is a signal name (``str``) or a
+``Spline(signal, knot)``. ``Term.label`` is the canonical text (it parses back to the same
+term) and ``Term.identifier`` the NASA-style parameter-name suffix: ``alpha_beta3`` for
+α·β³, and for a spline the signal, ``_s`` and the knot with "." written "p" and "-" written "m":
+``spline1(alpha,0.15)`` → ``alpha_s0p15``, ``spline1(alpha,-0.05)`` → ``alpha_sm0p05``, a power
+appended after an underscore (``spline1(alpha,0.15)^2`` → ``alpha_s0p15_2``).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -27,7 +48,7 @@ import numpy as np
 
 from flightid.errors import InputError
 
-__all__ = ["Term", "TermError", "parse_term", "parse_terms", "evaluate_terms"]
+__all__ = ["Spline", "Term", "TermError", "parse_term", "parse_terms", "evaluate_terms"]
 
 
 class TermError(InputError):
@@ -36,13 +57,55 @@ class TermError(InputError):
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _INT = re.compile(r"[0-9]+")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_FUNCTIONS = ("spline1",)
+
+
+def _knot_text(knot: float) -> str:
+    """Shortest text that reads back as the same float: 0.15, -0.05, 1e-05, 0."""
+    text = repr(float(knot))
+    return text[:-2] if text.endswith(".0") else text
+
+
+@dataclass(frozen=True)
+class Spline:
+    """First-order spline of a signal: (x − knot)₊ = max(x − knot, 0).
+
+    Attributes:
+        signal: name of the signal x.
+        knot: k, in the units of the signal (rad for angles).
+    """
+
+    signal: str
+    knot: float
+
+    @property
+    def label(self) -> str:
+        """Canonical text, e.g. ``"spline1(alpha,0.15)"``."""
+        return f"spline1({self.signal},{_knot_text(self.knot)})"
+
+    @property
+    def identifier(self) -> str:
+        """Parameter-name part, e.g. ``"alpha_s0p15"`` ("." → "p", "-" → "m")."""
+        knot = _knot_text(self.knot).replace("-", "m").replace("+", "").replace(".", "p")
+        return f"{self.signal}_s{knot}"
+
+    def evaluate(self, x: np.ndarray) -> np.ndarray:
+        # (x − k)₊ = max(x − k, 0)
+        return np.maximum(np.asarray(x, dtype=float) - self.knot, 0.0)
+
+    def __str__(self) -> str:
+        return self.label
 
 
 @dataclass(frozen=True)
 class Term:
-    """A product of signal powers; ``factors == ()`` is the constant term."""
+    """A product of factor powers; ``factors == ()`` is the constant term.
 
-    factors: tuple[tuple[str, int], ...]
+    ``factors`` holds ``(key, power)`` pairs: key a signal name or a ``Spline``.
+    """
+
+    factors: tuple[tuple[str | Spline, int], ...]
 
     @property
     def is_constant(self) -> bool:
@@ -50,31 +113,57 @@ class Term:
 
     @property
     def signals(self) -> tuple[str, ...]:
-        return tuple(name for name, _ in self.factors)
+        """Names of the signals the term reads (a spline reads its signal), first-use order."""
+        seen: dict[str, None] = {}
+        for key, _ in self.factors:
+            seen.setdefault(key.signal if isinstance(key, Spline) else key, None)
+        return tuple(seen)
+
+    @property
+    def splines(self) -> tuple[Spline, ...]:
+        """The spline factors of the term."""
+        return tuple(key for key, _ in self.factors if isinstance(key, Spline))
 
     @property
     def label(self) -> str:
         """Canonical text, e.g. ``"alpha*beta^3"``; ``"1"`` for the constant."""
         if not self.factors:
             return "1"
-        return "*".join(name if power == 1 else f"{name}^{power}" for name, power in self.factors)
+        return "*".join(str(key) if power == 1 else f"{key}^{power}" for key, power in self.factors)
+
+    @property
+    def identifier(self) -> str:
+        """NASA-style parameter-name suffix: ``alpha_beta3``, ``alpha_s0p15``; ``"0"`` for 1."""
+        if not self.factors:
+            return "0"
+        parts = []
+        for key, power in self.factors:
+            if isinstance(key, Spline):
+                parts.append(key.identifier if power == 1 else f"{key.identifier}_{power}")
+            else:
+                parts.append(key if power == 1 else f"{key}{power}")
+        return "_".join(parts)
 
     def evaluate(
         self, signals: Mapping[str, np.ndarray], n_samples: int | None = None
     ) -> np.ndarray:
-        """The regressor time history: Π signal^power (ones for the constant term)."""
+        """The regressor time history: Π factor^power (ones for the constant term)."""
         if not self.factors:
             if n_samples is None:
                 n_samples = len(next(iter(signals.values())))
             return np.ones(n_samples)
         value = None
-        for name, power in self.factors:
+        for key, power in self.factors:
+            name = key.signal if isinstance(key, Spline) else key
             if name not in signals:
                 raise TermError(
                     f"term {self.label!r}: unknown signal {name!r}; available signals: "
                     f"{sorted(signals)}"
                 )
-            factor = np.asarray(signals[name], dtype=float) ** power
+            x = np.asarray(signals[name], dtype=float)
+            if isinstance(key, Spline):
+                x = key.evaluate(x)
+            factor = x**power
             value = factor if value is None else value * factor
         return value
 
@@ -82,17 +171,47 @@ class Term:
         return self.label
 
 
+def _parse_call(text: str, source: str, function: str, position: int) -> tuple[Spline, int]:
+    """Arguments of ``spline1(NAME, NUMBER)`` starting after the '('; returns (basis, end)."""
+    usage = f"{function}(signal, knot), e.g. {function}(alpha,0.15)"
+    match = _NAME.match(source, position)
+    if match is None:
+        raise TermError(
+            f"term {text!r}: expected a signal name as the first argument of {function} at "
+            f"position {position}; write {usage}"
+        )
+    signal = match.group()
+    position = match.end()
+    if position >= len(source) or source[position] != ",":
+        raise TermError(
+            f"term {text!r}: expected ',' after {signal!r} in {function}; write {usage}"
+        )
+    number = _NUMBER.match(source, position + 1)
+    if number is None:
+        raise TermError(
+            f"term {text!r}: expected a number (the knot) at position {position + 1} in "
+            f"{function}; write {usage}"
+        )
+    knot = float(number.group())
+    if not math.isfinite(knot):
+        raise TermError(f"term {text!r}: the knot of {function} must be finite, got {knot}")
+    position = number.end()
+    if position >= len(source) or source[position] != ")":
+        raise TermError(f"term {text!r}: expected ')' at position {position}; write {usage}")
+    return Spline(signal, knot), position + 1
+
+
 def parse_term(text: str) -> Term:
     """Parse one term (see the module docstring for the grammar)."""
     if not isinstance(text, str):
         raise TermError(f"term: expected a string such as 'alpha*beta', got {text!r}")
-    source = text.replace(" ", "").replace("**", "^")
+    source = "".join(text.split()).replace("**", "^")
     if source == "1":
         return Term(())
     if not source:
         raise TermError("term: empty text; expected e.g. 'alpha', 'alpha*beta' or 'beta^3'")
-    powers: dict[str, int] = {}
-    order: list[str] = []
+    powers: dict[str | Spline, int] = {}
+    order: list[str | Spline] = []
     position = 0
     while True:
         match = _NAME.match(source, position)
@@ -101,30 +220,38 @@ def parse_term(text: str) -> Term:
                 f"term {text!r}: expected a signal name at position {position} "
                 f"(near {source[position : position + 8]!r})"
             )
-        name = match.group()
+        key: str | Spline = match.group()
         position = match.end()
+        if position < len(source) and source[position] == "(":
+            if key not in _FUNCTIONS:
+                raise TermError(
+                    f"term {text!r}: unknown function {key!r}; the functions are {_FUNCTIONS}"
+                )
+            key, position = _parse_call(text, source, key, position + 1)
         power = 1
         if position < len(source) and source[position] == "^":
             number = _INT.match(source, position + 1)
             if number is None:
                 raise TermError(
-                    f"term {text!r}: expected a non-negative integer power after '^' of {name!r}"
+                    f"term {text!r}: expected a non-negative integer power after '^' of "
+                    f"{str(key)!r}"
                 )
             power = int(number.group())
             position = number.end()
-        if name not in powers:
-            order.append(name)
-            powers[name] = 0
-        powers[name] += power
+        if key not in powers:
+            order.append(key)
+            powers[key] = 0
+        powers[key] += power
         if position == len(source):
             break
         if source[position] != "*":
             raise TermError(
                 f"term {text!r}: unexpected {source[position]!r} at position {position}; "
-                "terms are products like 'alpha*beta' or powers like 'beta^3'"
+                "terms are products like 'alpha*beta', powers like 'beta^3' or splines like "
+                "'spline1(alpha,0.15)'"
             )
         position += 1
-    factors = tuple((name, powers[name]) for name in order if powers[name] > 0)
+    factors = tuple((key, powers[key]) for key in order if powers[key] > 0)
     return Term(factors)
 
 
