@@ -5,6 +5,7 @@ aero = AeroModel({"CY": ["beta", "rhat", "dr"], "Cl": ["beta", "phat", "da"], ..
 model = lateral_model(navion(), aero, aero.parameters({"Cl_beta": -0.1, ...}), x0=...)
 """
 
+from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import COEFFICIENTS, AeroModel, AeroTables, parameter_name
 from flightid.aircraft.airplane import Airplane
 from flightid.aircraft.equations import BODY_STATES, OUTPUTS, SIGNALS
@@ -19,6 +20,7 @@ from flightid.aircraft.trim import TrimPoint, body_state, trim_level_flight
 from flightid.model.terms import TermError
 
 __all__ = [
+    "Accelerometer",
     "AeroModel",
     "AeroTables",
     "Airplane",

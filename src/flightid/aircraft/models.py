@@ -15,15 +15,18 @@ Models (RP-1153 §2.A, METHOD.md §3):
 
 Units: m/s, rad, rad/s; the thrust input (if the airplane names one) in N; controls in the
 units the aerodynamic model's derivatives assume (rad for the paper's examples).
-Outputs are chosen by name from V, alpha, beta, theta, phi, ax, ay, az (g units), p, q, r.
+Outputs are chosen by name from V, alpha, beta, theta, phi, ax, ay, az, p, q, r; the
+accelerations are body-axis specific forces in g units (a_z ≈ −1 g in level flight) unless an
+``accelerometer`` convention says otherwise (sign per axis, g or m/s², ``Accelerometer``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import AeroModel
 from flightid.aircraft.airplane import Airplane
 from flightid.aircraft.equations import (
@@ -86,8 +89,8 @@ def _constants(airplane: Airplane) -> np.ndarray:
     )
 
 
-def _body_functions(src_state, src_input, deriv_index, out_index, extra_input, thrust_index,
-                    tables, consts):  # fmt: skip
+def _body_functions(src_state, src_input, deriv_index, out_index, out_scale, extra_input,
+                    thrust_index, tables, consts):  # fmt: skip
     """f and h closures of a body-axis model (6-DOF or decoupled)."""
     tc = tables.term_coef
     tp = tables.term_param
@@ -131,13 +134,14 @@ def _body_functions(src_state, src_input, deriv_index, out_index, extra_input, t
         full = body_outputs(X, F, sig, consts)
         y = np.empty(n_outputs)
         for i in range(n_outputs):
-            y[i] = full[out_index[i]]
+            # accelerometer sign and unit (1 for the other outputs), see Accelerometer
+            y[i] = full[out_index[i]] * out_scale[i]
         return y
 
     return f, h
 
 
-def _wind_functions(out_index, extra_input, thrust_index, tables, consts):
+def _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts):
     """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q)."""
     tc = tables.term_coef
     tp = tables.term_param
@@ -180,7 +184,8 @@ def _wind_functions(out_index, extra_input, thrust_index, tables, consts):
         full = body_outputs(X, F, sig, consts)
         y = np.empty(n_outputs)
         for i in range(n_outputs):
-            y[i] = full[out_index[i]]
+            # accelerometer sign and unit (1 for the other outputs), see Accelerometer
+            y[i] = full[out_index[i]] * out_scale[i]
         return y
 
     return f, h
@@ -195,6 +200,7 @@ def _build(
     outputs: Sequence[str] | None,
     x0,
     name: str | None,
+    accelerometer=None,
 ) -> StateSpaceModel:
     if not isinstance(airplane, Airplane):
         raise InputTypeError(f"airplane: expected an Airplane, got {describe(airplane)}")
@@ -246,8 +252,13 @@ def _build(
     extra_input = np.array(extra, dtype=np.int64)
     thrust_index = inputs.index(airplane.thrust_input) if airplane.thrust_input in inputs else -1
     out_index = np.array([OUTPUTS.index(o) for o in outputs], dtype=np.int64)
+    # per output: s_a·k for ax, ay, az (Accelerometer.factors), 1 for the others
+    accel = Accelerometer.from_value(accelerometer).factors(airplane.g)
+    out_scale = np.array(
+        [accel[("ax", "ay", "az").index(o)] if o in ("ax", "ay", "az") else 1.0 for o in outputs]
+    )
     if kind == "wind":
-        f, h = _wind_functions(out_index, extra_input, thrust_index, tables, consts)
+        f, h = _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts)
     else:
         src_state = np.array(
             [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
@@ -257,8 +268,8 @@ def _build(
         )
         deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
         f, h = _body_functions(
-            src_state, src_input, deriv_index, out_index, extra_input, thrust_index, tables,
-            consts,
+            src_state, src_input, deriv_index, out_index, out_scale, extra_input, thrust_index,
+            tables, consts,
         )  # fmt: skip
     return StateSpaceModel(
         states=states,
@@ -281,6 +292,7 @@ def six_dof_model(
     outputs: Sequence[str] | None = None,
     x0=None,
     name: str | None = None,
+    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
 ) -> StateSpaceModel:
     """Body-axis 6-DOF model, states (u, v, w, p, q, r, l_xz, l_yz, l_zz) [2.5–2.13].
 
@@ -291,8 +303,12 @@ def six_dof_model(
         controls: control input names (default: the aero model's non-standard signals).
         outputs: output names (default all: V, alpha, beta, theta, phi, ax, ay, az, p, q, r).
         x0: initial state (numbers or parameter names), e.g. from ``trim``.
+        accelerometer: sign and unit convention of the outputs ax, ay, az: an
+            ``Accelerometer``, a mapping of its fields (``{"az": "up", "unit": "m/s^2"}``), a
+            preset (``"body"``, ``"load_factor"``) or None (body axes, g units, a_z ≈ −1 g in
+            level flight).
     """
-    return _build("6dof", airplane, aero, parameters, controls, outputs, x0, name)
+    return _build("6dof", airplane, aero, parameters, controls, outputs, x0, name, accelerometer)
 
 
 def longitudinal_model(
@@ -304,11 +320,14 @@ def longitudinal_model(
     outputs: Sequence[str] | None = None,
     x0=None,
     name: str | None = None,
+    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
 ) -> StateSpaceModel:
     """Decoupled longitudinal model: states (u, w, q, l_xz, l_yz, l_zz); the measured lateral
     motion v (m/s), p, r (rad/s) enters as inputs [2.27–2.29]. Default outputs V, alpha, q,
     theta, ax, az. Arguments as for ``six_dof_model``."""
-    return _build("longitudinal", airplane, aero, parameters, controls, outputs, x0, name)
+    return _build(
+        "longitudinal", airplane, aero, parameters, controls, outputs, x0, name, accelerometer
+    )
 
 
 def lateral_model(
@@ -320,12 +339,13 @@ def lateral_model(
     outputs: Sequence[str] | None = None,
     x0=None,
     name: str | None = None,
+    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
 ) -> StateSpaceModel:
     """Decoupled lateral model: states (v, p, r, l_xz, l_yz, l_zz); the measured longitudinal
     motion u, w (m/s) and q (rad/s) enters as inputs [2.30–2.32]. Default outputs beta, p, r,
     phi, ay. (With V and α measured instead, u = V cos α cos β and w = V sin α cos β.)
     Arguments as for ``six_dof_model``."""
-    return _build("lateral", airplane, aero, parameters, controls, outputs, x0, name)
+    return _build("lateral", airplane, aero, parameters, controls, outputs, x0, name, accelerometer)
 
 
 def wind_axis_longitudinal_model(
@@ -337,8 +357,9 @@ def wind_axis_longitudinal_model(
     outputs: Sequence[str] | None = None,
     x0=None,
     name: str | None = None,
+    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
 ) -> StateSpaceModel:
     """Wind-axis longitudinal model: states (V, alpha, theta, q) (m/s, rad, rad, rad/s) of
     symmetric flight. Default outputs V, alpha, theta, q, ax, az. Arguments as for
     ``six_dof_model``."""
-    return _build("wind", airplane, aero, parameters, controls, outputs, x0, name)
+    return _build("wind", airplane, aero, parameters, controls, outputs, x0, name, accelerometer)
