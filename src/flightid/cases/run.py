@@ -71,6 +71,32 @@ class Prediction:
     rms: np.ndarray
     r2: np.ndarray
 
+    @classmethod
+    def from_outputs(
+        cls,
+        name: str,
+        time: np.ndarray,
+        measured: np.ndarray,
+        predicted: np.ndarray,
+        output_names: Sequence[str],
+    ) -> Prediction:
+        """The prediction of one maneuver with its RMS error and R² per output.
+
+        Args:
+            name: maneuver name.
+            time: (N,) s.
+            measured, predicted: (N, n_o) in the outputs' units.
+            output_names: the n_o outputs.
+        """
+        residual = measured - predicted
+        # RMS error e_o = √((1/N) Σ_i (z_io − y_io)²)
+        rms = np.sqrt(np.mean(residual**2, axis=0))
+        # R²_o = 1 − Σ_i (z_io − y_io)² / Σ_i (z_io − z̄_o)²
+        total = np.sum((measured - measured.mean(axis=0)) ** 2, axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r2 = 1.0 - np.sum(residual**2, axis=0) / total
+        return cls(name, time, measured, predicted, tuple(output_names), rms, r2)
+
     def to_dict(self) -> dict:
         return {
             "maneuver": self.name,
@@ -183,15 +209,7 @@ def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
         except SimulationError as exc:
             raise CaseError(f"prediction ({maneuver.name}): {exc}") from None
         z = np.column_stack([data.output(n) for n in model.outputs])
-        residual = z - y
-        # RMS error and R² per output
-        rms = np.sqrt(np.mean(residual**2, axis=0))
-        total = np.sum((z - z.mean(axis=0)) ** 2, axis=0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r2 = 1.0 - np.sum(residual**2, axis=0) / total
-        predictions.append(
-            Prediction(maneuver.name, data.time, z, y, tuple(model.outputs), rms, r2)
-        )
+        predictions.append(Prediction.from_outputs(maneuver.name, data.time, z, y, model.outputs))
     return predictions
 
 

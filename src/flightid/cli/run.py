@@ -29,6 +29,16 @@ from flightid.cases import load_case, run_case
 from flightid.cases.run import stderr_progress
 
 
+def add_data_dir_argument(parser: argparse.ArgumentParser) -> None:
+    """The ``--data-dir`` option of the commands that read a case's data files."""
+    parser.add_argument(
+        "--data-dir",
+        default=None,
+        help="directory holding the data files (default: $FLIGHTID_DATA, then the case's "
+        "data.data_dir, then ../../../shared/data relative to the case file)",
+    )
+
+
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "run",
@@ -43,12 +53,7 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--json", action="store_true", help='print {"results": [entry]} as JSON on stdout'
     )
-    parser.add_argument(
-        "--data-dir",
-        default=None,
-        help="directory holding the data files (default: $FLIGHTID_DATA, then the case's "
-        "data.data_dir, then ../../../shared/data relative to the case file)",
-    )
+    add_data_dir_argument(parser)
     parser.add_argument(
         "--accuracy",
         choices=("cr", "profile", "search", "all", "none"),

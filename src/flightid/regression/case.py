@@ -23,6 +23,28 @@ A case names a data file, the signals taken from it and, per coefficient, the ca
     candidates = ["alpha", "qhat", "de", "alpha^2", "alpha*qhat", "alpha*de"]
     # any [stepwise] option may be repeated here to override it for this coefficient
 
+    [ml]                           # optional: regression → output error (flightid regress --ml)
+    model = "alpha_q"              # flightid.regression.pipeline.alpha_q_model
+    solver = "mnres"               # "mnres", "mnr", "fps"; also solver_settings, convergence
+    noise = "max"                  # R policy; method = "rk4" | "euler"
+    time = "time"                  # the time column (s)
+    prediction = ["sidpac_twin_otter/totter_lon_020213f1_017.mat"]   # prediction check
+    [ml.inputs]                    # channels of the model, as in `flightid run` case files
+    V = "airspeed"
+    theta = { column = "theta", unit = "deg", to = "rad" }
+    [ml.outputs]
+    alpha = { column = "alpha", unit = "deg", to = "rad" }
+    [ml.constants]                 # a number, or a column (name or number) whose mean is taken
+    mass = "mass"
+    g = 32.174
+
+The data file is read with ``flightid.data.loaders`` (``format = "sidpac"``, the default, is a
+MATLAB file with SIDPAC's ``fdata``/``varlab``; "mat", "csv", "ascii" and "auto" work too), so
+columns are 1-based numbers or the file's column names. Term signals of the selected model
+other than ``alpha`` and ``qhat`` (e.g. ``de``) are taken from ``[signals]`` unless
+``[ml.inputs]`` names them. The ML stage fixes x0 at the first measured α and q of each
+maneuver.
+
 The data directory is, in order: the ``data_dir`` argument (CLI ``--data-dir``), the
 environment variable ``FLIGHTID_DATA``, ``[data].data_dir`` relative to the case file, and
 finally ``../../../shared/data`` relative to the case file (the repository's
@@ -41,15 +63,44 @@ from typing import Any
 
 import numpy as np
 
+from flightid.data.flightdata import FlightData
+from flightid.data.loaders import ChannelSpec, Table, read_table, to_flight_data
 from flightid.errors import InputError
 from flightid.model.terms import TermError, parse_term
-from flightid.regression import _sidpac
 from flightid.regression.stepwise import StepwiseResult, stepwise
 
-__all__ = ["StepwiseCase", "CaseError", "load_case", "run_case", "resolve_data_dir"]
+__all__ = [
+    "CaseError",
+    "MLRun",
+    "MLSpec",
+    "StepwiseCase",
+    "case_signals",
+    "load_case",
+    "resolve_data_dir",
+    "run_case",
+    "run_ml",
+]
 
 _UNITS = {"rad": 1.0, "deg": math.pi / 180.0, "": 1.0}
 _STEPWISE_KEYS = {"f_enter", "f_remove", "sigma2_max", "select", "forced", "max_steps"}
+_FORMATS = {"sidpac": "mat", "mat": "mat", "csv": "csv", "ascii": "ascii", "auto": "auto"}
+_ML_KEYS = {
+    "model",
+    "solver",
+    "solver_settings",
+    "convergence",
+    "noise",
+    "method",
+    "time",
+    "prediction",
+    "inputs",
+    "outputs",
+    "constants",
+}
+_ML_MODELS = ("alpha_q",)
+_SOLVERS = ("mnres", "mnr", "fps")
+_REQUIRED_CONSTANTS = ("mass", "S", "cbar", "Iy", "g")
+_CONSTANTS = (*_REQUIRED_CONSTANTS, "Ix", "Iz", "Ixz")
 
 
 class CaseError(InputError):
@@ -59,7 +110,7 @@ class CaseError(InputError):
 @dataclass(frozen=True)
 class SignalSpec:
     name: str
-    column: int
+    column: int | str
     scale: float
 
 
@@ -69,6 +120,23 @@ class CoefficientSpec:
     response: str
     candidates: tuple[str, ...]
     options: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class MLSpec:
+    """The ``[ml]`` section: the output-error stage seeded by the regression."""
+
+    model: str
+    time: ChannelSpec
+    inputs: Mapping[str, ChannelSpec]
+    outputs: Mapping[str, ChannelSpec]
+    constants: Mapping[str, Any]
+    prediction: tuple[str, ...] = ()
+    solver: str = "mnres"
+    solver_settings: Mapping[str, Any] = field(default_factory=dict)
+    convergence: Mapping[str, Any] = field(default_factory=dict)
+    noise: str = "max"
+    method: str = "rk4"
 
 
 @dataclass(frozen=True)
@@ -82,6 +150,7 @@ class StepwiseCase:
     signals: tuple[SignalSpec, ...]
     options: Mapping[str, Any]
     coefficients: tuple[CoefficientSpec, ...]
+    ml: MLSpec | None = None
 
 
 def _table(raw: Mapping, key: str, required: bool = True) -> Mapping:
@@ -142,8 +211,8 @@ def load_case(path: str | Path) -> StepwiseCase:
     if not isinstance(data.get("file"), str):
         raise CaseError(f"data.file: expected a file name (string), got {data.get('file')!r}")
     fmt = data.get("format", "sidpac")
-    if fmt != "sidpac":
-        raise CaseError(f"data.format: expected 'sidpac', got {fmt!r}")
+    if fmt not in _FORMATS:
+        raise CaseError(f"data.format: expected one of {sorted(_FORMATS)}, got {fmt!r}")
     data_dir = data.get("data_dir")
     if data_dir is not None and not isinstance(data_dir, str):
         raise CaseError(f"data.data_dir: expected a path (string), got {data_dir!r}")
@@ -153,16 +222,20 @@ def load_case(path: str | Path) -> StepwiseCase:
         where = f"signals.{name}"
         if not name.isidentifier():
             raise CaseError(f"{where}: signal names must be identifiers")
-        if isinstance(spec, int) and not isinstance(spec, bool):
+        if isinstance(spec, (int, str)) and not isinstance(spec, bool):
             spec = {"column": spec}
         if not isinstance(spec, Mapping):
-            raise CaseError(f"{where}: expected a column number or {{column, unit}}, got {spec!r}")
+            raise CaseError(
+                f"{where}: expected a column (number or name) or {{column, unit}}, got {spec!r}"
+            )
         unknown = sorted(set(spec) - {"column", "unit", "scale"})
         if unknown:
             raise CaseError(f"{where}: unknown keys {unknown}; expected column, unit, scale")
         col = spec.get("column")
-        if not isinstance(col, int) or isinstance(col, bool) or col < 1:
-            raise CaseError(f"{where}.column: expected a 1-based column number, got {col!r}")
+        if not _is_column(col):
+            raise CaseError(
+                f"{where}.column: expected a 1-based column number or a column name, got {col!r}"
+            )
         unit = spec.get("unit", "")
         if unit not in _UNITS:
             raise CaseError(f"{where}.unit: expected one of {sorted(_UNITS)}, got {unit!r}")
@@ -209,8 +282,108 @@ def load_case(path: str | Path) -> StepwiseCase:
         )
     if not coefficients:
         raise CaseError("coefficients: expected at least one [coefficients.NAME] table")
+    ml = _ml_spec(_table(raw, "ml", required=False)) if "ml" in raw else None
+    unknown = sorted(set(raw) - {"data", "signals", "stepwise", "coefficients", "ml"})
+    if unknown:
+        raise CaseError(
+            f"{unknown[0]}: unknown table; expected data, signals, stepwise, coefficients, ml"
+        )
     return StepwiseCase(
-        path, data["file"], data_dir, fmt, tuple(signals), options, tuple(coefficients)
+        path, data["file"], data_dir, fmt, tuple(signals), options, tuple(coefficients), ml
+    )
+
+
+def _is_column(value: Any) -> bool:
+    if isinstance(value, bool):
+        return False
+    return (isinstance(value, int) and value >= 1) or (isinstance(value, str) and bool(value))
+
+
+def _channels(table: Any, where: str) -> dict[str, ChannelSpec]:
+    if not isinstance(table, Mapping):
+        raise CaseError(f"{where}: expected a table of channel = column or {{column, ...}}")
+    specs = {}
+    for name, value in table.items():
+        if not name.isidentifier():
+            raise CaseError(f"{where}.{name}: channel names must be identifiers")
+        try:
+            specs[name] = ChannelSpec.from_value(value, f"{where}.{name}")
+        except InputError as exc:
+            message = str(exc)
+            raise CaseError(
+                message if message.startswith(where) else f"{where}.{name}: {message}"
+            ) from None
+    return specs
+
+
+def _choice(table: Mapping, key: str, default: str, choices: tuple[str, ...]) -> str:
+    value = table.get(key, default)
+    if value not in choices:
+        raise CaseError(f"ml.{key}: expected one of {list(choices)}, got {value!r}")
+    return value
+
+
+def _ml_spec(table: Mapping) -> MLSpec:
+    """Check the ``[ml]`` section (see the module docstring)."""
+    unknown = sorted(set(table) - _ML_KEYS)
+    if unknown:
+        raise CaseError(f"ml.{unknown[0]}: unknown key; allowed: {sorted(_ML_KEYS)}")
+    model = _choice(table, "model", "alpha_q", _ML_MODELS)
+    time = _channels({"time": table.get("time", 1)}, "ml")["time"]
+    inputs = _channels(table.get("inputs", {}), "ml.inputs")
+    if "outputs" not in table:
+        raise CaseError("ml.outputs: missing; the alpha_q model needs alpha, q and az")
+    outputs = _channels(table["outputs"], "ml.outputs")
+    missing = [n for n in ("alpha", "q", "az") if n not in outputs]
+    if missing:
+        raise CaseError(f"ml.outputs: missing {missing} (the alpha_q model's outputs)")
+    from flightid.regression.pipeline import ALPHA_Q_INPUTS
+
+    missing = [n for n in ALPHA_Q_INPUTS if n not in inputs]
+    if missing:
+        raise CaseError(f"ml.inputs: missing {missing} (measured inputs of the alpha_q model)")
+    constants = table.get("constants", {})
+    if not isinstance(constants, Mapping):
+        raise CaseError("ml.constants: expected a table of name = number or column")
+    for name, value in constants.items():
+        where = f"ml.constants.{name}"
+        if name not in _CONSTANTS:
+            raise CaseError(f"{where}: unknown constant; expected {list(_CONSTANTS)}")
+        if isinstance(value, Mapping):
+            if set(value) != {"column"} or not _is_column(value["column"]):
+                raise CaseError(f"{where}: expected {{column = number or name}}, got {value!r}")
+        elif isinstance(value, bool) or not isinstance(value, (int, float, str)) or value == "":
+            raise CaseError(
+                f"{where}: expected a number, a column name or {{column = N}}, got {value!r}"
+            )
+    missing = [n for n in _REQUIRED_CONSTANTS if n not in constants]
+    if missing:
+        raise CaseError(
+            f"ml.constants: missing {missing}; give them in the data's unit system "
+            "(g: 9.80665 m/s² or 32.174 ft/s²)"
+        )
+    prediction = table.get("prediction", [])
+    if isinstance(prediction, str):
+        prediction = [prediction]
+    if not isinstance(prediction, list) or not all(isinstance(f, str) for f in prediction):
+        raise CaseError(
+            f"ml.prediction: expected a file name or a list of them, got {prediction!r}"
+        )
+    for key in ("solver_settings", "convergence"):
+        if not isinstance(table.get(key, {}), Mapping):
+            raise CaseError(f"ml.{key}: expected a table")
+    return MLSpec(
+        model=model,
+        time=time,
+        inputs=inputs,
+        outputs=outputs,
+        constants=dict(constants),
+        prediction=tuple(prediction),
+        solver=_choice(table, "solver", "mnres", _SOLVERS),
+        solver_settings=dict(table.get("solver_settings", {})),
+        convergence=dict(table.get("convergence", {})),
+        noise=_choice(table, "noise", "max", ("max", "maxlik")),
+        method=_choice(table, "method", "rk4", ("rk4", "euler")),
     )
 
 
@@ -225,14 +398,30 @@ def resolve_data_dir(case: StepwiseCase, data_dir: str | Path | None = None) -> 
     return (case.path.parent / relative).resolve()
 
 
+def _read(case: StepwiseCase, data_dir: str | Path | None, file: str, key: str) -> Table:
+    """The table of one data file of the case (``key`` names the case key for errors)."""
+    directory = resolve_data_dir(case, data_dir)
+    if not directory.is_dir():
+        raise CaseError(
+            f"data.data_dir: the data directory {directory} does not exist (set data.data_dir, "
+            "FLIGHTID_DATA or --data-dir)"
+        )
+    path = directory / file
+    try:
+        return read_table(path, _FORMATS[case.format])
+    except InputError as exc:
+        raise CaseError(f"{key}: {exc}") from None
+
+
+def _signals(case: StepwiseCase, table: Table) -> dict[str, np.ndarray]:
+    return {
+        s.name: s.scale * table.column(s.column, f"signals.{s.name}.column") for s in case.signals
+    }
+
+
 def case_signals(case: StepwiseCase, data_dir: str | Path | None = None) -> dict[str, np.ndarray]:
     """Read the case's data file and return its named signals (converted units)."""
-    path = resolve_data_dir(case, data_dir) / case.data_file
-    fdata, _ = _sidpac.read_fdata(path)
-    return {
-        s.name: s.scale * _sidpac.column(fdata, s.column, f"signals.{s.name}.column")
-        for s in case.signals
-    }
+    return _signals(case, _read(case, data_dir, case.data_file, "data.file"))
 
 
 def run_case(
@@ -253,3 +442,192 @@ def run_case(
             **options,
         )
     return results
+
+
+# ------------------------------------------------------------------ regression → output error
+
+
+@dataclass(frozen=True, eq=False)
+class MLRun:
+    """The output-error stage of a stepwise case: estimate on the case's data file, seeded
+    by the regression, and the prediction check on ``[ml].prediction``."""
+
+    pipeline: Any  # flightid.regression.pipeline.PipelineResult
+    data: FlightData
+    constants: Mapping[str, float]
+    predictions: tuple = ()  # flightid.cases.run.Prediction, one per prediction file
+
+    @property
+    def estimate(self):
+        return self.pipeline.estimate
+
+    def to_dict(self) -> dict:
+        """``Estimate.to_dict()`` plus ``model``, ``maneuvers``, ``start`` (the regression
+        estimates the ML started from), ``constants`` and ``prediction`` (per maneuver:
+        ``maneuver``, ``samples``, ``outputs``, ``rms_error``, ``r2``, as in ``flightid run``)."""
+        entry = self.estimate.to_dict()
+        entry["model"] = self.pipeline.model.name
+        entry["maneuvers"] = [
+            {"name": self.data.name, "samples": self.data.n_samples, "dt": self.data.dt}
+        ]
+        entry["start"] = {p.name: float(p.value) for p in self.pipeline.start}
+        entry["constants"] = {k: float(v) for k, v in self.constants.items()}
+        entry["prediction"] = [p.to_dict() for p in self.predictions]
+        return entry
+
+    def summary(self) -> str:
+        lines = [
+            f"Regression → output error ({self.pipeline.model.name}, maneuver {self.data.name})",
+            self.pipeline.comparison(),
+            "",
+            self.estimate.summary(),
+        ]
+        for p in self.predictions:
+            lines.append(f"\nprediction on {p.name} (x0 at its first measured alpha, q):")
+            lines += [
+                f"  {n:<8} RMS error {e:.4g}   R² {r:.4f}"
+                for n, e, r in zip(p.output_names, p.rms, p.r2, strict=True)
+            ]
+        return "\n".join(lines)
+
+
+def _constants(spec: MLSpec, table: Table) -> dict[str, float]:
+    """Numbers as given; columns (by name or ``{column = N}``) as their mean over the file."""
+    values = {}
+    for name, value in spec.constants.items():
+        if isinstance(value, (int, float)):
+            values[name] = float(value)
+            continue
+        column = value["column"] if isinstance(value, Mapping) else value
+        try:
+            values[name] = float(np.mean(table.column(column, f"ml.constants.{name}")))
+        except InputError as exc:
+            raise CaseError(str(exc)) from None
+    return values
+
+
+def _ml_data(case: StepwiseCase, table: Table, name: str, extras: list[str]) -> FlightData:
+    """FlightData of one maneuver for the ML model: ``[ml.inputs]`` and ``[ml.outputs]``, plus
+    the term signals ``extras`` from ``[signals]`` unless ``[ml.inputs]`` names them."""
+    spec = case.ml
+    signals = {s.name: s for s in case.signals}
+    inputs = dict(spec.inputs)
+    for signal in extras:
+        if signal in inputs:
+            continue
+        if signal not in signals:
+            raise CaseError(
+                f"ml.inputs.{signal}: missing; the selected terms use {signal!r} and "
+                "[signals] does not define it"
+            )
+        inputs[signal] = ChannelSpec(column=signals[signal].column, scale=signals[signal].scale)
+    try:
+        return to_flight_data(
+            table,
+            time=spec.time,
+            inputs=inputs,
+            outputs=spec.outputs,
+            name=name,
+            uniform_rtol=1e-4,
+        )
+    except InputError as exc:
+        raise CaseError(f"ml ({name}): {exc}") from None
+
+
+def _solver(spec: MLSpec) -> tuple[Any, Any]:
+    """(solver, convergence rules) of the ML stage."""
+    from flightid.estimation import FPS, MNR, MNRES, Convergence
+
+    solver_class = {"mnres": MNRES, "mnr": MNR, "fps": FPS}[spec.solver]
+    try:
+        solver = solver_class(**spec.solver_settings)
+    except (TypeError, InputError) as exc:
+        raise CaseError(f"ml.solver_settings: {exc}") from None
+    try:
+        convergence = Convergence(**spec.convergence)
+    except (TypeError, InputError) as exc:
+        raise CaseError(f"ml.convergence: {exc}") from None
+    return solver, convergence
+
+
+def run_ml(
+    case: StepwiseCase,
+    results: Mapping[str, StepwiseResult],
+    data_dir: str | Path | None = None,
+    progress=None,
+) -> MLRun:
+    """Output-error ML on the case's data file, structure and start values from ``results``
+    (``regression_to_ml`` with ``alpha_q_model``), then the prediction check.
+
+    Args:
+        case: a stepwise case with an ``[ml]`` section.
+        results: ``run_case(case)``.
+        data_dir: data directory override.
+        progress: callable receiving one-line messages (None: silent).
+    """
+    from flightid.cases.run import Prediction
+    from flightid.regression.pipeline import (
+        LinearAeroStructure,
+        alpha_q_model,
+        regression_to_ml,
+    )
+    from flightid.simulate import simulate
+
+    if case.ml is None:
+        raise CaseError("ml: the case has no [ml] section (model, inputs, outputs, constants)")
+    say = progress or (lambda message: None)
+    spec = case.ml
+    table = _read(case, data_dir, case.data_file, "data.file")
+    constants = _constants(spec, table)
+    extras = [
+        s
+        for s in LinearAeroStructure.from_stepwise(results).signals()
+        if s not in ("alpha", "qhat")
+    ]
+    data = _ml_data(case, table, Path(case.data_file).stem, extras)
+
+    def x0_of(maneuver: FlightData) -> tuple[float, float]:
+        return float(maneuver.output("alpha")[0]), float(maneuver.output("q")[0])
+
+    def build(structure, parameters):
+        return alpha_q_model(structure, parameters, x0=x0_of(data), **constants)
+
+    solver, convergence = _solver(spec)
+    say(
+        f"regression → ML: {len(extras) + 2} signals, {data.n_samples} samples of "
+        f"{data.name}; solver {spec.solver}, noise {spec.noise}"
+    )
+    pipeline = regression_to_ml(
+        results,
+        build,
+        data,
+        solver=solver,
+        method=spec.method,
+        noise=spec.noise,
+        convergence=convergence,
+    )
+    est = pipeline.estimate
+    say(
+        f"{est.status}: {est.iterations} iterations, {est.equivalent_evaluations} evaluations, "
+        f"cost {est.cost:.6g}, {est.wall_time_s:.1f} s"
+    )
+    predictions = []
+    for k, file in enumerate(spec.prediction):
+        other = _read(case, data_dir, file, f"ml.prediction[{k}]")
+        maneuver = _ml_data(case, other, Path(file).stem, extras)
+        predicted = simulate(est.model.with_x0(x0_of(maneuver)), maneuver, method=spec.method)
+        measured = np.column_stack([maneuver.output(n) for n in est.output_names])
+        prediction = Prediction.from_outputs(
+            maneuver.name, maneuver.time, measured, predicted, est.output_names
+        )
+        say(
+            f"prediction on {prediction.name}: "
+            + ", ".join(
+                f"{n} RMS {e:.4g}, R² {r:.3f}"
+                for n, e, r in zip(
+                    prediction.output_names, prediction.rms, prediction.r2, strict=True
+                )
+            )
+        )
+        predictions.append(prediction)
+    return MLRun(pipeline, data, constants, tuple(predictions))
