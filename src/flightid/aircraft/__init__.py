@@ -9,7 +9,7 @@ from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import COEFFICIENTS, AeroModel, AeroTables, parameter_name
 from flightid.aircraft.airplane import Airplane
 from flightid.aircraft.equations import BODY_STATES, OUTPUTS, SIGNALS
-from flightid.aircraft.library import navion, navion_longitudinal_aero
+from flightid.aircraft.library import airplane_from_table, navion, navion_longitudinal_aero
 from flightid.aircraft.models import (
     lateral_model,
     longitudinal_model,
@@ -30,6 +30,7 @@ __all__ = [
     "SIGNALS",
     "TermError",
     "TrimPoint",
+    "airplane_from_table",
     "body_state",
     "lateral_model",
     "longitudinal_model",

@@ -15,11 +15,22 @@ C_Dα = 0.33, C_mα = −0.683, C_Lq = 3.8, C_mq = −9.96, C_Lδe = 0.355, C_m�
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
 from flightid.aircraft.aero import AeroModel
 from flightid.aircraft.airplane import Airplane
 from flightid.aircraft.units import FT, FT2, SLUG_FT2, isa_density, lb_weight_to_kg
+from flightid.errors import InputError, InputTypeError, describe
 
-__all__ = ["navion", "navion_longitudinal_aero", "NAVION_TRIM_SPEED"]
+__all__ = [
+    "AIRPLANES",
+    "NAVION_TRIM_SPEED",
+    "airplane_from_table",
+    "navion",
+    "navion_longitudinal_aero",
+]
 
 # Nelson (1998), Appendix B, Navion flight condition: u0 = 176 ft/s at sea level.
 NAVION_TRIM_SPEED = 176.0 * FT  # m/s (53.64 m/s)
@@ -70,3 +81,48 @@ def navion_longitudinal_aero(elevator: str = "de") -> tuple[AeroModel, dict[str,
         f"Cm_{elevator}": -0.923,
     }
     return aero, values
+
+
+# Airplanes by name, for case files (model.airplane.library = "navion").
+AIRPLANES = {"navion": navion}
+
+
+def airplane_from_table(table: Mapping[str, Any]) -> Airplane:
+    """An ``Airplane`` from a table of its fields (SI units), e.g. a case file's
+    ``[model.airplane]``; ``library = "navion"`` starts from a published airplane (thrust
+    folded into the coefficients) and the other keys replace its fields. With ``altitude``
+    and no ``density`` the ISA density at that altitude is used.
+
+    Raises:
+        InputError: an unknown key or library name, or a bad value (the message names it).
+    """
+    if not isinstance(table, Mapping):
+        raise InputTypeError(
+            f"airplane: expected a table of Airplane fields, got {describe(table)}"
+        )
+    fields = {f.name for f in dataclasses.fields(Airplane)}
+    settings = dict(table)
+    unknown = sorted(set(settings) - fields - {"library"})
+    if unknown:
+        raise InputError(
+            f"airplane.{unknown[0]}: unknown key; allowed: {sorted(fields | {'library'})}"
+        )
+    if "library" in settings:
+        name = settings.pop("library")
+        if name not in AIRPLANES:
+            raise InputError(f"airplane.library: expected one of {sorted(AIRPLANES)}, got {name!r}")
+        base = AIRPLANES[name](thrust_input=None)
+        if "altitude" in settings and "density" not in settings:
+            settings["density"] = None  # ISA density at the given altitude
+        return dataclasses.replace(base, **settings)
+    missing = [
+        f.name
+        for f in dataclasses.fields(Airplane)
+        if f.default is dataclasses.MISSING and f.name not in settings
+    ]
+    if missing:
+        raise InputError(
+            f"airplane.{missing[0]}: missing; an airplane needs {missing} (SI units) or "
+            f"library = one of {sorted(AIRPLANES)}"
+        )
+    return Airplane(**settings)

@@ -112,19 +112,30 @@ def base_model(case: Case) -> tuple[StateSpaceModel, str]:
 
 
 def _builtin_model(case: Case) -> StateSpaceModel:
+    """A ``flightid.aircraft`` model from ``[model]`` (see docs/aircraft.md, "Case files"):
+
+    type = "lateral" | "longitudinal" | "six_dof" | "wind_axis_longitudinal"
+    airplane = {mass, Ix, Iy, Iz, Ixz, S, b, cbar, ...} (SI) or {library = "navion", ...}
+    aero = {coefficient = [terms]}; optional controls, outputs, name, accelerometer
+    (sign/unit convention of ax, ay, az) and measured (the lateral model's longitudinal
+    inputs: ["u", "w", "q"] or ["V", "alpha", "q"]). Parameters start at 0; [parameters]
+    sets start values.
+    """
     from flightid import aircraft
 
     spec = case.model
     try:
-        airplane = aircraft.Airplane(**dict(spec["airplane"]))
-    except TypeError as exc:
-        raise CaseError(f"model.airplane: {exc}") from None
+        airplane = aircraft.airplane_from_table(spec["airplane"])
     except InputError as exc:
-        raise CaseError(f"model.airplane: {exc}") from None
+        raise CaseError(f"model.{exc}" if str(exc).startswith("airplane") else
+                        f"model.airplane: {exc}") from None  # fmt: skip
     aero_spec = {}
     for coefficient, terms in spec["aero"].items():
         if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
-            raise CaseError(f"model.aero.{coefficient}: expected a list of terms like 'alpha'")
+            raise CaseError(
+                f"model.aero.{coefficient}: expected a list of terms like ['1', 'beta', "
+                f"'alpha*phat', 'spline1(alpha,0.15)'], got {terms!r}"
+            )
         aero_spec[coefficient] = terms
     try:
         aero = aircraft.AeroModel(aero_spec)
@@ -137,11 +148,18 @@ def _builtin_model(case: Case) -> StateSpaceModel:
         "six_dof": aircraft.six_dof_model,
     }[spec["type"]]
     kwargs: dict[str, Any] = {}
-    for key in ("controls", "outputs"):
+    for key in ("controls", "outputs", "measured"):
         if key in spec:
-            if not isinstance(spec[key], list):
-                raise CaseError(f"model.{key}: expected a list of names")
+            if not isinstance(spec[key], list) or not all(isinstance(n, str) for n in spec[key]):
+                raise CaseError(f"model.{key}: expected a list of names, got {spec[key]!r}")
             kwargs[key] = spec[key]
+    if "measured" in kwargs and spec["type"] != "lateral":
+        raise CaseError("model.measured: only the lateral model takes a choice of measured inputs")
+    if "accelerometer" in spec:
+        try:
+            kwargs["accelerometer"] = aircraft.Accelerometer.from_value(spec["accelerometer"])
+        except InputError as exc:
+            raise CaseError(f"model.{exc}") from None
     try:
         return builder(airplane, aero, aero.parameters(), name=spec.get("name"), **kwargs)
     except InputError as exc:
