@@ -10,7 +10,7 @@ Models (RP-1153 §2.A, METHOD.md §3):
 * ``longitudinal_model``: states u w q l_xz l_yz l_zz; the measured lateral motion v, p, r
   enters as inputs [2.27–2.29].
 * ``lateral_model``: states v p r l_xz l_yz l_zz; the measured longitudinal motion u, w, q
-  enters as inputs [2.30–2.32].
+  (or V, α, q) enters as inputs [2.30–2.32].
 * ``wind_axis_longitudinal_model``: states V alpha theta q.
 
 Units: m/s, rad, rad/s; the thrust input (if the airplane names one) in N; controls in the
@@ -22,9 +22,11 @@ accelerations are body-axis specific forces in g units (a_z ≈ −1 g in level 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba.extending import register_jitable
 
 from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import AeroModel
@@ -50,6 +52,7 @@ __all__ = [
     "lateral_model",
     "wind_axis_longitudinal_model",
     "DEFAULT_OUTPUTS",
+    "LATERAL_MEASURED",
 ]
 
 # Model kind → (states, measured inputs taken from the other axis, default outputs)
@@ -89,8 +92,34 @@ def _constants(airplane: Airplane) -> np.ndarray:
     )
 
 
-def _body_functions(src_state, src_input, deriv_index, out_index, out_scale, extra_input,
-                    thrust_index, tables, consts):  # fmt: skip
+@register_jitable
+def body_state_from(x, u, src_state, src_input, wind_index):
+    """Full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) of a body-axis model.
+
+    Each entry comes from the model state (``src_state[i] ≥ 0``) or an input
+    (``src_input[i] ≥ 0``). When the lateral model measures V and α instead of u and w
+    (``wind_index`` = input indices of V and α, else −1), with sin β = v/V [2.20]:
+
+        u = V cos α cos β,   w = V sin α cos β                          [2.19–2.21]
+    """
+    X = np.zeros(9)
+    for i in range(9):
+        if src_state[i] >= 0:
+            X[i] = x[src_state[i]]
+        elif src_input[i] >= 0:
+            X[i] = u[src_input[i]]
+    if wind_index[0] >= 0:
+        V = u[wind_index[0]]
+        alpha = u[wind_index[1]]
+        sin_beta = X[1] / V
+        cos_beta = math.sqrt(max(0.0, 1.0 - sin_beta * sin_beta))
+        X[0] = V * math.cos(alpha) * cos_beta
+        X[2] = V * math.sin(alpha) * cos_beta
+    return X
+
+
+def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, out_scale,
+                    extra_input, thrust_index, tables, consts):  # fmt: skip
     """f and h closures of a body-axis model (6-DOF or decoupled)."""
     tc = tables.term_coef
     tp = tables.term_param
@@ -104,12 +133,7 @@ def _body_functions(src_state, src_input, deriv_index, out_index, out_scale, ext
 
     def f(t, x, u, theta):
         # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
-        X = np.empty(9)
-        for i in range(9):
-            if src_state[i] >= 0:
-                X[i] = x[src_state[i]]
-            else:
-                X[i] = u[src_input[i]]
+        X = body_state_from(x, u, src_state, src_input, wind_index)
         sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
         C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
         thrust = u[thrust_index] if thrust_index >= 0 else 0.0
@@ -121,12 +145,7 @@ def _body_functions(src_state, src_input, deriv_index, out_index, out_scale, ext
         return dx
 
     def h(t, x, u, theta):
-        X = np.empty(9)
-        for i in range(9):
-            if src_state[i] >= 0:
-                X[i] = x[src_state[i]]
-            else:
-                X[i] = u[src_input[i]]
+        X = body_state_from(x, u, src_state, src_input, wind_index)
         sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
         C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
         thrust = u[thrust_index] if thrust_index >= 0 else 0.0
@@ -191,6 +210,35 @@ def _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, con
     return f, h
 
 
+# The lateral model's two ways of taking the measured longitudinal motion.
+LATERAL_MEASURED = (("u", "w", "q"), ("V", "alpha", "q"))
+
+
+def _measured_inputs(kind: str, default: tuple[str, ...], measured) -> tuple[str, ...]:
+    """The other axis's measured motion entering as inputs (checked)."""
+    if measured is None:
+        return default
+    if isinstance(measured, str) or not isinstance(measured, Sequence):
+        raise InputTypeError(
+            f"measured: expected a list of names such as ['V', 'alpha', 'q'], "
+            f"got {describe(measured)}"
+        )
+    measured = tuple(measured)
+    if kind != "lateral":
+        if measured != default:
+            raise InputError(
+                f"measured: the {kind} model takes the measured inputs {list(default)}, "
+                f"got {list(measured)}"
+            )
+        return measured
+    if sorted(measured) not in [sorted(choice) for choice in LATERAL_MEASURED]:
+        raise InputError(
+            f"measured: the lateral model takes u, w, q (m/s, m/s, rad/s) or V, alpha, q "
+            f"(m/s, rad, rad/s) as measured inputs, in any order; got {list(measured)}"
+        )
+    return measured
+
+
 def _build(
     kind: str,
     airplane: Airplane,
@@ -201,12 +249,14 @@ def _build(
     x0,
     name: str | None,
     accelerometer=None,
+    measured: Sequence[str] | None = None,
 ) -> StateSpaceModel:
     if not isinstance(airplane, Airplane):
         raise InputTypeError(f"airplane: expected an Airplane, got {describe(airplane)}")
     if not isinstance(aero, AeroModel):
         raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
-    states, measured, default_outputs = _KINDS[kind]
+    states, default_measured, default_outputs = _KINDS[kind]
+    measured = _measured_inputs(kind, default_measured, measured)
     if controls is None:
         # the aerodynamic model's signals that are not standard signals, in first-use order
         controls = tuple(s for s in aero.signals if s not in SIGNALS and s != airplane.thrust_input)
@@ -266,10 +316,15 @@ def _build(
         src_input = np.array(
             [inputs.index(s) if s in measured else -1 for s in BODY_STATES], dtype=np.int64
         )
+        # input indices of V and α when they replace u and w (lateral model), else −1
+        wind_index = np.array(
+            [inputs.index("V"), inputs.index("alpha")] if "V" in measured else [-1, -1],
+            dtype=np.int64,
+        )
         deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
         f, h = _body_functions(
-            src_state, src_input, deriv_index, out_index, out_scale, extra_input, thrust_index,
-            tables, consts,
+            src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
+            thrust_index, tables, consts,
         )  # fmt: skip
     return StateSpaceModel(
         states=states,
@@ -340,12 +395,16 @@ def lateral_model(
     x0=None,
     name: str | None = None,
     accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
+    measured: Sequence[str] | None = None,
 ) -> StateSpaceModel:
     """Decoupled lateral model: states (v, p, r, l_xz, l_yz, l_zz); the measured longitudinal
-    motion u, w (m/s) and q (rad/s) enters as inputs [2.30–2.32]. Default outputs beta, p, r,
-    phi, ay. (With V and α measured instead, u = V cos α cos β and w = V sin α cos β.)
-    Arguments as for ``six_dof_model``."""
-    return _build("lateral", airplane, aero, parameters, controls, outputs, x0, name, accelerometer)
+    motion enters as inputs [2.30–2.32]: u, w (m/s) and q (rad/s) by default, or with
+    ``measured=("V", "alpha", "q")`` the airspeed V (m/s), angle of attack α (rad) and q, from
+    which u = V cos α cos β and w = V sin α cos β with sin β = v/V. Default outputs beta, p,
+    r, phi, ay. Other arguments as for ``six_dof_model``."""
+    return _build(
+        "lateral", airplane, aero, parameters, controls, outputs, x0, name, accelerometer, measured
+    )
 
 
 def wind_axis_longitudinal_model(
