@@ -20,6 +20,7 @@ from flightid.simulate import simulate
         ("spline1(alpha,-0.05)", "spline1(alpha,-0.05)", "CL_alpha_sm0p05"),
         ("spline1(alpha,1e-5)*phat", "spline1(alpha,1e-05)*phat", "CL_alpha_s1em05_phat"),
         ("spline1(alpha,0)", "spline1(alpha,0)", "CL_alpha_s0"),
+        ("spline1(alpha,-0.0)", "spline1(alpha,0)", "CL_alpha_s0"),
         ("alpha*spline1(alpha,.1)*spline1(alpha,0.1)", "alpha*spline1(alpha,0.1)^2",
          "CL_alpha_alpha_s0p1_2"),
     ],

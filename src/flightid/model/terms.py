@@ -192,7 +192,8 @@ def _parse_call(text: str, source: str, function: str, position: int) -> tuple[S
             f"term {text!r}: expected a number (the knot) at position {position + 1} in "
             f"{function}; write {usage}"
         )
-    knot = float(number.group())
+    # + 0.0 turns a knot of -0 into 0 (one canonical label)
+    knot = float(number.group()) + 0.0
     if not math.isfinite(knot):
         raise TermError(f"term {text!r}: the knot of {function} must be finite, got {knot}")
     position = number.end()
