@@ -80,7 +80,17 @@ _DATA = {
     "stop",
 }
 _MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps"}
-_MODEL = {"module", "type", "airplane", "aero", "controls", "outputs", "name"}
+_MODEL = {
+    "module",
+    "type",
+    "airplane",
+    "aero",
+    "controls",
+    "outputs",
+    "name",
+    "accelerometer",
+    "measured",
+}
 _ESTIMATION = {"solver", "method", "noise", "R", "solver_settings", "convergence", "compiled"}
 _ACCURACY = {
     "confidence",

@@ -53,11 +53,7 @@ ALPHA_Q_INPUTS = ("V", "qbar", "theta", "phi", "ax", "p", "r")
 def parameter_name(coefficient: str, term: str | Term) -> str:
     """Identifier of the parameter multiplying ``term`` in ``coefficient`` (module docstring)."""
     term = parse_term(term) if isinstance(term, str) else term
-    if term.is_constant:
-        suffix = "0"
-    else:
-        suffix = "_".join(name if power == 1 else f"{name}{power}" for name, power in term.factors)
-    name = f"{coefficient}_{suffix}"
+    name = f"{coefficient}_{term.identifier}"
     if not name.isidentifier():
         raise InputError(f"coefficient: {coefficient!r} does not make a valid parameter name")
     return name
@@ -122,6 +118,12 @@ def _term_tables(
     for j, (name, term) in enumerate(entries):
         index[j] = parameters.index(name)
         for signal, power in term.factors:
+            if not isinstance(signal, str):
+                raise InputError(
+                    f"term {term.label!r}: spline terms are not supported by the α–q "
+                    "output-error model yet; use the built-in airplane models "
+                    "(flightid.aircraft) for them"
+                )
             powers[j, signal_names.index(signal)] = power
     return powers, index
 
