@@ -13,7 +13,6 @@ input channel ``maneuver_number`` (0, 1, ...) added to each maneuver's data.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -25,6 +24,7 @@ from flightid.cases.spec import Case, CaseError, ManeuverSpec
 from flightid.cases.usermodel import load_user_model
 from flightid.data.flightdata import FlightData
 from flightid.data.loaders import read_table, to_flight_data
+from flightid.data.location import DEFAULT_DATA_DIR, data_directory
 from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence
 from flightid.model.parameters import Parameter, Parameters
@@ -41,21 +41,15 @@ __all__ = [
 ]
 
 MANEUVER_CHANNEL = "maneuver_number"
-DEFAULT_DATA_DIR = "../../../shared/data"  # relative to a case in examples/cases
 
 
 def resolve_data_dir(case: Case, override: str | Path | None = None) -> Path:
     """The data directory: ``override`` (CLI --data-dir), env FLIGHTID_DATA, ``[data].data_dir``
     relative to the case file, else ``../../../shared/data`` relative to the case file."""
-    if override is not None:
-        return Path(override)
-    if os.environ.get("FLIGHTID_DATA"):
-        return Path(os.environ["FLIGHTID_DATA"])
     given = case.data.get("data_dir", DEFAULT_DATA_DIR)
     if not isinstance(given, str):
         raise CaseError(f"data.data_dir: expected a path string, got {given!r}")
-    path = Path(given)
-    return path if path.is_absolute() else (case.directory / path).resolve()
+    return data_directory(case.directory, given, override)
 
 
 def load_maneuvers(

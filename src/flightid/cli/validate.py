@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 
 from flightid.cases import load_case, prepare_case
+from flightid.cli.run import add_data_dir_argument
 
 
 def register(subparsers) -> None:
@@ -19,12 +20,7 @@ def register(subparsers) -> None:
         description="Check a TOML case file: every error names the key and the problem.",
     )
     parser.add_argument("case", help="case file (TOML)")
-    parser.add_argument(
-        "--data-dir",
-        default=None,
-        help="directory holding the data files (default: $FLIGHTID_DATA, then the case's "
-        "data.data_dir, then ../../../shared/data relative to the case file)",
-    )
+    add_data_dir_argument(parser)
     parser.set_defaults(func=run)
 
 

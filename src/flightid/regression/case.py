@@ -54,7 +54,6 @@ finally ``../../../shared/data`` relative to the case file (the repository's
 from __future__ import annotations
 
 import math
-import os
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -65,6 +64,7 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.data.loaders import ChannelSpec, Table, read_table, to_flight_data
+from flightid.data.location import data_directory
 from flightid.errors import InputError
 from flightid.model.terms import TermError, parse_term
 from flightid.regression.stepwise import StepwiseResult, stepwise
@@ -389,13 +389,7 @@ def _ml_spec(table: Mapping) -> MLSpec:
 
 def resolve_data_dir(case: StepwiseCase, data_dir: str | Path | None = None) -> Path:
     """The data directory (see the module docstring for the order)."""
-    if data_dir is not None:
-        return Path(data_dir)
-    env = os.environ.get("FLIGHTID_DATA")
-    if env:
-        return Path(env)
-    relative = case.data_dir if case.data_dir is not None else "../../../shared/data"
-    return (case.path.parent / relative).resolve()
+    return data_directory(case.path.parent, case.data_dir, data_dir)
 
 
 def _read(case: StepwiseCase, data_dir: str | Path | None, file: str, key: str) -> Table:
