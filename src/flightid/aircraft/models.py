@@ -118,94 +118,78 @@ def body_state_from(x, u, src_state, src_input, wind_index):
     return X
 
 
+@register_jitable
+def _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts):
+    """Signals (α, V, rates, controls…), then C = aero model, then forces and moments."""
+    sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
+    C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
+    thrust = u[thrust_index] if thrust_index >= 0 else 0.0
+    return sig, forces_and_moments(C, sig[1], sig[0], thrust, consts)
+
+
+@register_jitable
+def _wind_body_state(x):
+    """Body state of symmetric flight from (V, α, Θ, q):
+    u = V cos α, w = V sin α, l_xz = −sin Θ, l_zz = cos Θ."""
+    X = np.zeros(9)
+    X[0] = x[0] * np.cos(x[1])
+    X[2] = x[0] * np.sin(x[1])
+    X[4] = x[3]
+    X[6] = -np.sin(x[2])
+    X[8] = np.cos(x[2])
+    return X
+
+
+@register_jitable
+def _select(full, index, scale):
+    """The chosen entries of ``full``, each times its scale (accelerometer sign and unit;
+    1 for the other outputs, see Accelerometer)."""
+    y = np.empty(index.shape[0])
+    for i in range(index.shape[0]):
+        y[i] = full[index[i]] * scale[i]
+    return y
+
+
 def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, out_scale,
                     extra_input, thrust_index, tables, consts):  # fmt: skip
     """f and h closures of a body-axis model (6-DOF or decoupled)."""
-    tc = tables.term_coef
-    tp = tables.term_param
-    fs = tables.factor_start
-    fsig = tables.factor_signal
-    fpow = tables.factor_power
-    fspl = tables.factor_spline
-    fknot = tables.factor_knot
-    n_states = deriv_index.shape[0]
-    n_outputs = out_index.shape[0]
+    tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
+    fsig, fpow = tables.factor_signal, tables.factor_power
+    fspl, fknot = tables.factor_spline, tables.factor_knot
+    ones = np.ones(deriv_index.shape[0])
 
     def f(t, x, u, theta):
         # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
         X = body_state_from(x, u, src_state, src_input, wind_index)
-        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
-        F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
-        D = rigid_body_derivatives(X, F, consts)
-        dx = np.empty(n_states)
-        for i in range(n_states):
-            dx[i] = D[deriv_index[i]]
-        return dx
+        _, F = _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl,
+                      fknot, consts)
+        return _select(rigid_body_derivatives(X, F, consts), deriv_index, ones)
 
     def h(t, x, u, theta):
         X = body_state_from(x, u, src_state, src_input, wind_index)
-        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
-        F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
-        full = body_outputs(X, F, sig, consts)
-        y = np.empty(n_outputs)
-        for i in range(n_outputs):
-            # accelerometer sign and unit (1 for the other outputs), see Accelerometer
-            y[i] = full[out_index[i]] * out_scale[i]
-        return y
+        sig, F = _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl,
+                        fknot, consts)
+        return _select(body_outputs(X, F, sig, consts), out_index, out_scale)
 
     return f, h
 
 
 def _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts):
     """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q)."""
-    tc = tables.term_coef
-    tp = tables.term_param
-    fs = tables.factor_start
-    fsig = tables.factor_signal
-    fpow = tables.factor_power
-    fspl = tables.factor_spline
-    fknot = tables.factor_knot
-    n_outputs = out_index.shape[0]
+    tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
+    fsig, fpow = tables.factor_signal, tables.factor_power
+    fspl, fknot = tables.factor_spline, tables.factor_knot
 
     def f(t, x, u, theta):
-        V = x[0]
-        alpha = x[1]
-        # body state of symmetric flight: u = V cos α, w = V sin α, l_xz = −sin Θ, l_zz = cos Θ
-        X = np.zeros(9)
-        X[0] = V * np.cos(alpha)
-        X[2] = V * np.sin(alpha)
-        X[4] = x[3]
-        X[6] = -np.sin(x[2])
-        X[8] = np.cos(x[2])
-        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
-        F = forces_and_moments(C, alpha, V, thrust, consts)
-        return wind_axis_derivatives(V, alpha, x[2], x[3], F, consts)
+        _, F = _loads(_wind_body_state(x), u, theta, extra_input, thrust_index, tc, tp, fs,
+                      fsig, fpow, fspl, fknot, consts)
+        return wind_axis_derivatives(x[0], x[1], x[2], x[3], F, consts)
 
     def h(t, x, u, theta):
-        V = x[0]
-        alpha = x[1]
-        X = np.zeros(9)
-        X[0] = V * np.cos(alpha)
-        X[2] = V * np.sin(alpha)
-        X[4] = x[3]
-        X[6] = -np.sin(x[2])
-        X[8] = np.cos(x[2])
-        sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-        thrust = u[thrust_index] if thrust_index >= 0 else 0.0
-        F = forces_and_moments(C, alpha, V, thrust, consts)
-        full = body_outputs(X, F, sig, consts)
-        y = np.empty(n_outputs)
-        for i in range(n_outputs):
-            # accelerometer sign and unit (1 for the other outputs), see Accelerometer
-            y[i] = full[out_index[i]] * out_scale[i]
-        return y
+        X = _wind_body_state(x)
+        sig, F = _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl,
+                        fknot, consts)
+        return _select(body_outputs(X, F, sig, consts), out_index, out_scale)
 
     return f, h
 
