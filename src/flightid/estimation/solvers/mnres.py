@@ -8,7 +8,9 @@ The solver keeps a set of parameter points with their output histories. Each pas
    batch QR or constant-window recursive);
 3. take the Gauss–Newton step [4.4–4.8] with those G_i, integrate once at the new point;
 4. if the cost dropped, the new point enters and the highest-cost point leaves; otherwise the
-   step is halved (one integration each) and, failing that, the solver restarts;
+   failed point itself enters the surface and the pass is repeated (at most
+   ``learn_from_failures`` times in a row), then the step is halved (one integration each)
+   and, failing that, the solver restarts;
 5. stop when cost and parameters have settled (``Convergence``).
 
 Initialisation and restart perturb each parameter from θ⁰ (n_f integrations, in one batch).
@@ -17,7 +19,8 @@ they are scaled by parameter importance (§7): with M_ℓℓ from the current su
 δθ_ℓ ∝ 1/√M_ℓℓ — parameters that move the cost little get larger perturbations — normalised
 so their geometric-mean relative size equals the restart size, then clipped to a factor 10
 either side of it. The restart size shrinks with the last accepted step so that the surface
-stays local near convergence.
+stays local near convergence, and by another factor 10 after each restart that found no
+lower cost (``max_restarts`` such restarts in a row end the search as stalled).
 
 Restarts happen when the cost will not drop, or when ΔX (the point cloud) is ill-conditioned;
 the paper's version had no such safeguards and oscillated on example 2, case 2.
