@@ -19,6 +19,7 @@ from flightid.paper.linear_system import TRUE_VALUES
 SOLVERS = [
     pytest.param(MNR(), id="mnr"),
     pytest.param(MNR(central=True), id="mnr-central"),
+    pytest.param(MNR(sensitivities="equations"), id="mnr-sensitivity-equations"),
     pytest.param(MNRES(), id="mnres-algebraic"),
     pytest.param(MNRES(form="recursive"), id="mnres-recursive"),
     pytest.param(MNRES(form="batch", window=8), id="mnres-batch-window8"),

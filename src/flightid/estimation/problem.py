@@ -192,6 +192,22 @@ class OutputErrorProblem:
             g = (perturbed - outputs[None]) / steps[:, None, None]
         return np.moveaxis(g, 0, -1), outputs
 
+    def sensitivities_from_equations(
+        self, theta_free: np.ndarray, relative_step: float = 1e-7
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """G_i and outputs at ``theta_free`` from the integrated sensitivity equations
+        (1 + n_s + n_f equivalent evaluations; see ``flightid.simulate.sensitivity``).
+
+        Returns:
+            (G of shape (N, n_o, n_f), outputs of shape (N, n_o)).
+        """
+        theta_free = np.asarray(theta_free, dtype=float)
+        steps = relative_step * np.maximum(np.abs(theta_free), self.typical)
+        outputs, g = self.simulator.run_with_sensitivities(
+            self.full_theta(theta_free), self.free_index, steps, relative_step
+        )
+        return g, outputs
+
     @staticmethod
     def _raise_if_diverged(sim: SimulationBatch, what: str) -> None:
         if sim.diverged.any():

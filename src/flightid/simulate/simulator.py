@@ -191,6 +191,78 @@ class Simulator:
         self.evaluations += n_batch
         return SimulationBatch(outputs, diverged, tuple(messages))
 
+    def run_with_sensitivities(
+        self,
+        theta: np.ndarray,
+        free_index: np.ndarray,
+        steps: np.ndarray,
+        relative_step: float = 1e-7,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs (N_total, n_o) and sensitivities G (N_total, n_o, n_f) for one full
+        parameter vector, by integrating the sensitivity equations
+        (``flightid.simulate.sensitivity``).
+
+        ``steps`` are the finite-difference steps of the free parameters in the Jacobians.
+        Counts 1 + n_s + n_f equivalent evaluations (the calls of f per stage, relative to a
+        plain integration). Raises ``SimulationError`` if the trajectory becomes non-finite.
+        """
+        from flightid.simulate.sensitivity import make_sensitivity_kernel
+
+        key = (id(self.model.f), id(self.model.h), "sensitivity", self.compiled)
+        entry = _KERNEL_CACHE.get(key)
+        if entry is None or entry[0] is not self.model.f or entry[1] is not self.model.h:
+            entry = (
+                self.model.f,
+                self.model.h,
+                make_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
+                None,
+            )
+            _KERNEL_CACHE[key] = entry
+        kernel = entry[2]
+        theta = np.ascontiguousarray(theta, dtype=float)
+        free_index = np.ascontiguousarray(free_index, dtype=np.int64)
+        n_out = len(self.model.outputs)
+        n_states = len(self.model.states)
+        outputs = np.empty((self.n_samples, n_out))
+        g = np.empty((self.n_samples, n_out, free_index.size))
+        start = 0
+        for i, (t, u, (constants, index)) in enumerate(
+            zip(self._times, self._inputs, self._x0_maps, strict=True)
+        ):
+            x0 = constants.copy()
+            mask = index >= 0
+            x0[mask] = theta[index[mask]]
+            # S(t0) = ∂x0/∂θ: 1 where an initial state is a free parameter
+            s0 = np.zeros((n_states, free_index.size))
+            for state, parameter in enumerate(index):
+                s0[state, free_index == parameter] = 1.0
+            y_block = np.empty((t.shape[0], n_out))
+            g_block = np.empty((t.shape[0], n_out, free_index.size))
+            flag = kernel(
+                theta,
+                x0,
+                s0,
+                free_index,
+                np.asarray(steps, dtype=float),
+                relative_step,
+                t,
+                u,
+                _METHODS[self.method],
+                n_out,
+                y_block,
+                g_block,
+            )
+            if flag >= 0:
+                raise SimulationError(
+                    f"simulation diverged in maneuver {i} at t = {t[flag]:.4g} s "
+                    f"(sample {int(flag)}): non-finite state or output"
+                )
+            outputs[start : start + t.shape[0]] = y_block
+            g[start : start + t.shape[0]] = g_block
+            start += t.shape[0]
+        self.evaluations += 1 + n_states + int(free_index.size)
+        return outputs, g
+
     def outputs(self, theta: np.ndarray) -> np.ndarray:
         """Outputs (N_total, n_o) for one full parameter vector; raises if it diverges."""
         batch = self.run(np.asarray(theta, dtype=float)[None, :])

@@ -29,6 +29,10 @@ class MNR:
     Attributes:
         relative_step: finite-difference step, relative to max(|θ_j|, typical_j).
         central: central differences (2·n_f integrations per pass) instead of forward.
+        sensitivities: ``"differences"`` (finite differences of whole integrations, the
+            default) or ``"equations"`` (the sensitivity equations integrated with the
+            states, "analytic" MNR: 1 + n_s + n_f equivalent evaluations per pass, and
+            ``relative_step`` / ``central`` do not apply).
         max_halvings: step-size halvings tried before declaring a stall.
         max_relative_step: no parameter moves more than this fraction of max(|θ_j|, scale_j)
             in one pass (the step is shortened, its direction kept); off by default: on the
@@ -37,6 +41,7 @@ class MNR:
 
     relative_step: float = 1e-6
     central: bool = False
+    sensitivities: str = "differences"
     max_halvings: int = 10
     max_relative_step: float = math.inf
 
@@ -45,6 +50,11 @@ class MNR:
     def __post_init__(self) -> None:
         if not 0 < self.relative_step < 1:
             raise InputError(f"MNR.relative_step: expected 0 < step < 1, got {self.relative_step}")
+        if self.sensitivities not in ("differences", "equations"):
+            raise InputError(
+                "MNR.sensitivities: expected 'differences' or 'equations', "
+                f"got {self.sensitivities!r}"
+            )
         if self.max_halvings < 0:
             raise InputError(f"MNR.max_halvings: expected ≥ 0, got {self.max_halvings}")
 
@@ -52,6 +62,7 @@ class MNR:
         return {
             "relative_step": self.relative_step,
             "central": self.central,
+            "sensitivities": self.sensitivities,
             "max_halvings": self.max_halvings,
             "max_relative_step": None
             if math.isinf(self.max_relative_step)
@@ -85,7 +96,9 @@ class MNR:
         for iteration in range(1, conv.max_iterations + 1):
             if objective.budget_exhausted():
                 return outcome(iteration - 1, False, *budget_status(objective))
-            if g is None:
+            if g is None and self.sensitivities == "equations":
+                g, _ = problem.sensitivities_from_equations(theta)
+            elif g is None:
                 g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
             gn = gauss_newton_step(g, problem.residuals(outputs), objective.r_diag, problem.typical)
             if conv.step_settled(gn, theta, problem.typical, cost):
