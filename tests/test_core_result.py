@@ -142,3 +142,13 @@ def test_quickstart_example_runs_and_recovers_its_parameters(capsys):
     assert rows["k"] == pytest.approx(9.0, rel=0.01)
     assert rows["c"] == pytest.approx(0.3, rel=0.05)
     assert rows["b"] == pytest.approx(2.0, rel=0.01)
+
+
+def test_progress_callback_sees_every_pass_with_growing_evaluations(pendulum):
+    model, data = pendulum
+    calls = []
+    result = estimate(model, data, MNRES(), progress=lambda *args: calls.append(args))
+    assert [c[0] for c in calls] == list(range(len(result.cost_history)))
+    evaluations = [c[1] for c in calls]
+    assert evaluations == sorted(evaluations) and evaluations[-1] <= result.equivalent_evaluations
+    assert [c[2] for c in calls] == list(result.cost_history)

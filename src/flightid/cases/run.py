@@ -321,6 +321,15 @@ def run_case(
         f"solver {case.estimation.get('solver', 'mnres')}, noise "
         f"{case.estimation.get('noise', 'max')}"
     )
+    last_report = [_time.monotonic()]
+
+    def report_pass(passes: int, evaluations: int, cost: float) -> None:
+        # one line per heartbeat interval at most
+        now = _time.monotonic()
+        if progress is not None and now - last_report[0] >= heartbeat_s:
+            last_report[0] = now
+            progress(f"estimating: pass {passes}, {evaluations} simulations, cost {cost:.6g}")
+
     with _heartbeat(progress, "estimating", heartbeat_s):
         result = estimate(
             model,
@@ -331,6 +340,7 @@ def run_case(
             R=case.estimation.get("R"),
             convergence=build_convergence(case),
             compiled=bool(case.estimation.get("compiled", True)),
+            progress=report_pass,
         )
     say(
         f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "

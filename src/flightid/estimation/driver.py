@@ -9,7 +9,7 @@ computed once by central differences at θ̂ for the Cramér–Rao bounds.
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -81,6 +81,7 @@ def estimate(
     R: np.ndarray | Sequence[float] | None = None,
     convergence: Convergence | None = None,
     compiled: bool = True,
+    progress: Callable[[int, int, float], None] | None = None,
 ) -> Estimate:
     """Output-error maximum-likelihood estimate of the model's free parameters.
 
@@ -95,6 +96,8 @@ def estimate(
             (default identity), ignored otherwise.
         convergence: stopping rules (default ``Convergence()``: the paper's 10⁻³ tests).
         compiled: run the numba kernel.
+        progress: called after every accepted pass with (pass number, equivalent evaluations
+            so far, cost under the current R) — e.g. to print progress.
 
     Returns:
         A frozen ``Estimate``. Non-convergence is reported in its status, not raised.
@@ -118,7 +121,7 @@ def estimate(
     problem = OutputErrorProblem(model, data, method=method, compiled=compiled)
     r_diag = _check_r(R, problem.n_outputs)
     theta = problem.theta_start
-    objective = Objective(problem, r_diag, noise, convergence)
+    objective = Objective(problem, r_diag, noise, convergence, progress)
     if noise != "fixed":
         # R from the residuals at the start values; the solver reuses this integration.
         _, start_outputs = objective.evaluate(theta[None, :])

@@ -14,6 +14,7 @@ Every system integration goes through ``OutputErrorProblem.run`` and is counted 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,8 @@ class Objective:
         r_diag: initial noise variances (n_o,).
         policy: one of ``NOISE_POLICIES``.
         convergence: stopping rules.
+        progress: called after every recorded pass with (pass number, equivalent
+            evaluations so far, cost).
     """
 
     def __init__(
@@ -57,8 +60,10 @@ class Objective:
         r_diag: np.ndarray,
         policy: str,
         convergence: Convergence,
+        progress: Callable[[int, int, float], None] | None = None,
     ) -> None:
         self.problem = problem
+        self.progress = progress
         self.r_diag = np.asarray(r_diag, dtype=float)
         self.policy = policy
         self.convergence = convergence
@@ -87,6 +92,8 @@ class Objective:
         self.cost_history.append(float(cost))
         self.evaluation_history.append(self.evaluations)
         self.theta_history.append(np.array(theta, dtype=float))
+        if self.progress is not None:
+            self.progress(len(self.cost_history) - 1, self.evaluations, float(cost))
 
     # ------------------------------------------------------------------ evaluations
     def prime(self, theta: np.ndarray, outputs: np.ndarray) -> None:
