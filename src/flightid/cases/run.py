@@ -232,10 +232,12 @@ def accuracy_methods(case: Case, override: str | Sequence[str] | None = None) ->
 
 @contextlib.contextmanager
 def _heartbeat(say: Progress | None, label: str, interval_s: float) -> Iterator[None]:
-    """Call ``say`` every ``interval_s`` seconds with the elapsed time while the body runs."""
+    """Call ``say`` every ``interval_s`` seconds (0.1 s at least) with the elapsed time while
+    the body runs."""
     if say is None:
         yield
         return
+    interval_s = max(interval_s, 0.1)
     started = _time.perf_counter()
     done = threading.Event()
 
