@@ -67,6 +67,18 @@ def test_run_accuracy_profile_json_and_report(tmp_path, capsys):
     page = (out / "report.html").read_text()
     assert "<h2>Accuracy</h2>" in page and "profile interval" in page
     assert "search interval" not in page and "N_φ" in page
+    # estimates.csv carries the profile limits too (the search columns stay empty)
+    import csv
+
+    rows = list(csv.DictReader((out / "estimates.csv").open()))
+    by_name = {p["name"]: p for p in entry["parameters"]}
+    for row in rows:
+        if row["free"] == "True":
+            expected = by_name[row["name"]]["ci_profile"]
+            assert [float(row["profile_lower"]), float(row["profile_upper"])] == pytest.approx(
+                expected, rel=1e-12
+            )
+            assert row["search_lower"] == row["search_upper"] == ""
 
 
 def test_case_methods_key_runs_a_seeded_search(walk):

@@ -3,7 +3,8 @@
 ``write_report(run, out_dir)`` writes
 
     out_dir/results.json     {"results": [entry]} (the JSON contract, see flightid.cli.run)
-    out_dir/estimates.csv    name, value, CR bound, interval, start, free
+    out_dir/estimates.csv    name, value, CR bound, interval, start, free (and, with an
+                             accuracy assessment, the profile and search limits)
     out_dir/figures/*.png    measured vs predicted and residuals per maneuver, prediction
                              maneuvers, convergence history, correlation matrix
     out_dir/report.html      everything above on one page, and the accuracy assessment when
@@ -175,6 +176,18 @@ def _estimate_rows(run) -> list[dict]:
                 "free": free,
             }
         )
+    accuracy = getattr(run, "accuracy", None)
+    if accuracy is not None:
+        # the likelihood-region limits of the assessment, where they were run
+        free_rows = [row for row in rows if row["free"]]
+        for label, intervals in (("profile", accuracy.ci_profile), ("search", accuracy.ci_search)):
+            for row in rows:
+                row[f"{label}_lower"] = row[f"{label}_upper"] = None
+            if intervals is None:
+                continue
+            for row, (lower, upper) in zip(free_rows, intervals, strict=True):
+                row[f"{label}_lower"] = float(lower) if np.isfinite(lower) else None
+                row[f"{label}_upper"] = float(upper) if np.isfinite(upper) else None
     return rows
 
 
