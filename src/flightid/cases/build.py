@@ -13,6 +13,7 @@ input channel ``maneuver_number`` (0, 1, ...) added to each maneuver's data.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -179,13 +180,49 @@ def _apply_parameters(parameters: Parameters, section: Mapping[str, Any]) -> lis
     return list(items.values())
 
 
+# Body-axis states the built-in airplane models carry that data sets rarely record: their
+# first value follows from measured flight variables [RP-1153 2.19–2.24]
+#   u = V cos α cos β,  v = V sin β,  w = V sin α cos β,
+#   l_xz = −sin Θ,  l_yz = sin Φ cos Θ,  l_zz = cos Φ cos Θ
+_DERIVED_STATES = {
+    "u": (("V", "alpha", "beta"), lambda V, a, b: V * math.cos(a) * math.cos(b)),
+    "v": (("V", "beta"), lambda V, b: V * math.sin(b)),
+    "w": (("V", "alpha", "beta"), lambda V, a, b: V * math.sin(a) * math.cos(b)),
+    "l_xz": (("theta",), lambda th: -math.sin(th)),
+    "l_yz": (("theta", "phi"), lambda th, ph: math.sin(ph) * math.cos(th)),
+    "l_zz": (("theta", "phi"), lambda th, ph: math.cos(ph) * math.cos(th)),
+}
+# channels a derivation may do without (then 0: symmetric flight, wings level)
+_OPTIONAL_ZERO = {"beta", "phi"}
+
+
+def _has(maneuver: FlightData, channel: str) -> bool:
+    return channel in maneuver.input_names or channel in maneuver.output_names
+
+
 def _first_measured(maneuver: FlightData, channel: str, where: str) -> float:
-    if channel not in maneuver.input_names and channel not in maneuver.output_names:
+    """First sample of ``channel``; for u, v, w and the direction cosines of the built-in
+    airplane models, derived from the first V, α, β, Θ, Φ when the channel is not recorded."""
+    if _has(maneuver, channel):
+        return float(maneuver.channel(channel)[0])
+    if channel in _DERIVED_STATES:
+        needed, formula = _DERIVED_STATES[channel]
+        missing = [c for c in needed if not _has(maneuver, c) and c not in _OPTIONAL_ZERO]
+        if not missing:
+            return float(
+                formula(
+                    *(float(maneuver.channel(c)[0]) if _has(maneuver, c) else 0.0 for c in needed)
+                )
+            )
         raise CaseError(
-            f"{where}: 'measured' needs a data channel named {channel!r} in maneuver "
-            f"'{maneuver.name}' (set channel = '...' to use another)"
+            f"{where}: 'measured' needs a data channel {channel!r}, or the channels "
+            f"{list(needed)} to derive it from (missing {missing}) in maneuver "
+            f"'{maneuver.name}'"
         )
-    return float(maneuver.channel(channel)[0])
+    raise CaseError(
+        f"{where}: 'measured' needs a data channel named {channel!r} in maneuver "
+        f"'{maneuver.name}' (set channel = '...' to use another)"
+    )
 
 
 def _initial_states(
