@@ -19,6 +19,13 @@ class InputTypeError(FlightIdError, TypeError):
     """An argument has the wrong type."""
 
 
+class ModelError(InputError):
+    """A model's functions break their contract: ``f``/``h`` read past ``x``, ``u`` or θ,
+    return the wrong number of values, non-numbers or non-finite values at the start, or
+    raise; or a model module cannot be imported. The message names the function, what was
+    expected and what came, and where (maneuver, sample, time)."""
+
+
 class SimulationError(FlightIdError, ArithmeticError):
     """The system equations produced non-finite states or outputs (the simulation diverged)."""
 
