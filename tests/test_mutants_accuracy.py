@@ -1,0 +1,168 @@
+"""Accuracy formulas recomputed independently, in plain numpy, from METHOD §10 and §9.
+
+These tests exist because hand-made mutants of ``flightid.accuracy`` survived the suite
+(issue 10 §6): N_φ without its factor n_p, D with the square in the wrong place, the
+coloured-residual covariance without its N·n_o/(N·n_o − n_p) factor. Each quantity is
+recomputed here from the paper's formulas with explicit sums over samples, without calling
+the code under test for anything but the simulated outputs of the model.
+
+    φ_w = (Σ_i G_iᵀR⁻¹G_i)⁻¹ Σ_i G_iᵀR⁻¹ δY_i,w                     [5.41]
+    Q_φ = Σ_w Σ_i (δY_i,w − G_i φ_w)ᵀ R⁻¹ (δY_i,w − G_i φ_w)         [5.39]
+    D   = Σ_w ( Σ_i δY_i,wᵀ R⁻¹ δY_i,w )²                          [5.35]
+    N_φ = n_p s² Q_φ / D,   s² = J(θ̂)/(N n_o − n_p)                 [5.34], [5.30]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import PENDULUM_TRUE, pendulum_data, pendulum_model
+from flightid.accuracy import assess
+from flightid.accuracy.nonlinearity import beale_nonlinearity
+from flightid.estimation.problem import OutputErrorProblem
+from flightid.simulate import simulate
+from test_accuracy_models import exp_estimate, exp_model, linear_estimate
+
+
+def _beale_by_hand(y_of, theta_hat, g, r_diag, steps, s2):
+    """Q_φ, D, N_φ from METHOD §10 with explicit loops over points w and samples i.
+
+    Args:
+        y_of: θ (n_p,) → outputs (N, n_o).
+        theta_hat: θ̂ (n_p,).
+        g: sensitivities G_i (N, n_o, n_p) at θ̂.
+        r_diag: R (n_o,).
+        steps: |Δθ_j| (n_p,), the perturbation of each parameter.
+        s2: s² [5.30].
+    """
+    n_p = theta_hat.size
+    r_inv = np.diag(1.0 / np.asarray(r_diag, dtype=float))
+    y_hat = y_of(theta_hat)
+    # M = Σ_i G_iᵀ R⁻¹ G_i
+    m = sum(g[i].T @ r_inv @ g[i] for i in range(g.shape[0]))
+    points = []
+    for j in range(n_p):
+        for sign in (1.0, -1.0):
+            theta_w = theta_hat.copy()
+            theta_w[j] += sign * steps[j]
+            points.append(theta_w)
+    q_phi = 0.0
+    d = 0.0
+    for theta_w in points:
+        dy = y_of(theta_w) - y_hat  # δY_i,w (N, n_o)
+        # φ_w = M⁻¹ Σ_i G_iᵀ R⁻¹ δY_i,w                                   [5.41]
+        rhs = sum(g[i].T @ r_inv @ dy[i] for i in range(g.shape[0]))
+        phi = np.linalg.solve(m, rhs)
+        # Q_φ += Σ_i (δY_i,w − G_i φ_w)ᵀ R⁻¹ (δY_i,w − G_i φ_w)              [5.39]
+        for i in range(g.shape[0]):
+            e = dy[i] - g[i] @ phi
+            q_phi += e @ r_inv @ e
+        # D += (Σ_i δY_i,wᵀ R⁻¹ δY_i,w)²                                   [5.35]
+        d += sum(dy[i] @ r_inv @ dy[i] for i in range(g.shape[0])) ** 2
+    # N_φ = n_p s² Q_φ / D                                                 [5.34]
+    return q_phi, d, n_p * s2 * q_phi / d
+
+
+@pytest.fixture(scope="module")
+def exp_case():
+    est, data = exp_estimate()
+    return est, data
+
+
+def test_beale_n_phi_through_assess_matches_a_plain_numpy_recomputation(exp_case):
+    est, data = exp_case
+    accuracy = assess(est, data, methods="cr", polish=False, warn=False)
+    theta_hat = np.asarray(est.values, dtype=float)  # all three parameters are free
+    g = np.asarray(est.sensitivities, dtype=float)
+    r = np.asarray(est.r_diag, dtype=float)
+    model = exp_model()
+    measured = np.column_stack([data.output("y")])
+
+    def y_of(theta):
+        return simulate(model, data, theta=theta)
+
+    n, n_o = measured.shape
+    n_p = theta_hat.size
+    # s² = J(θ̂)/(N n_o − n_p), J = Σ_i ν_iᵀ R⁻¹ ν_i                       [5.30], [3.46]
+    nu = measured - y_of(theta_hat)
+    s2 = float(np.sum(nu**2 / r)) / (n * n_o - n_p)
+    assert accuracy.s2 == pytest.approx(s2, rel=1e-12)
+    # Beale points at θ̂ ± s σ_j e_j, σ_j = √(M⁻¹)_jj (assess's default: one standard error)
+    m = np.einsum("iop,o,ioq->pq", g, 1.0 / r, g)
+    steps = np.sqrt(s2 * np.diag(np.linalg.inv(m)))
+    q_phi, d, n_phi = _beale_by_hand(y_of, theta_hat, g, r, steps, s2)
+    nl = accuracy.nonlinearity
+    assert nl.points == 2 * n_p
+    assert nl.q_phi == pytest.approx(q_phi, rel=1e-6)
+    assert nl.d == pytest.approx(d, rel=1e-9)
+    assert nl.n_phi == pytest.approx(n_phi, rel=1e-6)
+    # the model is genuinely nonlinear in b: N_φ is small but far from round-off
+    assert 1e-7 < n_phi < 1e-2
+    # Beale's factor 1 + N n_o (n_p + 2)/((N n_o − n_p) n_p) N_φ              [5.29]
+    factor = 1.0 + n * n_o * (n_p + 2) / ((n * n_o - n_p) * n_p) * n_phi
+    assert nl.beale_factor == pytest.approx(factor, rel=1e-9)
+
+
+def test_beale_terms_two_outputs_unequal_weights_any_point():
+    """beale_nonlinearity at an arbitrary θ̂ (the formula does not need an optimum) on the
+    two-output pendulum, R with unequal entries, perturbation 2: every term by hand."""
+    model = pendulum_model(PENDULUM_TRUE)
+    data = pendulum_data()
+    problem = OutputErrorProblem(model, data, compiled=False)
+    theta_hat = np.array(PENDULUM_TRUE) * np.array([1.02, 0.9, 1.1, 0.97])
+    r = np.array([0.01**2, 0.05**2])
+    n_p = theta_hat.size
+
+    def y_of(theta):
+        return simulate(model, data, theta=theta, compiled=False)
+
+    # central-difference sensitivities G_i = ∂y_i/∂θ, computed here
+    h = 1e-6 * np.abs(theta_hat)
+    g = np.stack(
+        [
+            (y_of(theta_hat + h[j] * np.eye(n_p)[j]) - y_of(theta_hat - h[j] * np.eye(n_p)[j]))
+            / (2 * h[j])
+            for j in range(n_p)
+        ],
+        axis=-1,
+    )
+    std = np.array([0.05, 0.02, 0.03, 0.01])
+    s2 = 1.3
+    result = beale_nonlinearity(problem, theta_hat, g, r, std, s2, perturbation=2.0)
+    q_phi, d, n_phi = _beale_by_hand(y_of, theta_hat, g, r, 2.0 * std, s2)
+    assert result.q_phi == pytest.approx(q_phi, rel=1e-8)
+    assert result.d == pytest.approx(d, rel=1e-10)
+    assert result.n_phi == pytest.approx(n_phi, rel=1e-8)
+    # far from round-off (4.5e-6, Q_φ ≈ 0.65): a wrong factor cannot hide below tolerance
+    assert result.n_phi > 1e-6 and result.q_phi > 0.1
+    assert result.evaluations == 2 * n_p + 1
+
+
+def test_beale_n_phi_is_zero_for_a_model_linear_in_its_parameters():
+    # closed form: δY_w = G Δθ_w exactly, so δY − Gφ = 0 and Q_φ = 0 (METHOD §10)
+    est, data = linear_estimate()
+    accuracy = assess(est, data, methods="cr", polish=False, warn=False)
+    assert accuracy.nonlinearity.d > 0
+    assert accuracy.nonlinearity.n_phi == pytest.approx(0.0, abs=1e-12)
+
+
+def test_coloured_sigma_equals_scaled_cr_sigma_for_white_single_output_residuals(exp_case):
+    """With lag L = 0 and one output the coloured sandwich reduces to the scaled CR bound.
+
+    Derivation (one output, R a scalar, r̂ = (1/N) Σ_i ν_i² = R̂_ν(0), M = Σ_i G_iᵀG_i / R):
+        middle = Σ_i G_iᵀ R⁻¹ r̂ R⁻¹ G_i = (r̂/R) M
+        Cov_c  = M⁻¹ middle M⁻¹ · N n_o/(N n_o − n_p) = (r̂/R) M⁻¹ · N/(N − n_p)
+        s²     = J/(N − n_p) = (N r̂/R)/(N − n_p)
+    so Cov_c = s² M⁻¹: σ_coloured = s σ_CR = std_scaled, to round-off. Without the factor
+    N n_o/(N n_o − n_p) the ratio would be √((N − n_p)/N) = √(38/41) ≈ 0.963.
+    """
+    est, data = exp_case
+    accuracy = assess(est, data, methods="cr", max_lag=0, polish=False, warn=False)
+    assert accuracy.coloured_lag == 0
+    n, n_p = accuracy.n_data, accuracy.n_free
+    assert (n, n_p) == (41, 3)
+    np.testing.assert_allclose(accuracy.std_coloured / accuracy.std_scaled, 1.0, rtol=1e-9)
+    # and the scaled bound itself is s·σ_CR with s² = J/(N − n_p)
+    s = np.sqrt(accuracy.cost_min / (n - n_p))
+    np.testing.assert_allclose(accuracy.std_scaled, s * np.sqrt(np.diag(est.covariance)))
