@@ -12,8 +12,12 @@ A model module defines, at module level::
 
 Lower-case names (``states``, ``inputs`` ...) are accepted too. Functions numba can compile
 (plain arithmetic, ``math``, ``numpy`` arrays, module-level constants) run compiled.
-The module is imported from its file (Python code the user wrote and chose to run); its
-definitions are checked here and errors name the module and the missing or wrong item.
+**Loading a model module executes it**: the file is imported as Python code (whatever it
+does at import time runs with the user's rights), exactly as ``python model.py`` would. Its
+definitions are checked here; errors are ``UserModelError`` (a ``CaseError`` and a
+``ModelError``) naming the file, the line (for errors while importing it) and the missing or
+wrong item. Whether ``f`` and ``h`` keep their contract on the data is checked by
+``flightid.model.check_model``.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
+import traceback
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,12 +33,36 @@ from types import ModuleType
 from typing import Any
 
 from flightid.cases.spec import CaseError
+from flightid.errors import ModelError
 
 __all__ = ["UserModel", "load_user_model", "UserModelError"]
 
 
-class UserModelError(CaseError):
+class UserModelError(CaseError, ModelError):
     """A model module that cannot be imported or lacks a required definition."""
+
+
+def _import_failure(path: Path, exc: BaseException) -> UserModelError:
+    """'model.module m.py line 3: SyntaxError: ... — `x = = 1`' for an error while importing.
+
+    The line is the one of the model file where the error arose: the syntax error's own
+    position, or the innermost traceback frame in the model file (an ``import`` of a missing
+    package, a ``NameError`` at module level ...).
+    """
+    line, text = None, None
+    if isinstance(exc, SyntaxError) and exc.filename and Path(exc.filename) == path:
+        line, text = exc.lineno, exc.text
+    else:
+        for frame in traceback.extract_tb(exc.__traceback__):
+            if frame.filename and Path(frame.filename) == path:
+                line, text = frame.lineno, frame.line
+    where = f" line {line}" if line is not None else ""
+    code = f" — `{text.strip()}`" if text and text.strip() else ""
+    message = exc.msg if isinstance(exc, SyntaxError) else str(exc)
+    return UserModelError(
+        f"model.module {path.name}{where}: importing it failed: "
+        f"{type(exc).__name__}: {message}{code} ({path})"
+    )
 
 
 @dataclass(frozen=True)
@@ -85,11 +114,10 @@ def load_user_model(path: str | Path) -> UserModel:
         sys.modules[module_name] = module
         try:
             spec.loader.exec_module(module)
-        except Exception as exc:
+        except (Exception, SystemExit) as exc:
+            # SystemExit: a module that calls sys.exit() / exit() at import time
             del sys.modules[module_name]
-            raise UserModelError(
-                f"model.module {path.name}: importing it failed: {type(exc).__name__}: {exc}"
-            ) from exc
+            raise _import_failure(path, exc) from exc
     states = _names(_get(module, "STATES", path), "STATES", path)
     inputs = _names(_get(module, "INPUTS", path), "INPUTS", path)
     outputs = _names(_get(module, "OUTPUTS", path), "OUTPUTS", path)

@@ -1,33 +1,85 @@
 """``flightid validate CASE.toml [--data-dir DIR]``: check a case file without estimating.
 
 Reads the case, loads every data file with its channel mapping, builds the model (user module
-or built-in airplane), initial states, biases, solver and rules, and prints what it found.
-Exit status 0 when the case is valid, 1 with a message naming the key otherwise.
+or built-in airplane), initial states, biases, solver and rules, then evaluates the model's
+``f`` and ``h`` on the data at the start values (``flightid.model.check_model``: indices into
+x, u and θ, number and type of returned values, finite at the start), for the estimation
+maneuvers and for every prediction maneuver, and prints what it found.
+Exit status 0 when the case is valid, 1 with a message naming the key or function otherwise.
+
+``model.module`` names a Python file; validating (like running) the case **executes** it.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 
 from flightid.cases import load_case, prepare_case
+from flightid.cases.build import build_model
 from flightid.cli.run import add_data_dir_argument
+from flightid.data.flightdata import FlightData
+from flightid.model import Parameters, StateSpaceModel, check_model
+
+_MODULE_WARNING = (
+    "A case whose model.module names a Python file EXECUTES that file (it is imported as "
+    "Python code, with your rights) when it is validated or run: validate only case files "
+    "and model modules you trust."
+)
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "validate",
-        help="check a case file (data, channels, model, parameters) without running it",
-        description="Check a TOML case file: every error names the key and the problem.",
+        help="check a case file (data, channels, model functions, parameters) without "
+        "estimating; model.module executes the Python file it names",
+        description=(
+            "Check a TOML case file without estimating: data files and channels, the model, "
+            "parameters, initial states, biases and solver settings, and the model functions "
+            "f and h, evaluated on the data at the start values (indices into x, u and theta, "
+            "number and type of returned values, finite at the start). Every error names the "
+            "key or function and the problem. " + _MODULE_WARNING
+        ),
     )
     parser.add_argument("case", help="case file (TOML)")
     add_data_dir_argument(parser)
     parser.set_defaults(func=run)
 
 
+def _base_for_check(model: StateSpaceModel, base: StateSpaceModel, n_maneuvers: int):
+    """The case's model *before* biases were wrapped around f and h, at the case's start
+    values and initial states — or None when f and h are not wrapped.
+
+    The bias wrappers call the user's f and h compiled (where numba can), and compiled code
+    does not check indices, so the user's own functions are checked on their own as well.
+    """
+    if model.f is base.f and model.h is base.h:
+        return None
+    theta = model.parameters.values
+    parameters = Parameters(list(model.parameters)[: len(base.parameters)])
+    x0 = [model.initial_state(theta, i).tolist() for i in range(n_maneuvers)]
+    return StateSpaceModel(
+        base.states,
+        base.inputs,
+        base.outputs,
+        base.f,
+        base.h,
+        parameters,
+        x0=x0 if model.per_maneuver_x0 else x0[0],
+        name=base.name,
+    )
+
+
+def _check(model: StateSpaceModel, maneuvers: Sequence[FlightData], method: str, label: str):
+    report = check_model(model, list(maneuvers), method=method)
+    print(f"  {label}{report.summary()}")
+
+
 def run(args: argparse.Namespace) -> int:
     case = load_case(args.case)
     prepared = prepare_case(case, args.data_dir)
     model = prepared.model
+    method = case.estimation.get("method", "rk4")
     print(f"case: {case.title}")
     print(f"data directory: {prepared.data_dir}")
     for m in prepared.maneuvers:
@@ -35,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
     for m in prepared.prediction_maneuvers:
         print(f"  prediction maneuver {m.name}: {m.n_samples} samples, dt = {m.dt:g} s")
     print(f"model: {prepared.model_description}")
+    if "module" in case.model:
+        print("  (model.module is Python code: it was executed to read the model)")
     print(f"  states {list(model.states)}, inputs {list(model.inputs)}")
     print(f"  outputs {list(model.outputs)}")
     free = model.parameters.free_names
@@ -42,5 +96,19 @@ def run(args: argparse.Namespace) -> int:
     print(f"  {len(free)} free parameters: {free}")
     if fixed:
         print(f"  {len(fixed)} fixed: {fixed}")
+    _check(model, prepared.maneuvers, method, "")
+    base = _base_for_check(model, prepared.base, len(prepared.maneuvers))
+    if base is not None:
+        _check(base, prepared.maneuvers, method, "without biases: ")
+    for maneuver in prepared.prediction_maneuvers:
+        predicted, data = build_model(
+            case,
+            [maneuver],
+            base=prepared.base,
+            initial_state=case.prediction_initial_state,
+            values={},
+            key="prediction.initial_state",
+        )
+        _check(predicted, data, method, f"prediction maneuver {maneuver.name}: ")
     print("valid")
     return 0
