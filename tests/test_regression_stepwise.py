@@ -93,21 +93,21 @@ def test_history_is_recorded_and_printable():
 
 
 def test_removal_after_a_better_term_enters():
-    # x1 is a noisy proxy of the true regressor x2: x1 enters first (largest simple
-    # correlation), then x2 enters and x1 loses significance and leaves.
+    # x1 = x2 + x3 + noise is a proxy of the true pair: corr(z, x1) > corr(z, x2), so x1
+    # enters first; once x2 and x3 are in, x1 loses significance and leaves. (A single-
+    # regressor proxy x1 = x2 + noise never enters first, which left this test vacuous.)
     rng = np.random.default_rng(5)
     n = 400
     x2 = rng.normal(size=n)
-    x1 = x2 + 0.3 * rng.normal(size=n)
     x3 = rng.normal(size=n)
-    z = x2 + 0.2 * x3 + 0.3 * rng.normal(size=n)
+    x1 = x2 + x3 + 0.5 * rng.normal(size=n)
+    z = x2 + x3 + 0.3 * rng.normal(size=n)
     s = {"x1": x1, "x2": x2, "x3": x3}
-    z = z + 0.0
     result = stepwise(z, ["x1", "x2", "x3"], s, select="final")
     actions = [(step.action, step.term) for step in result.steps]
     assert set(result.selected) == {"1", "x2", "x3"}
-    if ("enter", "x1") in actions:
-        assert ("remove", "x1") in actions
+    assert actions[1] == ("enter", "x1")
+    assert ("remove", "x1") in actions
 
 
 def test_pse_choice_of_sigma2_max():
