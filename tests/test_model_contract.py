@@ -72,9 +72,8 @@ def f_reads_theta5(t, x, u, theta):
 
 
 def _model(f=good_f, h=good_h, x0=(0.0, 0.0), inputs=("de",)) -> StateSpaceModel:
-    return StateSpaceModel(
-        ("alpha", "q"), inputs, ("alpha", "q"), f, h, Parameters(dict(zip(NAMES, VALUES, strict=True))), x0=x0
-    )
+    parameters = Parameters(dict(zip(NAMES, VALUES, strict=True)))
+    return StateSpaceModel(("alpha", "q"), inputs, ("alpha", "q"), f, h, parameters, x0=x0)
 
 
 def _data(n: int = 301, dt: float = 0.02, name: str = "m1") -> FlightData:
