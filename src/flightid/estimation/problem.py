@@ -49,6 +49,8 @@ class OutputErrorProblem:
             channels (as outputs) and input channels (as inputs or outputs).
         method: ``"rk4"`` or ``"euler"``.
         compiled: use the numba kernel.
+        input_interpolation: the input between samples in the RK4 stages, ``"linear"``
+            (default) or ``"zoh"`` (zero-order hold); see ``flightid.simulate.Simulator``.
     """
 
     def __init__(
@@ -57,6 +59,7 @@ class OutputErrorProblem:
         data: FlightData | Sequence[FlightData],
         method: str = "rk4",
         compiled: bool = True,
+        input_interpolation: str = "linear",
     ) -> None:
         self.model = model
         self.maneuvers = _as_data_list(data)
@@ -67,7 +70,14 @@ class OutputErrorProblem:
                     f"data[{i}] ({maneuver.name or 'unnamed'}): the model's outputs {missing} "
                     f"are not output channels of the data (outputs {list(maneuver.output_names)})"
                 )
-        self.simulator = Simulator(model, self.maneuvers, method=method, compiled=compiled)
+        self.simulator = Simulator(
+            model,
+            self.maneuvers,
+            method=method,
+            compiled=compiled,
+            input_interpolation=input_interpolation,
+        )
+        self.input_interpolation = self.simulator.input_interpolation
         self.measured = np.concatenate(
             [np.column_stack([m.output(n) for n in model.outputs]) for m in self.maneuvers]
         )

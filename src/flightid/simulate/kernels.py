@@ -10,8 +10,18 @@ For a batch of B parameter vectors θ_b and initial states x0_b, each kernel int
     k4 = f(t_k + Δt,   x_k + Δt·k3,    u_k+1, θ)
     x_{k+1} = x_k + Δt/6 · (k1 + 2k2 + 2k3 + k4)
 
-with the input at the half step taken as the mean of the neighbouring samples,
-u_k+½ = (u_k + u_{k+1})/2 (as the reference tools do), and records y_k = h(t_k, x_k, u_k, θ).
+and records y_k = h(t_k, x_k, u_k, θ). The input between samples follows the
+``input_interpolation`` setting:
+
+    "linear" (default, as the reference tools do): u varies linearly between samples,
+             u_k+½ = (u_k + u_{k+1})/2,   u at the end of the step = u_{k+1}
+    "zoh"    (zero-order hold): u(t) = u_k on [t_k, t_{k+1}),
+             u_k+½ = u_k,                 u at the end of the step = u_k (the left limit)
+
+"linear" suits inputs measured from a continuous signal (a surface deflection sampled by the
+data system); "zoh" suits inputs that really are held between samples (a computer-generated
+input applied at the sample rate, or data simulated that way). Euler uses u_k only, so both
+settings give the same Euler trajectory.
 
 A trajectory whose state or output becomes non-finite stops there; its ``diverged_at`` entry
 gives the sample index (−1 where the whole trajectory is finite) and the remaining outputs are
@@ -28,16 +38,20 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["make_kernel", "EULER", "RK4"]
+__all__ = ["make_kernel", "EULER", "RK4", "LINEAR", "ZOH", "INTERPOLATIONS"]
 
 EULER = 0
 RK4 = 1
+# input interpolation between samples (kernel argument ``interpolation``)
+LINEAR = 0
+ZOH = 1
+INTERPOLATIONS = {"linear": LINEAR, "zoh": ZOH}
 
 
 def _kernel_source(f: Callable, h: Callable) -> Callable:
     """The integration loop over a batch, closed over the model functions."""
 
-    def kernel(thetas, x0s, t, u, method, n_outputs, y_out, diverged_at):
+    def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
         n_batch = thetas.shape[0]
         n_samples = t.shape[0]
         for b in range(n_batch):
@@ -67,12 +81,18 @@ def _kernel_source(f: Callable, h: Callable) -> Callable:
                 if method == 0:
                     x = x + dt * f(t[k], x, uk, theta)
                 else:
-                    u_next = u[k + 1]
-                    u_half = 0.5 * (uk + u_next)
+                    if interpolation == ZOH:
+                        # zero-order hold: u(t) = u_k on [t_k, t_{k+1})
+                        u_half = uk
+                        u_end = uk
+                    else:
+                        # linear: u_k+½ = (u_k + u_{k+1})/2, u(t_{k+1}) = u_{k+1}
+                        u_end = u[k + 1]
+                        u_half = 0.5 * (uk + u_end)
                     k1 = f(t[k], x, uk, theta)
                     k2 = f(t[k] + 0.5 * dt, x + 0.5 * dt * k1, u_half, theta)
                     k3 = f(t[k] + 0.5 * dt, x + 0.5 * dt * k2, u_half, theta)
-                    k4 = f(t[k] + dt, x + dt * k3, u_next, theta)
+                    k4 = f(t[k] + dt, x + dt * k3, u_end, theta)
                     x = x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
     return kernel

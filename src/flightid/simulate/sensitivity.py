@@ -5,12 +5,13 @@ For S = ∂x/∂θ (n_s × n_f, the free parameters) [RP-1153 §6, "analytic" MN
     dS/dt = f_x S + f_θ,        S(t0) = ∂x0/∂θ
     G_i   = ∂y_i/∂θ = h_x S_i + h_θ
 
-integrated with the same fixed-step scheme as the states (Euler or RK4, input at the half
-step the mean of the neighbouring samples). The Jacobians f_x, f_θ, h_x, h_θ come from forward
-differences of the user's f and h at every stage (step ``relative_step`` × max(|v|, 1) for a
-state, × max(|θ_j|, typical_j) for a parameter), so no derivative has to be written by hand;
-the sensitivities are those of the *continuous* equations, not differences of two finished
-trajectories.
+integrated with the same fixed-step scheme as the states (Euler or RK4, the input between
+samples by the same ``input_interpolation`` rule as ``flightid.simulate.kernels``: "linear",
+u at the half step the mean of the neighbouring samples, or "zoh", u held at u_k). The
+Jacobians f_x, f_θ, h_x, h_θ come from forward differences of the user's f and h at every
+stage (step ``relative_step`` × max(|v|, 1) for a state, × max(|θ_j|, typical_j) for a
+parameter), so no derivative has to be written by hand; the sensitivities are those of the
+*continuous* equations, not differences of two finished trajectories.
 
 Cost: each stage evaluates f (and each sample h) 1 + n_s + n_f times instead of once, so one
 pass counts as 1 + n_s + n_f equivalent evaluations — about n_s more than finite-difference
@@ -23,6 +24,8 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+
+from flightid.simulate.kernels import ZOH
 
 __all__ = ["make_sensitivity_kernel"]
 
@@ -79,7 +82,9 @@ def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
 
     rates = jit(rates)
 
-    def kernel(theta, x0, s0, free_index, steps, rel, t, u, method, n_outputs, y_out, g_out):
+    def kernel(
+        theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs, y_out, g_out
+    ):
         x = x0.copy()
         s = s0.copy()
         n_samples = t.shape[0]
@@ -108,8 +113,14 @@ def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
                 x = x + dt * dx
                 s = s + dt * ds
             else:
-                u_next = u[k + 1]
-                u_half = 0.5 * (uk + u_next)
+                if interpolation == ZOH:
+                    # zero-order hold: u(t) = u_k on [t_k, t_{k+1})
+                    u_half = uk
+                    u_end = uk
+                else:
+                    # linear: u_k+½ = (u_k + u_{k+1})/2, u(t_{k+1}) = u_{k+1}
+                    u_end = u[k + 1]
+                    u_half = 0.5 * (uk + u_end)
                 k1x, k1s = rates(t[k], x, uk, theta, free_index, steps, rel, s)
                 k2x, k2s = rates(
                     t[k] + 0.5 * dt,
@@ -132,7 +143,7 @@ def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
                     s + 0.5 * dt * k2s,
                 )
                 k4x, k4s = rates(
-                    t[k] + dt, x + dt * k3x, u_next, theta, free_index, steps, rel, s + dt * k3s
+                    t[k] + dt, x + dt * k3x, u_end, theta, free_index, steps, rel, s + dt * k3s
                 )
                 x = x + (dt / 6.0) * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
                 s = s + (dt / 6.0) * (k1s + 2.0 * k2s + 2.0 * k3s + k4s)
@@ -144,7 +155,8 @@ def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
 def make_sensitivity_kernel(f: Callable, h: Callable, compiled: bool = True) -> Callable:
     """The sensitivity kernel for ``f`` and ``h``: numba-compiled, or the same loop in Python.
 
-    ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, n_outputs, y_out, g_out)``
+    ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs,
+    y_out, g_out)`` (``method``: 0 Euler, 1 RK4; ``interpolation``: 0 linear, 1 zoh)
     fills y_out (N, n_o) and g_out (N, n_o, n_f) and returns −1, or the sample index at which
     the outputs became non-finite.
     """

@@ -15,11 +15,31 @@ import numpy as np
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputError, SimulationError
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.kernels import EULER, RK4, make_kernel
+from flightid.simulate.kernels import EULER, INTERPOLATIONS, RK4, make_kernel
 
-__all__ = ["Simulator", "SimulationBatch", "simulate"]
+__all__ = [
+    "Simulator",
+    "SimulationBatch",
+    "simulate",
+    "INPUT_INTERPOLATIONS",
+    "check_input_interpolation",
+]
 
 _METHODS = {"euler": EULER, "rk4": RK4}
+# input between samples: "linear" (u at the RK4 half step = mean of the neighbouring
+# samples) or "zoh" (zero-order hold: u = u_k on [t_k, t_{k+1})); see simulate.kernels
+INPUT_INTERPOLATIONS = tuple(INTERPOLATIONS)
+
+
+def check_input_interpolation(value: object) -> str:
+    """``value`` if it is one of ``INPUT_INTERPOLATIONS``, else ``InputError`` naming them."""
+    if not isinstance(value, str) or value not in INTERPOLATIONS:
+        raise InputError(
+            f"input_interpolation: expected one of {list(INPUT_INTERPOLATIONS)} (how the "
+            f"input varies between samples), got {value!r}"
+        )
+    return value
+
 
 # Compiled kernels are cached per (f, h) pair so that repeated estimations reuse them.
 _KERNEL_CACHE: dict[tuple[int, int, bool], tuple] = {}
@@ -57,6 +77,9 @@ class Simulator:
         method: ``"rk4"`` (default) or ``"euler"``.
         compiled: run the numba-compiled kernel (falls back to Python, with a warning, when
             numba cannot compile the model functions).
+        input_interpolation: how the input varies between samples in the RK4 stages:
+            ``"linear"`` (default; u at the half step = (u_k + u_{k+1})/2) or ``"zoh"``
+            (zero-order hold, u = u_k on [t_k, t_{k+1})). Euler uses u_k either way.
     """
 
     def __init__(
@@ -65,9 +88,12 @@ class Simulator:
         data: FlightData | Sequence[FlightData],
         method: str = "rk4",
         compiled: bool = True,
+        input_interpolation: str = "linear",
     ) -> None:
         if method not in _METHODS:
             raise InputError(f"method: expected one of {sorted(_METHODS)}, got {method!r}")
+        self.input_interpolation = check_input_interpolation(input_interpolation)
+        self._interpolation = INTERPOLATIONS[input_interpolation]
         self.model = model
         self.maneuvers = _as_data_list(data)
         self.method = method
@@ -131,6 +157,7 @@ class Simulator:
                 self._times[0][:n],
                 self._inputs[0][:n],
                 _METHODS[self.method],
+                self._interpolation,
                 len(self.model.outputs),
                 y,
                 flag,
@@ -177,7 +204,15 @@ class Simulator:
             block = np.empty((n_batch, t.shape[0], n_out))
             flag = np.empty(n_batch, dtype=np.int64)
             self._kernel(
-                thetas, np.ascontiguousarray(x0s), t, u, _METHODS[self.method], n_out, block, flag
+                thetas,
+                np.ascontiguousarray(x0s),
+                t,
+                u,
+                _METHODS[self.method],
+                self._interpolation,
+                n_out,
+                block,
+                flag,
             )
             outputs[:, start : start + t.shape[0]] = block
             for b in np.flatnonzero(flag >= 0):
@@ -248,6 +283,7 @@ class Simulator:
                 t,
                 u,
                 _METHODS[self.method],
+                self._interpolation,
                 n_out,
                 y_block,
                 g_block,
@@ -277,11 +313,15 @@ def simulate(
     theta: np.ndarray | None = None,
     method: str = "rk4",
     compiled: bool = True,
+    input_interpolation: str = "linear",
 ) -> np.ndarray:
     """Model outputs (N_total, n_o) for parameter vector ``theta`` (default: current values).
 
-    Raises ``SimulationError`` if the trajectory becomes non-finite.
+    ``method`` and ``input_interpolation`` as in ``Simulator``. Raises ``SimulationError`` if
+    the trajectory becomes non-finite.
     """
-    simulator = Simulator(model, data, method=method, compiled=compiled)
+    simulator = Simulator(
+        model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
+    )
     theta = model.parameters.values if theta is None else np.asarray(theta, dtype=float)
     return simulator.outputs(theta)
