@@ -117,7 +117,7 @@ def polish_minimum(
         if g is None:
             break
         nu = problem.residuals(outputs)
-        step = gauss_newton_step(g, nu, r_diag, problem.typical).step
+        step = gauss_newton_step(g, nu, r_diag).step
         weighted = (g @ step) / np.sqrt(r_diag)[None, :]
         # predicted decrease of J ≈ 2 νᵀR⁻¹GΔθ − ‖R^(−½)GΔθ‖²
         predicted = float(2.0 * np.sum(nu * (g @ step) / r_diag[None, :]) - np.sum(weighted**2))

@@ -107,7 +107,7 @@ class _Profiler:
             if others.size == 0:
                 break
             g_o = g[:, :, others]
-            step = gauss_newton_step(g_o, nu, r, problem.typical[others]).step
+            step = gauss_newton_step(g_o, nu, r).step
             change = g_o @ step
             # predicted decrease ≈ 2 νᵀR⁻¹GΔθ − ‖R^(−½)GΔθ‖²
             predicted = float(np.sum((2.0 * nu - change) * change / r[None, :]))

@@ -9,6 +9,22 @@ test (``step_settled``). Every solver that takes Gauss–Newton steps uses both 
 
 ``cost_atol`` (default 0) lets noise-free problems stop once J is negligible, where the
 relative test cannot be met by a quadratically converging method.
+
+Confirmation. The tests above are the solver's own, judged with its own (for MNRES possibly
+stale) sensitivities, and the relative cost test 10⁻³·J allows a step of √(10⁻³·J) standard
+deviations — about 1.7 σ when J ≈ N·n_o = 3000. So ``estimate`` never takes a solver's word
+for it: at the point where the solver stops it computes the sensitivities by central
+differences (the ones the Cramér–Rao bounds need anyway) and the Gauss–Newton step Δθ they
+give. Convergence is confirmed only when
+
+    √(ΔθᵀMΔθ) ≤ confirm_sigma          (default 0.02)
+
+i.e. the optimum the linearised model predicts lies within ``confirm_sigma`` Cramér–Rao
+standard deviations (|Δθ_j| ≤ σ_j·√(ΔθᵀMΔθ) for every j), or when every |Δθ_j| is below
+``numerical_rtol``·max(|θ_j|, floor_j) (noise-free data, where σ is at rounding level).
+Otherwise the estimation continues with Gauss–Newton passes on those sensitivities (with
+step halving, and R re-estimated each pass under the MAX / MAXLIK policies) until it is
+confirmed, or reports that it is not converged and by how many σ.
 """
 
 from __future__ import annotations
@@ -35,6 +51,12 @@ class Convergence:
         maxlik_switch: MAXLIK policy updates R every pass once |ΔJ/J| is below this (0.01).
         noise_rtol: R has settled when no variance changes by more than this fraction.
         max_noise_cycles: MAX policy: R updates (re-convergence cycles) at most.
+        confirm_sigma: a converged estimate lies within this many Cramér–Rao standard
+            deviations (Mahalanobis norm √(ΔθᵀMΔθ)) of the optimum predicted by a
+            Gauss–Newton step on central-difference sensitivities.
+        numerical_rtol: ... or that step is below this fraction of max(|θ_j|, floor_j) for
+            every parameter (for noise-free data).
+        max_confirmation_passes: Gauss–Newton passes taken after a solver stopped short.
     """
 
     cost_rtol: float = 1e-3
@@ -45,10 +67,35 @@ class Convergence:
     maxlik_switch: float = 1e-2
     noise_rtol: float = 1e-2
     max_noise_cycles: int = 6
+    confirm_sigma: float = 0.02
+    numerical_rtol: float = 1e-9
+    max_confirmation_passes: int = 50
 
     def __post_init__(self) -> None:
-        for name in ("cost_rtol", "param_rtol", "cost_atol", "maxlik_switch", "noise_rtol"):
+        for name in ("max_iterations", "max_noise_cycles", "max_confirmation_passes"):
             value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer):
+                raise InputError(f"Convergence.{name}: expected an integer, got {value!r}")
+        if self.max_evaluations is not None and (
+            isinstance(self.max_evaluations, bool)
+            or not isinstance(self.max_evaluations, int | np.integer)
+        ):
+            raise InputError(
+                f"Convergence.max_evaluations: expected an integer or None, "
+                f"got {self.max_evaluations!r}"
+            )
+        for name in (
+            "cost_rtol",
+            "param_rtol",
+            "cost_atol",
+            "maxlik_switch",
+            "noise_rtol",
+            "confirm_sigma",
+            "numerical_rtol",
+        ):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+                raise InputError(f"Convergence.{name}: expected a number, got {value!r}")
             if not (np.isfinite(value) and value >= 0):
                 raise InputError(f"Convergence.{name}: expected a finite number ≥ 0, got {value!r}")
         if self.max_iterations < 1:
@@ -58,6 +105,13 @@ class Convergence:
         if self.max_evaluations is not None and self.max_evaluations < 1:
             raise InputError(
                 f"Convergence.max_evaluations: expected ≥ 1 or None, got {self.max_evaluations!r}"
+            )
+        if self.confirm_sigma <= 0:
+            raise InputError(f"Convergence.confirm_sigma: expected > 0, got {self.confirm_sigma!r}")
+        if self.max_confirmation_passes < 0:
+            raise InputError(
+                "Convergence.max_confirmation_passes: expected ≥ 0, "
+                f"got {self.max_confirmation_passes!r}"
             )
         if self.max_noise_cycles < 1:
             raise InputError(
@@ -77,6 +131,12 @@ class Convergence:
         return self.params_settled(step.step, theta, typical) and (
             step.predicted_reduction <= self.cost_rtol * abs(cost) + self.cost_atol
         )
+
+    def confirmed(self, step, theta: np.ndarray, magnitude: np.ndarray) -> bool:
+        """The central-difference Gauss–Newton step confirms convergence (see module doc)."""
+        if step.sigma_distance <= self.confirm_sigma:
+            return True
+        return bool(np.all(np.abs(step.step) <= self.numerical_rtol * magnitude))
 
     def relative_cost_change(self, previous: float, current: float) -> float:
         return abs(previous - current) / max(abs(current), np.finfo(float).tiny)

@@ -2,8 +2,14 @@
 
 Maximum likelihood with no process noise (RP-1153 §6): minimise J(θ) = Σ νᵀR⁻¹ν with R
 either given, or estimated from the residuals under the MAX or MAXLIK policy
-(``flightid.estimation.objective``). After the optimizer stops, the information matrix is
-computed once by central differences at θ̂ for the Cramér–Rao bounds.
+(``flightid.estimation.objective``).
+
+After the optimizer stops, the sensitivities are computed by central differences at θ̂; they
+confirm (or deny, or continue) the solver's convergence (``flightid.estimation.confirm``) and
+give the information matrix for the Cramér–Rao bounds. Identifiability is judged on M scaled
+to unit diagonal (``undetermined_parameters``), so units and start values do not decide it.
+Parameters that end on a bound are reported as such; their bounds are those of the free
+subspace (M restricted to the parameters off their bounds).
 """
 
 from __future__ import annotations
@@ -15,13 +21,15 @@ from dataclasses import replace
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import EstimationError, InputError, InputTypeError, SimulationError, describe
+from flightid.errors import EstimationError, InputError, InputTypeError, describe
+from flightid.estimation.confirm import confirm_convergence
 from flightid.estimation.convergence import Convergence
-from flightid.estimation.gauss_newton import information_matrix
+from flightid.estimation.gauss_newton import information_matrix, undetermined_parameters
 from flightid.estimation.objective import NOISE_POLICIES, Objective
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.estimation.result import Estimate
 from flightid.estimation.solvers import FPS, MNR, MNRES
+from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
 
 __all__ = ["estimate"]
@@ -48,27 +56,36 @@ def _check_r(r: np.ndarray | Sequence[float] | None, n_outputs: int) -> np.ndarr
     return r
 
 
-def _covariance(m: np.ndarray, typical: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """M⁻¹ via an eigen-decomposition of the scaled M; undetermined directions → inf.
+def _covariance(m: np.ndarray, held: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """M⁻¹ over the parameters not held on a bound, scale-free; undetermined → inf.
 
-    Returns (covariance, std, indices of undetermined parameters).
+    With D = diag(√M_jj) and C = D⁻¹MD⁻¹ (unit diagonal), M⁻¹ = D⁻¹C⁻¹D⁻¹, C⁻¹ from its
+    eigen-decomposition over the determined directions. Parameters held on a bound get no
+    variance (NaN, like fixed ones): the bounds are those of the free subspace.
+
+    Returns (covariance (n_f × n_f), std (n_f,), indices of undetermined parameters).
     """
-    scaled = m * np.outer(typical, typical)
-    eigenvalues, vectors = np.linalg.eigh(scaled)
-    top = eigenvalues[-1] if eigenvalues.size else 0.0
-    keep = eigenvalues > 1e-12 * top if top > 0 else np.zeros_like(eigenvalues, dtype=bool)
+    n_f = m.shape[0]
+    covariance = np.full((n_f, n_f), np.nan)
+    std = np.full(n_f, np.nan)
+    active = np.flatnonzero(~held)
+    if active.size == 0:
+        return covariance, std, []
+    sub = m[np.ix_(active, active)]
+    keep, undetermined_sub = undetermined_parameters(sub)
+    diagonal = np.diag(sub)
+    d = np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    c = sub / np.outer(d, d)
+    eigenvalues, vectors = np.linalg.eigh(c)
     inverse = (vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T
-    covariance = inverse * np.outer(typical, typical)
-    std = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-    undetermined: list[int] = []
-    if not keep.all():
-        # parameters with weight in the discarded directions cannot be determined
-        weight = np.sum(vectors[:, ~keep] ** 2, axis=1)
-        undetermined = [int(j) for j in np.flatnonzero(weight > 1e-6)]
-        std[undetermined] = np.inf
-        covariance[undetermined, :] = np.inf
-        covariance[:, undetermined] = np.inf
-    return covariance, std, undetermined
+    sub_covariance = inverse / np.outer(d, d)
+    sub_std = np.sqrt(np.maximum(np.diag(sub_covariance), 0.0))
+    sub_std[undetermined_sub] = np.inf
+    sub_covariance[undetermined_sub, :] = np.inf
+    sub_covariance[:, undetermined_sub] = np.inf
+    covariance[np.ix_(active, active)] = sub_covariance
+    std[active] = sub_std
+    return covariance, std, [int(active[j]) for j in undetermined_sub]
 
 
 def estimate(
@@ -104,6 +121,7 @@ def estimate(
 
     Raises:
         InputError / InputTypeError: bad arguments.
+        ModelError: f or h break the model contract at the start values (``check_model``).
         EstimationError: the simulation diverges at the start values.
     """
     if not isinstance(model, StateSpaceModel):
@@ -118,6 +136,8 @@ def estimate(
         raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
 
     started = _time.perf_counter()
+    # The model contract (lengths, indices, finite values at the start), before anything else.
+    check_model(model, data, method=method)
     problem = OutputErrorProblem(model, data, method=method, compiled=compiled)
     r_diag = _check_r(R, problem.n_outputs)
     theta = problem.theta_start
@@ -149,20 +169,28 @@ def estimate(
         outcome = replace(outcome, cost=float(objective.costs_of(outcome.outputs)[0]))
     elif noise == "maxlik":
         cycles = objective.noise_updates
-    optimizer_evaluations = objective.evaluations
-
-    # Information matrix at θ̂ by central differences (counted separately).
-    before = problem.evaluations
-    try:
-        g, _ = problem.sensitivities(
-            outcome.theta, outcome.outputs, relative_step=1e-5, central=True
-        )
-    except SimulationError as exc:
-        raise EstimationError(f"information matrix at the estimate: {exc}") from exc
-    accuracy_evaluations = problem.evaluations - before
+    # Central-difference sensitivities at θ̂: confirm the solver's convergence (continuing
+    # with Gauss–Newton passes if it stopped short), then the information matrix.
+    updates_before = objective.noise_updates
+    confirmation = confirm_convergence(
+        objective, outcome, noise, fallback=isinstance(solver, MNRES)
+    )
+    outcome = confirmation.outcome
+    iterations += confirmation.passes
+    cycles += objective.noise_updates - updates_before
+    accuracy_evaluations = confirmation.sensitivity_evaluations
+    optimizer_evaluations = objective.evaluations - accuracy_evaluations
+    g = confirmation.sensitivities
     m = information_matrix(g, objective.r_diag)
-    covariance, std_free, undetermined = _covariance(m, problem.typical)
+    on_bound = problem.at_bound(outcome.theta)
+    covariance, std_free, undetermined = _covariance(m, on_bound)
     status, message = outcome.status, outcome.message
+    at_bound = tuple(problem.free_names[j] for j in np.flatnonzero(on_bound))
+    if at_bound:
+        message += (
+            f"; {list(at_bound)} ended on a bound (no Cramér–Rao bound is given for them; "
+            "the others' bounds are those of the free subspace)"
+        )
     if undetermined:
         names = [problem.free_names[j] for j in undetermined]
         message += (
@@ -184,7 +212,7 @@ def estimate(
         information_matrix=m,
         sensitivities=g,
         r_diag=objective.r_diag,
-        cost=float(outcome.cost),
+        cost=float(objective.costs_of(outcome.outputs)[0]),
         cost_history=tuple(objective.cost_history),
         evaluation_history=tuple(objective.evaluation_history),
         equivalent_evaluations=optimizer_evaluations,
@@ -206,4 +234,6 @@ def estimate(
         method=method,
         wall_time_s=_time.perf_counter() - started,
         model=estimated_model,
+        optimality_sigma=confirmation.step.sigma_distance,
+        at_bound=at_bound,
     )

@@ -92,7 +92,15 @@ class OutputErrorProblem:
         self.free_index = np.flatnonzero(self.free_mask)
         self.theta_start_full = parameters.values
         self.free_names = parameters.free_names
-        self.typical = parameters.typical[self.free_mask]
+        # Magnitude floor of each free parameter: its ``scale`` when given, else 1e-3. Relative
+        # steps, perturbations and tests use max(|θ_j|, floor_j) at the *current* θ, so a start
+        # value of 0 does not collapse them and one of 1e12 does not inflate them later.
+        self.typical = np.array(
+            [1e-3 if p.scale is None else float(p.scale) for p in parameters if p.free]
+        )
+        # Bounds of the free parameters (±inf when open); every solver keeps θ inside them.
+        self.lower = np.array([p.lower for p in parameters if p.free], dtype=float)
+        self.upper = np.array([p.upper for p in parameters if p.free], dtype=float)
         # Floor of R̂: 1e-12 of each output's variance about its mean (at least 1e-30), so that
         # noise-free data do not give a zero variance; documented in docs/method.md.
         spread = np.var(self.measured, axis=0)
@@ -136,6 +144,25 @@ class OutputErrorProblem:
         full[..., self.free_index] = theta_free
         return full
 
+    @property
+    def bounded(self) -> bool:
+        """True if any free parameter has a finite bound."""
+        return bool(np.any(np.isfinite(self.lower)) or np.any(np.isfinite(self.upper)))
+
+    def magnitude(self, theta_free: np.ndarray) -> np.ndarray:
+        """max(|θ_j|, floor_j): the size relative steps and tests refer to."""
+        return np.maximum(np.abs(np.asarray(theta_free, dtype=float)), self.typical)
+
+    def project(self, theta_free: np.ndarray) -> np.ndarray:
+        """θ clipped into [lower, upper] (the projection onto the box of bounds)."""
+        return np.clip(theta_free, self.lower, self.upper)
+
+    def at_bound(self, theta_free: np.ndarray, tolerance: float = 1e-10) -> np.ndarray:
+        """(n_f,) mask of parameters lying on a bound (within ``tolerance`` relative)."""
+        theta_free = np.asarray(theta_free, dtype=float)
+        slack = tolerance * self.magnitude(theta_free)
+        return (theta_free <= self.lower + slack) | (theta_free >= self.upper - slack)
+
     # ------------------------------------------------------------------ evaluations
     def run(self, theta_free_batch: np.ndarray) -> SimulationBatch:
         """Simulate a batch (B, n_f) of free-parameter vectors: B equivalent evaluations."""
@@ -177,7 +204,14 @@ class OutputErrorProblem:
             (G of shape (N, n_o, n_f), outputs at theta_free of shape (N, n_o)).
         """
         theta_free = np.asarray(theta_free, dtype=float)
-        steps = relative_step * np.maximum(np.abs(theta_free), self.typical)
+        steps = relative_step * self.magnitude(theta_free)
+        if self.bounded:
+            # a parameter on (or within one step of) its upper bound is differenced downwards;
+            # central differences there become one-sided below
+            downwards = theta_free + steps > self.upper
+            steps = np.where(downwards, -steps, steps)
+            if central and np.any(downwards | (theta_free - np.abs(steps) < self.lower)):
+                central = False
         eye = np.diag(steps)
         if central:
             batch = np.vstack([theta_free + eye, theta_free - eye])
@@ -212,7 +246,7 @@ class OutputErrorProblem:
             (G of shape (N, n_o, n_f), outputs of shape (N, n_o)).
         """
         theta_free = np.asarray(theta_free, dtype=float)
-        steps = relative_step * np.maximum(np.abs(theta_free), self.typical)
+        steps = relative_step * self.magnitude(theta_free)
         outputs, g = self.simulator.run_with_sensitivities(
             self.full_theta(theta_free), self.free_index, steps, relative_step
         )

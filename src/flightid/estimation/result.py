@@ -49,6 +49,10 @@ class Estimate:
         solver, solver_settings, noise_policy, method: what ran.
         wall_time_s: seconds.
         model: the model with the estimated values.
+        optimality_sigma: √(ΔθᵀMΔθ) of the Gauss–Newton step from central differences at
+            θ̂: how far (in Cramér–Rao σ) the linearised model puts the optimum; a converged
+            estimate has it ≤ ``Convergence.confirm_sigma``.
+        at_bound: free parameters that ended on a bound (their std is NaN).
     """
 
     names: tuple[str, ...]
@@ -82,6 +86,8 @@ class Estimate:
     method: str
     wall_time_s: float
     model: StateSpaceModel = field(repr=False)
+    optimality_sigma: float = float("nan")
+    at_bound: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for name in (
@@ -175,6 +181,10 @@ class Estimate:
             "R": [float(r) for r in self.r_diag],
             "outputs": list(self.output_names),
             "fit_rms": [float(e) for e in self.fit_error()],
+            "optimality_sigma": float(self.optimality_sigma)
+            if np.isfinite(self.optimality_sigma)
+            else None,
+            "at_bound": list(self.at_bound),
             "cost_history": [float(c) for c in self.cost_history],
             "evaluation_history": [int(e) for e in self.evaluation_history],
             "parameters": parameters,

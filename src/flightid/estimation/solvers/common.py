@@ -1,12 +1,45 @@
-"""Pieces every Newton-type solver shares: the line search by step halving, and stop checks."""
+"""Pieces every Newton-type solver shares: the bounded Gauss–Newton step, the line search by
+step halving (along the projected path when parameters have bounds), and stop checks.
+
+Bounds by projected Gauss–Newton with an active set: a parameter on a bound whose step points
+outwards is held (Δθ_j = 0) and the step is recomputed for the others; the trial points
+θ(λ) = P(θ + λΔθ) are projected onto the box [lower, upper], so no integration ever runs
+outside the bounds.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
+from flightid.estimation.gauss_newton import GaussNewtonStep, gauss_newton_step
 from flightid.estimation.objective import Objective
 
-__all__ = ["halving_search", "budget_status", "limit_step"]
+__all__ = ["halving_search", "budget_status", "limit_step", "bounded_gauss_newton_step"]
+
+
+def bounded_gauss_newton_step(
+    objective: Objective, g: np.ndarray, outputs: np.ndarray, theta: np.ndarray
+) -> GaussNewtonStep:
+    """The Gauss–Newton step at θ with parameters on an active bound held.
+
+    Active set: θ_j on its lower bound with Δθ_j < 0, or on its upper bound with Δθ_j > 0.
+    Repeated until no held parameter changes (at most n_f times).
+    """
+    problem = objective.problem
+    nu = problem.residuals(outputs)
+    gn = gauss_newton_step(g, nu, objective.r_diag)
+    if not problem.bounded:
+        return gn
+    on_lower = theta <= problem.lower
+    on_upper = theta >= problem.upper
+    held = np.zeros(theta.shape, dtype=bool)
+    for _ in range(theta.size):
+        outward = (on_lower & (gn.step < 0)) | (on_upper & (gn.step > 0))
+        if not np.any(outward & ~held):
+            break
+        held |= outward
+        gn = gauss_newton_step(g, nu, objective.r_diag, held=held)
+    return gn
 
 
 def limit_step(
@@ -21,27 +54,43 @@ def limit_step(
     return step / ratio if ratio > 1.0 else step
 
 
+# Levenberg–Marquardt damping tried when no halving of the Gauss–Newton step lowers the cost
+# (μ relative to the largest squared singular value of the column-scaled sensitivities).
+DAMPING_SEQUENCE = (1e-6, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+
+
 def halving_search(
     objective: Objective,
     theta: np.ndarray,
     cost: float,
     step: np.ndarray,
     max_halvings: int,
+    gauss_newton: GaussNewtonStep | None = None,
 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
     """Step-size control: try θ + λΔθ with λ = 1, ½, ¼, … until the cost drops.
+
+    If none does and the Gauss–Newton factorisation is given, damped (Levenberg–Marquardt)
+    steps with growing μ follow (``DAMPING_SEQUENCE``): far from the optimum a step along a
+    barely determined direction can be huge, and halving alone may not shorten it enough.
 
     Each trial is one integration. Returns (θ_new, J_new, outputs, accepted step) or None if
     no trial lowered the cost (or the budget ran out).
     """
-    scale = 1.0
-    for _ in range(max_halvings + 1):
+    problem = objective.problem
+    trials = [scale * step for scale in 0.5 ** np.arange(max_halvings + 1)]
+    if gauss_newton is not None:
+        magnitude = problem.magnitude(theta)
+        trials += [gauss_newton.damped(mu, magnitude) for mu in DAMPING_SEQUENCE]
+    for trial_step in trials:
         if objective.budget_exhausted():
             return None
-        trial = theta + scale * step
+        # θ(λ) = P(θ + λΔθ): the projected path stays inside the bounds
+        trial = problem.project(theta + trial_step)
+        if np.array_equal(trial, theta):
+            continue
         costs, outputs = objective.evaluate(trial[None, :])
         if costs[0] < cost:
-            return trial, float(costs[0]), outputs[0], scale * step
-        scale *= 0.5
+            return trial, float(costs[0]), outputs[0], trial - theta
     return None
 
 

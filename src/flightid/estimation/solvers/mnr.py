@@ -15,9 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightid.errors import InputError
-from flightid.estimation.gauss_newton import gauss_newton_step
 from flightid.estimation.objective import Objective, SolverOutcome
-from flightid.estimation.solvers.common import budget_status, halving_search, limit_step
+from flightid.estimation.solvers.common import (
+    bounded_gauss_newton_step,
+    budget_status,
+    halving_search,
+    limit_step,
+)
 
 __all__ = ["MNR"]
 
@@ -100,7 +104,7 @@ class MNR:
                 g, _ = problem.sensitivities_from_equations(theta)
             elif g is None:
                 g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
-            gn = gauss_newton_step(g, problem.residuals(outputs), objective.r_diag, problem.typical)
+            gn = bounded_gauss_newton_step(objective, g, outputs, theta)
             if conv.step_settled(gn, theta, problem.typical, cost):
                 return outcome(
                     iteration,
@@ -109,7 +113,9 @@ class MNR:
                     "converged: the next step and the cost drop it predicts are below tolerance",
                 )
             step = limit_step(gn.step, theta, problem.typical, self.max_relative_step)
-            accepted = halving_search(objective, theta, cost, step, self.max_halvings)
+            accepted = halving_search(
+                objective, theta, cost, step, self.max_halvings, gauss_newton=gn
+            )
             if accepted is None:
                 if conv.params_settled(gn.step, theta, problem.typical):
                     return outcome(

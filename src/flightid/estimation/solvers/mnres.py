@@ -14,8 +14,10 @@ The solver keeps a set of parameter points with their output histories. Each pas
 5. stop when cost and parameters have settled (``Convergence``).
 
 Initialisation and restart perturb each parameter from θ⁰ (n_f integrations, in one batch).
-The first perturbations are ``initial_perturbation`` × max(|θ_j|, typical_j). At a restart
-they are scaled by parameter importance (§7): with M_ℓℓ from the current surface,
+The first perturbations are ``initial_perturbation`` × max(|θ_j|, floor_j) (the floor is the
+parameter's ``scale``, or 1e-3); a perturbation that would cross a bound goes the other way.
+The surface works in coordinates ϑ = θ / max(|θ⁰_j|, floor_j) fixed at (re)initialisation.
+At a restart they are scaled by parameter importance (§7): with M_ℓℓ from the current surface,
 δθ_ℓ ∝ 1/√M_ℓℓ — parameters that move the cost little get larger perturbations — normalised
 so their geometric-mean relative size equals the restart size, then clipped to a factor 10
 either side of it. The restart size shrinks with the last accepted step so that the surface
@@ -34,9 +36,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flightid.errors import EstimationError, InputError
-from flightid.estimation.gauss_newton import gauss_newton_step, information_matrix
+from flightid.estimation.gauss_newton import information_matrix
 from flightid.estimation.objective import Objective, SolverOutcome
-from flightid.estimation.solvers.common import budget_status, halving_search, limit_step
+from flightid.estimation.solvers.common import (
+    bounded_gauss_newton_step,
+    budget_status,
+    halving_search,
+    limit_step,
+)
 from flightid.estimation.surface import RecursiveSurface, algebraic_surface, batch_surface
 
 __all__ = ["MNRES"]
@@ -58,6 +65,7 @@ class _PointSet:
     failures: int = 0  # consecutive restarts without an accepted step
     corrections: int = 0  # failed trials inserted since the last accepted step
     last_step: np.ndarray | None = field(default=None)
+    scale: np.ndarray | None = field(default=None)  # coordinates of the surface: ϑ = θ / scale
     fresh: bool = True  # the surface comes from perturbations about the current best point
 
 
@@ -69,7 +77,7 @@ class MNRES:
         form: ``"algebraic"`` (n_f + 1 points, [4.15]), ``"batch"`` (least-squares plane by
             QR) or ``"recursive"`` (least-squares plane, constant-window recursive update).
         window: points kept by the least-squares forms (≥ n_f + 1; default n_f + 1).
-        initial_perturbation: first perturbation, relative to max(|θ_j|, typical_j).
+        initial_perturbation: first perturbation, relative to max(|θ_j|, floor_j).
         importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7).
         max_halvings: step halvings before a restart.
         fresh_halvings: step halvings from a freshly (re)initialised surface.
@@ -143,6 +151,9 @@ class MNRES:
         restarts: int,
     ) -> _PointSet:
         """Perturb each parameter from θ (n_f integrations in one batch)."""
+        problem = objective.problem
+        # a perturbation that would cross a bound goes the other way
+        deltas = np.where(theta + deltas > problem.upper, -deltas, deltas)
         trial = theta[None, :] + np.diag(deltas)
         costs, trial_outputs = objective.evaluate(trial)
         # A perturbation that makes the simulation diverge is retried 10 times smaller.
@@ -158,11 +169,13 @@ class MNRES:
         points = np.vstack([theta[None, :], theta[None, :] + np.diag(deltas)])
         all_outputs = np.concatenate([outputs[None], trial_outputs])
         all_costs = np.concatenate([[cost], costs])
-        point_set = _PointSet(points, all_outputs, all_costs, theta.copy(), restarts=restarts)
+        scale = problem.magnitude(theta)
+        point_set = _PointSet(
+            points, all_outputs, all_costs, theta.copy(), restarts=restarts, scale=scale
+        )
         if self.form == "recursive":
-            typical = objective.typical
             point_set.surface = RecursiveSurface(
-                points / typical, all_outputs.reshape(points.shape[0], -1), theta / typical
+                points / scale, all_outputs.reshape(points.shape[0], -1), theta / scale
             )
         return point_set
 
@@ -176,7 +189,7 @@ class MNRES:
     ) -> np.ndarray:
         """Perturbations for a restart: importance-scaled, shrinking with the last step and
         by a factor 10 for each consecutive restart that found no lower cost."""
-        magnitude = np.maximum(np.abs(theta), objective.typical)
+        magnitude = objective.problem.magnitude(theta)
         size = self.initial_perturbation
         if last_step is not None:
             # 10 × the last relative step, between 1e-5 and the initial perturbation
@@ -193,13 +206,13 @@ class MNRES:
         return relative * magnitude
 
     def _slopes(self, objective: Objective, state: _PointSet, base: int) -> np.ndarray:
-        typical = objective.typical
+        scale = state.scale
         flat = state.outputs.reshape(state.points.shape[0], -1)
         if self.form == "algebraic":
-            return algebraic_surface(state.points / typical, flat, base, self.max_condition)
+            return algebraic_surface(state.points / scale, flat, base, self.max_condition)
         if self.form == "batch":
             return batch_surface(
-                state.points / typical, flat, state.reference / typical, self.max_condition
+                state.points / scale, flat, state.reference / scale, self.max_condition
             )
         return state.surface.slopes()
 
@@ -213,7 +226,7 @@ class MNRES:
             theta = np.array(theta0, dtype=float)
             cost, outputs = objective.evaluate_start(theta)
             objective.record(theta, cost)
-            magnitude = np.maximum(np.abs(theta), typical)
+            magnitude = problem.magnitude(theta)
             state = self._initialise(
                 objective, theta, outputs, cost, self.initial_perturbation * magnitude, 0
             )
@@ -245,11 +258,11 @@ class MNRES:
                 slopes = None  # the point cloud has collapsed: restart below
             step, accepted = None, None
             if slopes is not None:
-                # ∂y/∂θ = ∂y/∂ϑ / typical, reshaped to (N, n_o, n_f)
-                g = (slopes / typical[:, None]).T.reshape(
+                # ∂y/∂θ = ∂y/∂ϑ / scale, reshaped to (N, n_o, n_f)
+                g = (slopes / state.scale[:, None]).T.reshape(
                     problem.n_samples, problem.n_outputs, problem.n_free
                 )
-                gn = gauss_newton_step(g, problem.residuals(outputs), objective.r_diag, typical)
+                gn = bounded_gauss_newton_step(objective, g, outputs, theta)
                 # The predicted drop is trusted from an interpolating surface (n_f + 1 points)
                 # or a fresh one; a smoothed least-squares plane must prove it with a pass.
                 trusted = state.fresh or state.points.shape[0] == problem.n_free + 1
@@ -262,7 +275,7 @@ class MNRES:
                         "below tolerance",
                     )
                 step = limit_step(gn.step, theta, typical, self.max_relative_step)
-                accepted = self._try_step(objective, state, theta, cost, step, window)
+                accepted = self._try_step(objective, state, theta, cost, step, window, gn)
                 if accepted is _LEARNT:
                     continue
             if accepted is None:
@@ -324,20 +337,25 @@ class MNRES:
         cost: float,
         step: np.ndarray,
         window: int,
+        gn=None,
     ):
         """Integrate along the step: an accepted (θ, J, y, Δθ), None, or ``_LEARNT``."""
+        # a fresh surface's step may also be damped (Levenberg–Marquardt) when halving fails
+        damping = gn if state.fresh else None
         # a fresh surface is as good as a finite-difference gradient: search its step as far
         # down as MNR does before giving up on it
         halvings = max(self.max_halvings, self.fresh_halvings) if state.fresh else self.max_halvings
         if not (self.learn_from_failures and state.corrections < self.learn_from_failures):
-            return halving_search(objective, theta, cost, step, halvings)
+            return halving_search(objective, theta, cost, step, halvings, gauss_newton=damping)
         # Try the full step once; if it fails, its outputs still teach the surface about the
         # direction where it was wrong: the point enters the set (the highest-cost point
         # leaves) and the pass is repeated.
-        trial = theta + step
+        trial = objective.problem.project(theta + step)
+        if np.array_equal(trial, theta):
+            return None
         trial_costs, trial_outputs = objective.evaluate(trial[None, :])
         if trial_costs[0] < cost:
-            return trial, float(trial_costs[0]), trial_outputs[0], step
+            return trial, float(trial_costs[0]), trial_outputs[0], trial - theta
         if np.isfinite(trial_costs[0]):
             self._insert(
                 objective,
@@ -350,7 +368,9 @@ class MNRES:
             )
             state.corrections += 1
             return _LEARNT
-        return halving_search(objective, theta, cost, 0.5 * step, halvings - 1)
+        return halving_search(
+            objective, theta, cost, 0.5 * step, halvings - 1, gauss_newton=damping
+        )
 
     def _restart(
         self,
@@ -382,10 +402,10 @@ class MNRES:
     ) -> None:
         """The new point enters; the highest-cost point leaves once the window is full (or
         at once with ``replace_only``)."""
-        typical = objective.typical
+        scale = state.scale
         if state.points.shape[0] < window and not replace_only:
             if state.surface is not None:
-                state.surface.add(theta / typical, outputs.reshape(-1))
+                state.surface.add(theta / scale, outputs.reshape(-1))
             state.points = np.vstack([state.points, theta[None]])
             state.outputs = np.concatenate([state.outputs, outputs[None]])
             state.costs = np.append(state.costs, cost)
@@ -393,9 +413,9 @@ class MNRES:
         worst = int(np.argmax(state.costs))
         if state.surface is not None:
             state.surface.replace(
-                theta / typical,
+                theta / scale,
                 outputs.reshape(-1),
-                state.points[worst] / typical,
+                state.points[worst] / scale,
                 state.outputs[worst].reshape(-1),
             )
         state.points[worst] = theta

@@ -1,0 +1,169 @@
+"""Confirming a solver's "converged" with sensitivities that are not its own.
+
+A solver stops on its own tests (``Convergence``), judged with its own sensitivities — for
+MNRES a surface through past points that may be stale, for MNR forward differences. Before
+``estimate`` reports convergence it recomputes the sensitivities by central differences at
+the solver's end point (2·n_f integrations, the ones the Cramér–Rao bounds need anyway) and
+takes the Gauss–Newton step Δθ they give, with parameters on an active bound held:
+
+    √(ΔθᵀMΔθ) ≤ confirm_sigma     →  confirmed (the optimum is within that many σ)
+
+Otherwise it continues with Gauss–Newton passes on central differences (step halving along
+the projected path; under the MAX / MAXLIK policies R is re-estimated [3.45] after each
+pass) until the test holds, no step lowers the cost (``stalled``), or the passes or the
+evaluation budget run out. A solver that *stalled* is continued the same way, and so is MNRES
+when it reached ``max_iterations`` (it falls back to finite-difference Gauss–Newton steps,
+within ``max_confirmation_passes``). A solver that spent the evaluation budget, or MNR / FPS
+at ``max_iterations``, is not continued: its status stands and the message says how far the
+optimum may be, in σ. Whatever the solver said, the end point counts as converged only when
+the test above holds there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightid.errors import EstimationError, SimulationError
+from flightid.estimation.convergence import Convergence
+from flightid.estimation.gauss_newton import GaussNewtonStep
+from flightid.estimation.objective import Objective, SolverOutcome
+from flightid.estimation.solvers.common import bounded_gauss_newton_step, halving_search
+
+__all__ = ["Confirmation", "confirm_convergence"]
+
+_CENTRAL_STEP = 1e-5  # relative step of the central differences (as for the CR bounds)
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """The outcome after confirmation, with the sensitivities at its point."""
+
+    outcome: SolverOutcome
+    sensitivities: np.ndarray  # central-difference G at outcome.theta (N, n_o, n_f)
+    step: GaussNewtonStep  # the Gauss–Newton step from there
+    passes: int  # Gauss–Newton passes taken after the solver stopped
+    sensitivity_evaluations: int  # integrations of the last central-difference G
+
+
+def _central(objective: Objective, theta: np.ndarray, outputs: np.ndarray):
+    problem = objective.problem
+    before = problem.evaluations
+    try:
+        g, _ = problem.sensitivities(theta, outputs, relative_step=_CENTRAL_STEP, central=True)
+    except SimulationError as exc:
+        raise EstimationError(f"information matrix at the estimate: {exc}") from exc
+    return g, problem.evaluations - before
+
+
+def _noise_settled(objective: Objective, policy: str, outputs: np.ndarray) -> bool:
+    """Re-estimate R at ``outputs`` (MAX / MAXLIK) if it moved more than noise_rtol."""
+    if policy == "fixed":
+        return True
+    new = objective.problem.noise_covariance(outputs)
+    change = float(np.max(np.abs(new - objective.r_diag) / objective.r_diag))
+    if change <= objective.convergence.noise_rtol:
+        return True
+    objective.update_noise(outputs)
+    return False
+
+
+def confirm_convergence(
+    objective: Objective, outcome: SolverOutcome, policy: str, fallback: bool = False
+) -> Confirmation:
+    """Confirm (or continue, or deny) the solver's outcome; see the module docstring.
+
+    Args:
+        objective: the objective the solver minimised (its R and budget).
+        outcome: where the solver stopped.
+        policy: the noise policy ("fixed", "max", "maxlik").
+        fallback: continue from ``max_iterations`` too (MNRES falls back to these passes).
+    """
+    problem = objective.problem
+    conv: Convergence = objective.convergence
+    theta, outputs = outcome.theta, outcome.outputs
+    cost = float(objective.costs_of(outputs)[0])
+    may_continue = (
+        outcome.converged
+        or outcome.status == "stalled"
+        or (fallback and outcome.status == "max_iterations")
+    )
+    confirmed = False
+    passes = 0
+    while True:
+        g, used = _central(objective, theta, outputs)
+        gn = bounded_gauss_newton_step(objective, g, outputs, theta)
+        if conv.confirmed(gn, theta, problem.magnitude(theta)):
+            if _noise_settled(objective, policy, outputs):
+                confirmed = True
+                break
+            # R moved: same sensitivities, new weights
+            cost = float(objective.costs_of(outputs)[0])
+            gn = bounded_gauss_newton_step(objective, g, outputs, theta)
+            if conv.confirmed(gn, theta, problem.magnitude(theta)):
+                confirmed = True
+                break
+        distance = gn.sigma_distance
+        if not may_continue:
+            message = (
+                f"{outcome.message}; a Gauss–Newton step from central differences would still "
+                f"move the estimate by {distance:.3g} Cramér–Rao σ (predicted cost drop "
+                f"{gn.predicted_reduction:.3g})"
+            )
+            outcome = _replace(outcome, theta, outputs, cost, False, outcome.status, message)
+            break
+        if passes >= conv.max_confirmation_passes or objective.budget_exhausted():
+            status = "max_evaluations" if objective.budget_exhausted() else "max_iterations"
+            message = (
+                f"not converged: the solver stopped, but after {passes} Gauss–Newton passes on "
+                f"central differences the next step would still move the estimate by "
+                f"{distance:.3g} Cramér–Rao σ (tolerance {conv.confirm_sigma})"
+            )
+            outcome = _replace(outcome, theta, outputs, cost, False, status, message)
+            break
+        accepted = halving_search(objective, theta, cost, gn.step, 10, gauss_newton=gn)
+        if accepted is None:
+            message = (
+                "not converged: the solver stopped, but a Gauss–Newton step from "
+                f"central-difference sensitivities predicts a cost drop of "
+                f"{gn.predicted_reduction:.3g} ({distance:.3g} Cramér–Rao σ) that no step "
+                "length down to 2^-10 nor any Levenberg–Marquardt damping realises"
+            )
+            outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
+            break
+        theta, cost, outputs, _ = accepted
+        passes += 1
+        objective.record(theta, cost)
+        if policy != "fixed":
+            objective.update_noise(outputs)
+            cost = float(objective.costs_of(outputs)[0])
+    if confirmed and passes:
+        message = (
+            f"converged after {passes} further Gauss–Newton pass"
+            f"{'es' if passes > 1 else ''} on central differences (the solver had stopped "
+            f"short of the optimum: {outcome.message})"
+        )
+        outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
+    elif confirmed and not outcome.converged:
+        message = (
+            f"converged: central differences confirm the optimum within "
+            f"{gn.sigma_distance:.2g} σ (the solver said: {outcome.message})"
+        )
+        outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
+    elif confirmed:
+        outcome = _replace(outcome, theta, outputs, cost, True, "converged", outcome.message)
+    return Confirmation(outcome, g, gn, passes, used)
+
+
+def _replace(outcome, theta, outputs, cost, converged, status, message) -> SolverOutcome:
+    return SolverOutcome(
+        theta,
+        outputs,
+        cost,
+        outcome.iterations,
+        converged,
+        status,
+        message,
+        state=outcome.state,
+    )
