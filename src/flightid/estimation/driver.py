@@ -94,6 +94,7 @@ def estimate(
     solver: MNRES | MNR | FPS | None = None,
     *,
     method: str = "rk4",
+    input_interpolation: str = "linear",
     noise: str = "max",
     R: np.ndarray | Sequence[float] | None = None,
     convergence: Convergence | None = None,
@@ -108,6 +109,9 @@ def estimate(
             initial states through the model's ``x0``).
         solver: ``MNRES()`` (default), ``MNR()`` or ``FPS()``.
         method: integration, ``"rk4"`` or ``"euler"``.
+        input_interpolation: how the inputs vary between samples: ``"linear"`` (the RK4 half
+            step takes the mean of the neighbouring samples) or ``"zoh"`` (zero-order hold:
+            u_k over [t_k, t_k+1), as recorded by a sample-and-hold data system).
         noise: ``"max"`` (default), ``"maxlik"`` or ``"fixed"`` (see ``objective``).
         R: noise variances (n_o,) or a diagonal matrix: the fixed R of ``noise="fixed"``
             (default identity), ignored otherwise.
@@ -138,7 +142,9 @@ def estimate(
     started = _time.perf_counter()
     # The model contract (lengths, indices, finite values at the start), before anything else.
     check_model(model, data, method=method)
-    problem = OutputErrorProblem(model, data, method=method, compiled=compiled)
+    problem = OutputErrorProblem(
+        model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
+    )
     r_diag = _check_r(R, problem.n_outputs)
     theta = problem.theta_start
     objective = Objective(problem, r_diag, noise, convergence, progress)
@@ -232,6 +238,7 @@ def estimate(
         solver_settings=solver.settings(),
         noise_policy=noise,
         method=method,
+        input_interpolation=input_interpolation,
         wall_time_s=_time.perf_counter() - started,
         model=estimated_model,
         optimality_sigma=confirmation.step.sigma_distance,

@@ -87,6 +87,7 @@ class Estimate:
     wall_time_s: float
     model: StateSpaceModel = field(repr=False)
     optimality_sigma: float = float("nan")
+    input_interpolation: str = "linear"
     at_bound: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
@@ -176,6 +177,7 @@ class Estimate:
             "noise_cycles": int(self.noise_cycles),
             "noise_policy": self.noise_policy,
             "integration": self.method,
+            "input_interpolation": self.input_interpolation,
             "wall_time_s": float(self.wall_time_s),
             "solver_settings": dict(self.solver_settings),
             "R": [float(r) for r in self.r_diag],
