@@ -111,7 +111,13 @@ def test_search_is_seeded_and_respects_its_budget(exp_case):
     np.testing.assert_array_equal(one.ci_search, two.ci_search)
     # the last refinement round and the final ±e_j step may overshoot by a few hundred
     assert 3000 <= one.evaluations["search"] < 4000
-    assert any("budget" in w for w in one.warnings) or one.search.settled.all()
+    # 3000 evaluations are far too few for this region (20 000 settle it): the search must
+    # say that its limits are inner bounds (the former "warning or settled" was always true)
+    open_extremes = int((~one.search.settled).sum())
+    assert open_extremes > 0
+    assert any(
+        f"budget of 3000 evaluations ran out before {open_extremes} of" in w for w in one.warnings
+    )
 
 
 def test_accuracy_json_contract(exp_case):

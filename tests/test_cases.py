@@ -151,7 +151,10 @@ def test_csv_walkthrough_end_to_end(tmp_path, capsys):
 
 def test_validate_command(capsys):
     assert main(["validate", str(WALK / "my_case.toml")]) == 0
-    assert "valid" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    # the verdict is the last line, exactly ("valid" in out would also match "invalid")
+    assert out.splitlines()[-1] == "valid"
+    assert "invalid" not in out
 
 
 def test_biases_and_estimated_initial_states(walk):

@@ -72,6 +72,7 @@ def test_run_accuracy_profile_json_and_report(tmp_path, capsys):
 
     rows = list(csv.DictReader((out / "estimates.csv").open()))
     by_name = {p["name"]: p for p in entry["parameters"]}
+    assert any(row["free"] == "True" for row in rows)  # the loop below checks something
     for row in rows:
         if row["free"] == "True":
             expected = by_name[row["name"]]["ci_profile"]
@@ -98,8 +99,12 @@ def test_case_methods_key_runs_a_seeded_search(walk):
         (slo, shi), (plo, phi) = p["ci_search"], p["ci_profile"]
         tol = 0.01 * _half(p["ci_profile"])
         assert plo - tol <= slo and shi <= phi + tol
-        if all(acc.search.settled[acc.names.index(p["name"])]):
-            assert abs(slo - plo) < tol and abs(shi - phi) < tol
+    # 6000 evaluations do not settle the search's extremes here (none settles, seen with
+    # seed 7), so the run must say its limits are inner bounds. (A former check on settled
+    # extremes sat under an `if` that was never true; search = profile for settled extremes
+    # is tested in test_accuracy_region.)
+    assert not acc.search.settled.any()
+    assert any("inner bounds" in w for w in acc.warnings)
 
 
 def test_cli_text_shows_intervals_and_none_overrides_the_case(walk, capsys):
