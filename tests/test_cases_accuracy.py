@@ -49,7 +49,9 @@ def test_run_accuracy_profile_json_and_report(tmp_path, capsys):
     # the run's own keys are kept beside the accuracy document
     assert {"case", "maneuvers", "prediction"} <= set(entry)
     assert entry["confidence_level"] == 0.95
-    assert entry["nonlinearity"]["N_phi"] < 1e-4  # measured 1.7e-7
+    # regression value: flightid's own N_φ at commit 45a5a0b was 1.7e-7 (not an independent
+    # reference); the bound says only "nearly linear"
+    assert entry["nonlinearity"]["N_phi"] < 1e-4
     for p in entry["parameters"]:
         assert {"ci_cr", "ci_profile"} <= set(p) and "ci_search" not in p
         lo, hi = p["ci_cr"]
@@ -90,7 +92,8 @@ def test_case_methods_key_runs_a_seeded_search(walk):
     run = run_case(load_case(case_file))
     acc = run.accuracy
     assert acc is not None and acc.search is not None and acc.profile is not None
-    # the budget holds up to the last round (< one round of overshoot, measured 6202)
+    # the budget holds up to the last round (< one round of overshoot; regression value:
+    # 6202 evaluations at commit 45a5a0b)
     assert acc.search.seed == 7 and 3000 < acc.evaluations["search"] < 7000
     entry = run.to_dict()
     assert entry["accuracy"]["search"]["seed"] == 7
