@@ -6,6 +6,12 @@ Beale's N_φ (always) and the profile-likelihood and random-search limits when a
 search is seeded (``accuracy.seed``, default 0) and bounded by ``accuracy.budget``
 (equivalent evaluations, default ``DEFAULT_BUDGET``).
 
+Input interpolation (``[estimation] input_interpolation``): how the inputs vary between
+samples in the integration — ``"linear"`` (default; the input at the RK4 half step is the
+mean of the neighbouring samples) or ``"zoh"`` (each sample held over its interval, as a
+sample-and-hold recorder or a generator holding its input does). The same setting is used
+by the estimation, the accuracy assessment and the prediction check.
+
 Prediction check (verification on data not used for estimation): the estimated model is
 simulated on each prediction maneuver (initial states at the first measured values unless
 ``[prediction.initial_state]`` says otherwise) and compared per output:
@@ -17,6 +23,7 @@ simulated on each prediction maneuver (initial states at the first measured valu
 from __future__ import annotations
 
 import contextlib
+import inspect
 import sys
 import threading
 import time as _time
@@ -39,6 +46,7 @@ from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.data.flightdata import FlightData
 from flightid.errors import SimulationError
 from flightid.estimation import Estimate, estimate
+from flightid.estimation.problem import OutputErrorProblem
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate import simulate
 
@@ -47,6 +55,7 @@ __all__ = [
     "CaseRun",
     "Prediction",
     "accuracy_methods",
+    "input_interpolation",
     "prepare_case",
     "run_case",
 ]
@@ -169,6 +178,7 @@ def prepare_case(case: Case, data_dir: str | Path | None = None) -> Prepared:
     model, maneuvers = build_model(case, maneuvers, base=base)
     build_solver(case)
     build_convergence(case)
+    _interpolation_keyword(estimate, case)  # a setting this version cannot honour is an error
     r = case.estimation.get("R")
     if r is not None and len(r) != len(model.outputs):
         raise CaseError(
@@ -191,6 +201,25 @@ def prepare_case(case: Case, data_dir: str | Path | None = None) -> Prepared:
     return Prepared(case, directory, model, tuple(maneuvers), tuple(prediction), base, description)
 
 
+def input_interpolation(case: Case) -> str:
+    """The case's ``estimation.input_interpolation``: ``"linear"`` (default) or ``"zoh"``."""
+    return case.estimation.get("input_interpolation", "linear")
+
+
+def _interpolation_keyword(function, case: Case) -> dict:
+    """``{"input_interpolation": ...}`` for ``function`` if it takes the keyword; a case
+    asking for anything but the default from a function without it is an error."""
+    value = input_interpolation(case)
+    if "input_interpolation" in inspect.signature(function).parameters:
+        return {"input_interpolation": value}
+    if value != "linear":
+        raise CaseError(
+            f"estimation.input_interpolation: {value!r} is not supported by "
+            f"{function.__module__}.{function.__name__} in this version"
+        )
+    return {}
+
+
 def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
     case = prepared.case
     values = dict(zip(result.names, result.values, strict=True))
@@ -205,7 +234,12 @@ def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
             key="prediction.initial_state",
         )
         try:
-            y = simulate(model, data, method=case.estimation.get("method", "rk4"))
+            y = simulate(
+                model,
+                data,
+                method=case.estimation.get("method", "rk4"),
+                **_interpolation_keyword(simulate, case),
+            )
         except SimulationError as exc:
             raise CaseError(f"prediction ({maneuver.name}): {exc}") from None
         z = np.column_stack([data.output(n) for n in model.outputs])
@@ -274,10 +308,21 @@ def _assess(
     )
     # the search draws its own progress bar on a terminal; elsewhere the heartbeat speaks
     bar = progress is not None and sys.stderr.isatty()
+    compiled = bool(case.estimation.get("compiled", True))
+    data: list[FlightData] | OutputErrorProblem = list(maneuvers)
+    if input_interpolation(case) != "linear":
+        # the likelihood region with the same input interpolation as the estimation
+        data = OutputErrorProblem(
+            result.model,
+            data,
+            method=result.method,
+            compiled=compiled,
+            **_interpolation_keyword(OutputErrorProblem, case),
+        )
     with _heartbeat(None if bar else progress, "assessing accuracy", heartbeat_s):
         accuracy = assess(
             result,
-            list(maneuvers),
+            data,
             level=level,
             methods=methods,
             kind=settings.get("kind", "individual"),
@@ -285,7 +330,7 @@ def _assess(
             seed=seed,
             budget=budget,
             progress=bar,
-            compiled=bool(case.estimation.get("compiled", True)),
+            compiled=compiled,
             warn=False,
         )
     spent = ", ".join(f"{k} {v}" for k, v in accuracy.evaluations.items())
@@ -343,6 +388,7 @@ def run_case(
             convergence=build_convergence(case),
             compiled=bool(case.estimation.get("compiled", True)),
             progress=report_pass,
+            **_interpolation_keyword(estimate, case),
         )
     say(
         f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "

@@ -36,7 +36,11 @@ objects. Nothing is evaluated: expressions and terms go to their own safe parser
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import tomllib
+import types
+import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +48,7 @@ from typing import Any
 
 from flightid.data.loaders import ChannelSpec
 from flightid.errors import InputError
+from flightid.estimation import FPS, MNR, MNRES, Convergence
 
 __all__ = ["CaseError", "Case", "ManeuverSpec", "load_case", "parse_case"]
 
@@ -91,7 +96,16 @@ _MODEL = {
     "accelerometer",
     "measured",
 }
-_ESTIMATION = {"solver", "method", "noise", "R", "solver_settings", "convergence", "compiled"}
+_ESTIMATION = {
+    "solver",
+    "method",
+    "noise",
+    "R",
+    "solver_settings",
+    "convergence",
+    "compiled",
+    "input_interpolation",
+}
 _ACCURACY = {
     "confidence",
     "bound_factor",
@@ -110,6 +124,10 @@ _OUTPUT = {"figures", "report", "dir"}
 SOLVERS = ("mnres", "mnr", "fps")
 METHODS = ("rk4", "euler")
 NOISE = ("max", "maxlik", "fixed")
+# inputs between samples: "linear" (mean of neighbouring samples at the half step) or "zoh"
+# (each sample held over its interval)
+INPUT_INTERPOLATIONS = ("linear", "zoh")
+SOLVER_CLASSES = {"mnres": MNRES, "mnr": MNR, "fps": FPS}
 MODEL_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
 
 
@@ -170,10 +188,34 @@ def _known(table: Mapping[str, Any], allowed: set[str], key: str) -> None:
         )
 
 
-def _number(value: Any, key: str) -> float:
+def _number(value: Any, key: str, *, infinite: bool = False) -> float:
+    """A TOML integer or float; NaN never, ±inf only where ``infinite`` (bounds, limits)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise CaseError(f"{key}: expected a number, got {value!r}")
-    return float(value)
+    number = float(value)
+    if math.isnan(number) or (math.isinf(number) and not infinite):
+        what = "a number (not NaN)" if infinite else "a finite number"
+        raise CaseError(f"{key}: expected {what}, got {value!r}")
+    return number
+
+
+def _integer(value: Any, key: str, smallest: int | None = None) -> int:
+    """A TOML integer (not 2.5, 3.0 or "3"), at least ``smallest``."""
+    what = {None: "an integer", 0: "a non-negative integer", 1: "a positive integer"}.get(
+        smallest, f"an integer ≥ {smallest}"
+    )
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise CaseError(f"{key}: expected {what}, got {value!r}")
+    if smallest is not None and value < smallest:
+        raise CaseError(f"{key}: expected {what}, got {value!r}")
+    return value
+
+
+def _bool(value: Any, key: str) -> bool:
+    """TOML true / false only ("no", 0 and "false" are errors, not truthy values)."""
+    if not isinstance(value, bool):
+        raise CaseError(f"{key}: expected true or false, got {value!r}")
+    return value
 
 
 def _string(value: Any, key: str, choices: tuple[str, ...] | None = None) -> str:
@@ -182,6 +224,68 @@ def _string(value: Any, key: str, choices: tuple[str, ...] | None = None) -> str
     if choices is not None and value not in choices:
         raise CaseError(f"{key}: expected one of {list(choices)}, got {value!r}")
     return value
+
+
+def _optional_string(value: Any, key: str) -> str | None:
+    return None if value is None else _string(value, key)
+
+
+def _names(value: Any, key: str) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise CaseError(f"{key}: expected a list of names (strings), got {value!r}")
+    return value
+
+
+def _typed(value: Any, hint: Any, key: str) -> None:
+    """Check ``value`` against a dataclass field's type (bool, int, float, str, X | None)."""
+    arguments = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) in (typing.Union, types.UnionType) and len(arguments) == 1:
+        hint = arguments[0]  # TOML has no null: X | None means X here
+    if hint is bool:
+        _bool(value, key)
+    elif hint is int:
+        _integer(value, key)
+    elif hint is float:
+        _number(value, key, infinite=True)
+    elif hint is str:
+        _string(value, key)
+
+
+def _settings(table: Mapping[str, Any], cls: type, key: str) -> None:
+    """The keys of ``table`` are fields of the dataclass ``cls``, each of its type."""
+    try:
+        hints = typing.get_type_hints(cls)
+    except Exception:  # an annotation that cannot be resolved: leave the check to cls
+        hints = {}
+    fields = {f.name: hints.get(f.name) for f in dataclasses.fields(cls) if f.init}
+    for name, value in table.items():
+        if name not in fields:
+            raise CaseError(
+                f"{key}.{name}: not a setting of {cls.__name__}; its settings: {sorted(fields)}"
+            )
+        _typed(value, fields[name], f"{key}.{name}")
+
+
+def _initial_state_types(section: Mapping[str, Any], key: str) -> None:
+    """Types of ``[initial_state]`` entries (the state names are checked with the model)."""
+    for state, value in section.items():
+        where = f"{key}.{state}"
+        spec = value if isinstance(value, Mapping) else {"value": value}
+        for name in ("free",):
+            if name in spec:
+                _bool(spec[name], f"{where}.{name}")
+        if "channel" in spec:
+            _string(spec["channel"], f"{where}.channel")
+        if "scale" in spec:
+            _number(spec["scale"], f"{where}.scale")
+        start = spec.get("value", "measured")
+        if isinstance(start, list):
+            for k, v in enumerate(start):
+                _number(v, f"{where}[{k}]")
+        elif isinstance(start, str):
+            _string(start, where, ("measured", "estimate"))
+        else:
+            _number(start, where)
 
 
 def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]) -> list:
@@ -220,7 +324,9 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
                 name=_string(item.get("name", Path(file).stem), f"{where}.name"),
                 start=None if start is None else _number(start, f"{where}.start"),
                 stop=None if stop is None else _number(stop, f"{where}.stop"),
-                variable=item.get("variable", defaults.get("variable")),
+                variable=_optional_string(
+                    item.get("variable", defaults.get("variable")), f"{where}.variable"
+                ),
                 format=_string(
                     item.get("format", defaults.get("format", "auto")),
                     f"{where}.format",
@@ -261,6 +367,11 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
                 raise CaseError(message) from None
     if "outputs" not in data or not data["outputs"]:
         raise CaseError("data.outputs: missing; name the measured output channels")
+    if "data_dir" in data:
+        _string(data["data_dir"], "data.data_dir")
+    time = data.get("time", 1)
+    if not isinstance(time, str):
+        _integer(time, "data.time", 1)
     maneuvers = _maneuvers(data, "data", data)
 
     model = _table(raw["model"], "model")
@@ -270,6 +381,11 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
             "model: give exactly one of 'module' (a Python file with f and h) and 'type' "
             f"(a built-in airplane model: {list(MODEL_TYPES)})"
         )
+    if "name" in model:
+        _string(model["name"], "model.name")
+    for key in ("controls", "outputs", "measured"):
+        if key in model:
+            _names(model[key], f"model.{key}")
     if "module" in model:
         _string(model["module"], "model.module")
         for key in ("airplane", "aero", "controls"):
@@ -290,12 +406,20 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
             )
             if "value" in value:
                 _number(value["value"], f"parameters.{name}.value")
-            if "free" in value and not isinstance(value["free"], bool):
-                raise CaseError(f"parameters.{name}.free: expected true or false")
+            if "free" in value:
+                _bool(value["free"], f"parameters.{name}.free")
+            if "scale" in value:
+                _number(value["scale"], f"parameters.{name}.scale")
+            for bound in ("lower", "upper"):
+                if bound in value:
+                    _number(value[bound], f"parameters.{name}.{bound}", infinite=True)
+            if "unit" in value:
+                _string(value["unit"], f"parameters.{name}.unit")
         else:
             _number(value, f"parameters.{name}")
 
     initial_state = _table(raw.get("initial_state", {}), "initial_state")
+    _initial_state_types(initial_state, "initial_state")
     biases = _table(raw.get("biases", {}), "biases")
     _known(biases, {"states", "outputs"}, "biases")
     for kind in ("states", "outputs"):
@@ -306,14 +430,16 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
                 if "value" in value:
                     _number(value["value"], f"{where}.value")
                 for flag in ("free", "per_maneuver"):
-                    if flag in value and not isinstance(value[flag], bool):
-                        raise CaseError(f"{where}.{flag}: expected true or false")
+                    if flag in value:
+                        _bool(value[flag], f"{where}.{flag}")
+                if "scale" in value:
+                    _number(value["scale"], f"{where}.scale")
             else:
                 _number(value, where)
 
     estimation = _table(raw.get("estimation", {}), "estimation")
     _known(estimation, _ESTIMATION, "estimation")
-    _string(estimation.get("solver", "mnres"), "estimation.solver", SOLVERS)
+    solver = _string(estimation.get("solver", "mnres"), "estimation.solver", SOLVERS)
     _string(estimation.get("method", "rk4"), "estimation.method", METHODS)
     noise = _string(estimation.get("noise", "max"), "estimation.noise", NOISE)
     if "R" in estimation:
@@ -325,8 +451,22 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
                 raise CaseError(f"estimation.R[{i}]: variances must be positive, got {v}")
     elif noise == "fixed":
         raise CaseError("estimation.R: needed with noise = 'fixed' (one variance per output)")
-    for key in ("solver_settings", "convergence"):
-        _table(estimation.get(key, {}), f"estimation.{key}")
+    _settings(
+        _table(estimation.get("solver_settings", {}), "estimation.solver_settings"),
+        SOLVER_CLASSES[solver],
+        "estimation.solver_settings",
+    )
+    _settings(
+        _table(estimation.get("convergence", {}), "estimation.convergence"),
+        Convergence,
+        "estimation.convergence",
+    )
+    _bool(estimation.get("compiled", True), "estimation.compiled")
+    _string(
+        estimation.get("input_interpolation", "linear"),
+        "estimation.input_interpolation",
+        INPUT_INTERPOLATIONS,
+    )
 
     accuracy = _table(raw.get("accuracy", {}), "accuracy")
     _known(accuracy, _ACCURACY, "accuracy")
@@ -346,10 +486,8 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
         )
     for i, method in enumerate(methods):
         _string(method, f"accuracy.methods[{i}]", ACCURACY_METHODS)
-    for key, smallest, what in (("budget", 1, "a positive"), ("seed", 0, "a non-negative")):
-        value = accuracy.get(key, smallest)
-        if isinstance(value, bool) or not isinstance(value, int) or value < smallest:
-            raise CaseError(f"accuracy.{key}: expected {what} integer, got {value!r}")
+    for key, smallest in (("budget", 1), ("seed", 0)):
+        _integer(accuracy.get(key, smallest), f"accuracy.{key}", smallest)
     _string(accuracy.get("kind", "individual"), "accuracy.kind", INTERVAL_KINDS)
     _string(accuracy.get("distribution", "t"), "accuracy.distribution", DISTRIBUTIONS)
 
@@ -361,12 +499,15 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
         else []
     )
     prediction_x0 = _table(prediction_raw.get("initial_state", {}), "prediction.initial_state")
+    _initial_state_types(prediction_x0, "prediction.initial_state")
 
     output = _table(raw.get("output", {}), "output")
     _known(output, _OUTPUT, "output")
     for key in ("figures", "report"):
-        if key in output and not isinstance(output[key], bool):
-            raise CaseError(f"output.{key}: expected true or false")
+        if key in output:
+            _bool(output[key], f"output.{key}")
+    if "dir" in output:
+        _string(output["dir"], "output.dir")
 
     return Case(
         path=path,
@@ -391,10 +532,21 @@ def load_case(path: str | Path) -> Case:
     """Read and check a TOML case file."""
     path = Path(path)
     if not path.is_file():
-        raise CaseError(f"case file: {path} does not exist")
+        what = "is not a file" if path.exists() else "does not exist"
+        raise CaseError(f"case file: {path} {what}")
     try:
-        with path.open("rb") as stream:
-            raw = tomllib.load(stream)
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CaseError(f"case file {path}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CaseError(
+            f"case file {path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+            f"{exc.start}); TOML files are UTF-8 — save it as UTF-8"
+        ) from None
+    try:
+        raw = tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(f"case file {path}: not valid TOML ({exc})") from None
     return parse_case(raw, path.resolve())

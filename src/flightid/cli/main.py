@@ -2,19 +2,46 @@
 
 Each sub-command lives in its own module ``flightid.cli.<name>`` exposing
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> int``.
+
+Every failure ends in one line on stderr and a non-zero exit status:
+
+    flightid: error: <what went wrong>                         exit 1 (bad input, I/O)
+    flightid: error: internal error: <type>: <message> (run with --debug for the traceback)
+                                                               exit 1 (a bug)
+    flightid: interrupted                                      exit 130 (Ctrl-C, SIGINT)
+
+``--debug`` (before or after the command) adds the Python traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import sys
+import traceback
 
 from flightid import __version__
 from flightid.errors import FlightIdError
 
 # Sub-command modules, in the order they appear in --help.
 SUBCOMMAND_MODULES = ("paper", "regress", "run", "validate")
+EXIT_ERROR = 1
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+DEBUG_HELP = "show the Python traceback of a failure"
+
+
+def _add_debug(parser: argparse.ArgumentParser) -> None:
+    """``--debug`` on every sub-command parser too (the default stays the top level's)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                if not any("--debug" in a.option_strings for a in sub._actions):
+                    sub.add_argument(
+                        "--debug", action="store_true", default=argparse.SUPPRESS, help=DEBUG_HELP
+                    )
+                _add_debug(sub)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Airplane parameter estimation from flight data (NASA RP-1153 methodology).",
     )
     parser.add_argument("--version", action="version", version=f"flightid {__version__}")
+    parser.add_argument("--debug", action="store_true", help=DEBUG_HELP)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
         try:
@@ -32,20 +60,58 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # sub-command not built yet
             raise
         module.register(subparsers)
+    _add_debug(parser)
     return parser
 
 
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split()) or "(no message)"
+
+
+def error_line(exc: BaseException) -> str:
+    """The one-line message ``main`` prints for a failure (without the ``--debug`` hint for
+    named errors)."""
+    if isinstance(exc, FlightIdError):
+        return f"flightid: error: {exc}"
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f": {exc.filename}" if exc.filename else ""
+        return f"flightid: error: {exc.strerror}{where}"
+    return (
+        f"flightid: error: internal error: {type(exc).__name__}: {_one_line(exc)} "
+        "(run with --debug for the traceback)"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("flightid: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    debug = bool(getattr(args, "debug", False))
     try:
         return int(args.func(args) or 0)
-    except FlightIdError as exc:
-        print(f"flightid: error: {exc}", file=sys.stderr)
-        return 1
+    except KeyboardInterrupt:
+        if debug:
+            traceback.print_exc()
+        print("flightid: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of stdout went away (e.g. `| head`): nothing more to say to it; point
+        # stdout at /dev/null so that the flush at exit does not fail again
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_ERROR
+    except Exception as exc:  # every failure: one line, the traceback only with --debug
+        if debug:
+            traceback.print_exc()
+        print(error_line(exc), file=sys.stderr)
+        return EXIT_ERROR
 
 
 if __name__ == "__main__":

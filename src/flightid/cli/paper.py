@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 __all__ = ["register"]
@@ -79,8 +78,9 @@ def _emit(run, as_json: bool) -> int:
     from flightid.paper.examples12 import comparison_table
 
     if as_json:
-        json.dump(run.to_dict(), sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        from flightid.report.jsonout import dumps
+
+        sys.stdout.write(dumps(run.to_dict()) + "\n")
     else:
         print(comparison_table(run))
     return 0
@@ -100,6 +100,17 @@ def _example2(args: argparse.Namespace) -> int:
 
 
 def _example3(args: argparse.Namespace) -> int:
+    if args.plot is not None:
+        from pathlib import Path
+
+        from flightid.errors import InputError
+
+        # checked before the estimation, not after it
+        plot = Path(args.plot)
+        if plot.exists() and not plot.is_dir():
+            raise InputError(f"--plot {plot}: exists and is a file, not a folder")
+        if not plot.exists() and not plot.absolute().parent.is_dir():
+            raise InputError(f"--plot {plot}: the parent folder does not exist; create it first")
     try:
         from flightid.paper import example3
     except ImportError as exc:  # pragma: no cover - present once the aircraft package lands

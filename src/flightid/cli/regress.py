@@ -12,7 +12,8 @@ JSON output (``--json``), the contract read by the acceptance checks:
 ENTRY is the estimation entry of ``flightid run`` (``Estimate.to_dict()``: converged, status,
 cost, parameters with name/value/initial/std/free, ...) plus ``model``, ``maneuvers``,
 ``start`` (the regression estimates ML started from), ``constants`` and ``prediction`` (per
-``[ml].prediction`` maneuver: outputs, rms_error, r2). ``--ml`` needs the case's ``[ml]``
+``[ml].prediction`` maneuver: outputs, rms_error, r2). The JSON is strict: NaN / ±inf become
+null, listed under ``"nonfinite"`` (``flightid.report.jsonout``). ``--ml`` needs the case's ``[ml]``
 section (see ``flightid.regression.case``). Progress of the ML stage goes to stderr unless
 ``--quiet``.
 """
@@ -20,10 +21,10 @@ section (see ``flightid.regression.case``). Progress of the ML stage goes to std
 from __future__ import annotations
 
 import argparse
-import json
 
 from flightid.cli.run import add_data_dir_argument
 from flightid.regression.case import load_case, run_case, run_ml
+from flightid.report.jsonout import dumps
 
 
 def register(subparsers) -> None:
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         payload = {"coefficients": {name: r.to_dict() for name, r in results.items()}}
         if ml is not None:
             payload["ml"] = ml.to_dict()
-        print(json.dumps(payload, indent=2))
+        print(dumps(payload))
     else:
         for result in results.values():
             print(result.summary())

@@ -1,4 +1,5 @@
-"""``flightid run CASE.toml [--out DIR] [--json] [--accuracy M] [--data-dir DIR] [--quiet]``.
+"""``flightid run CASE.toml [--out DIR [--overwrite]] [--json] [--accuracy M] [--data-dir DIR]
+[--quiet]``.
 
 Runs the output-error estimation a case file describes. Progress goes to stderr. Standard
 output gets the estimate summary (text), or with ``--json`` the JSON contract of the core::
@@ -15,18 +16,27 @@ accuracy assessment of ``flightid.accuracy.assess``: ENTRY is then ``accuracy_js
 parameter with ``ci_cr``, ``ci_profile`` and, when run, ``ci_search`` ([lower, upper], null
 for an open side), and the top level with ``confidence_level`` and ``nonlinearity``
 ({"N_phi": ...}). The text output adds the interval table and N_φ. Exit status 0 when the
-estimation ran (read ``converged``/``status``), 1 on a bad case. ``--out DIR`` writes
-results.json (the same document), estimates.csv, figures/*.png and report.html.
+estimation ran (read ``converged``/``status``), 1 on any failure (one line
+``flightid: error: ...``), 130 when interrupted.
+
+``--out DIR`` (or the case's ``output.dir``) writes results.json (the same document),
+estimates.csv, figures/*.png and report.html. The folder is checked and locked before the
+estimation, the files are written to a temporary folder beside it and moved into place at
+once (``flightid.report.folder``), after the summary has been printed; a folder that already
+holds a run is replaced (whole) only with ``--overwrite``. All JSON is strict: NaN and ±inf
+become null and are listed under ``"nonfinite"`` (``flightid.report.jsonout``).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 
 from flightid.cases import load_case, run_case
 from flightid.cases.run import stderr_progress
+from flightid.report.folder import ResultFolder
+from flightid.report.jsonout import dumps
 
 
 def add_data_dir_argument(parser: argparse.ArgumentParser) -> None:
@@ -45,11 +55,26 @@ def register(subparsers) -> None:
         help="run the estimation of a case file and write its report",
         description=(
             "Output-error estimation from a TOML case file: data files and channel mapping, "
-            "model, parameters, solver. Prints the estimates with Cramér–Rao bounds."
+            "model, parameters, solver. Prints the estimates with Cramér–Rao bounds. "
+            "WARNING: a case with model.module imports and runs that Python file with your "
+            "permissions; run only case files and model modules you trust."
         ),
     )
-    parser.add_argument("case", help="case file (TOML)")
-    parser.add_argument("--out", default=None, help="write results, figures and report.html here")
+    parser.add_argument(
+        "case", help="case file (TOML); its model.module, if any, is executed as Python code"
+    )
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="write results.json, estimates.csv, figures and report.html to this folder "
+        "(default: the case's output.dir, else none); checked before estimating, written all "
+        "at once; a folder that already holds a run is refused unless --overwrite",
+    )
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run already in --out (the whole folder is replaced)",
+    )
     parser.add_argument(
         "--json", action="store_true", help='print {"results": [entry]} as JSON on stdout'
     )
@@ -67,30 +92,56 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def output_folder(case, given: str | None) -> Path | None:
+    """The result folder: ``--out``, else the case's ``output.dir`` (relative to the case
+    file), else None."""
+    if given is not None:
+        return Path(given)
+    configured = case.output.get("dir")
+    if configured is None:
+        return None
+    path = Path(configured).expanduser()
+    return path if path.is_absolute() else case.directory / path
+
+
+def print_summary(result) -> None:
+    """The estimates (and accuracy, predictions) as text on stdout."""
+    print(result.estimate.summary())
+    if result.accuracy is not None:
+        print("\naccuracy of the estimates:")
+        print(result.accuracy.summary())
+    for p in result.predictions:
+        print(f"\nprediction on {p.name}:")
+        for n, e, r in zip(p.output_names, p.rms, p.r2, strict=True):
+            print(f"  {n:<10} RMS error {e:.4g}   R² {r:.4f}")
+
+
 def run(args: argparse.Namespace) -> int:
     case = load_case(args.case)
-    result = run_case(
-        case,
-        args.data_dir,
-        progress=None if args.quiet else stderr_progress,
-        accuracy=args.accuracy,
-    )
-    payload = {"results": [result.to_dict()]}
-    if args.out:
-        from flightid.report.html import write_report
+    out = output_folder(case, args.out)
+    # the result folder is checked (and locked) before any work, so that a bad --out costs
+    # nothing and a second run into the same folder stops here
+    folder = ResultFolder.open(out, overwrite=args.overwrite) if out is not None else None
+    try:
+        result = run_case(
+            case,
+            args.data_dir,
+            progress=None if args.quiet else stderr_progress,
+            accuracy=args.accuracy,
+        )
+        # the answer goes to stdout first: a failure to write files cannot lose it
+        if args.json:
+            print(dumps({"results": [result.to_dict()]}))
+        else:
+            print_summary(result)
+        sys.stdout.flush()
+        if folder is not None:
+            from flightid.report.html import write_files
 
-        path = write_report(result, Path(args.out))
-        if not args.quiet:
-            stderr_progress(f"report written to {path}")
-    if args.json:
-        print(json.dumps(payload, indent=2))
-    else:
-        print(result.estimate.summary())
-        if result.accuracy is not None:
-            print("\naccuracy of the estimates:")
-            print(result.accuracy.summary())
-        for p in result.predictions:
-            print(f"\nprediction on {p.name}:")
-            for n, e, r in zip(p.output_names, p.rms, p.r2, strict=True):
-                print(f"  {n:<10} RMS error {e:.4g}   R² {r:.4f}")
+            path = folder.write(lambda directory: write_files(result, directory))
+            if not args.quiet:
+                stderr_progress(f"results written to {folder.target} ({path.name} there)")
+    finally:
+        if folder is not None:
+            folder.release()
     return 0

@@ -25,7 +25,8 @@ Grammar (whitespace ignored):
     basis   := NAME | "spline1" "(" NAME "," NUMBER ")"
     NUMBER  := ["+" | "-"] digits ["." digits] [("e" | "E") ["+" | "-"] digits]
 
-Repeated factors merge (``alpha*alpha`` is ``alpha^2``). Anything else is a ``TermError``
+Repeated factors merge (``alpha*alpha`` is ``alpha^2``); a power above ``MAX_POWER`` (64)
+is refused. Anything else is a ``TermError``
 naming the text and the position of the problem. Signals are looked up by name at evaluation
 time; an unknown signal is a ``TermError`` too.
 
@@ -57,6 +58,9 @@ class TermError(InputError):
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _INT = re.compile(r"[0-9]+")
+# the highest power of one factor (also after merging repeats): polynomial terms of flight
+# data stay far below it, and larger ones only overflow
+MAX_POWER = 64
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _FUNCTIONS = ("spline1",)
 
@@ -237,12 +241,23 @@ def parse_term(text: str) -> Term:
                     f"term {text!r}: expected a non-negative integer power after '^' of "
                     f"{str(key)!r}"
                 )
-            power = int(number.group())
+            digits = number.group().lstrip("0") or "0"
+            if len(digits) > 2 or int(digits) > MAX_POWER:
+                raise TermError(
+                    f"term {text!r}: the power of {str(key)!r} is {digits[:20]}"
+                    f"{'...' if len(digits) > 20 else ''}; at most {MAX_POWER} is allowed"
+                )
+            power = int(digits)
             position = number.end()
         if key not in powers:
             order.append(key)
             powers[key] = 0
         powers[key] += power
+        if powers[key] > MAX_POWER:
+            raise TermError(
+                f"term {text!r}: the factors {str(key)!r} multiply to the power {powers[key]}; "
+                f"at most {MAX_POWER} is allowed"
+            )
         if position == len(source):
             break
         if source[position] != "*":

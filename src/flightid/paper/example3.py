@@ -400,7 +400,6 @@ def example3_json(case: int, seed: int = 3, run: dict | None = None, accuracy=No
 def cli_main(args) -> int:
     """``flightid paper example3``: args.case, args.seed (None: 3), args.json, args.plot
     (directory or None), args.accuracy (None, "profile", "search" or "all")."""
-    import json
     import sys
 
     seed = 3 if getattr(args, "seed", None) is None else int(args.seed)
@@ -414,8 +413,9 @@ def cli_main(args) -> int:
         for path in plot_example3(run, args.plot):
             print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
-        json.dump(example3_json(args.case, seed, run, accuracy), sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        from flightid.report.jsonout import dumps  # strict JSON: NaN / inf become null
+
+        sys.stdout.write(dumps(example3_json(args.case, seed, run, accuracy)) + "\n")
     else:
         print(comparison_table(run))
         if accuracy is not None:

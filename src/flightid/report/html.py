@@ -1,8 +1,9 @@
 """HTML report of a case run: estimates with bounds, fits, residuals, convergence, correlation.
 
-``write_report(run, out_dir)`` writes
+``write_report(run, out_dir)`` writes (all at once, see ``flightid.report.folder``)
 
-    out_dir/results.json     {"results": [entry]} (the JSON contract, see flightid.cli.run)
+    out_dir/results.json     {"results": [entry]} (the JSON contract, see flightid.cli.run;
+                             strict JSON, see flightid.report.jsonout)
     out_dir/estimates.csv    name, value, CR bound, interval, start, free (and, with an
                              accuracy assessment, the profile and search limits)
     out_dir/figures/*.png    measured vs predicted and residuals per maneuver, prediction
@@ -19,12 +20,11 @@ from __future__ import annotations
 
 import csv
 import html
-import json
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_report", "interval_half_widths"]
+__all__ = ["write_report", "write_files", "interval_half_widths"]
 
 
 def interval_half_widths(std: np.ndarray, confidence: float, bound_factor: float) -> np.ndarray:
@@ -193,7 +193,7 @@ def _estimate_rows(run) -> list[dict]:
 
 def write_csv(run, path: Path) -> None:
     rows = _estimate_rows(run)
-    with path.open("w", newline="") as stream:
+    with path.open("w", newline="", encoding="utf-8") as stream:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
         writer.writeheader()
         for row in rows:
@@ -411,17 +411,44 @@ def _accuracy_section(run) -> str:
     return "\n".join(text)
 
 
-def write_report(run, out_dir: Path) -> Path:
-    """Write results.json, estimates.csv, figures and report.html; returns the HTML path."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "results.json").write_text(json.dumps({"results": [run.to_dict()]}, indent=2))
-    write_csv(run, out_dir / "estimates.csv")
+def write_files(run, directory: Path) -> Path:
+    """Write results.json, estimates.csv, figures and report.html into ``directory`` (which
+    exists); returns the HTML path. ``write_report`` calls this on a temporary folder.
+
+    results.json is strict JSON (``flightid.report.jsonout``: NaN / ±inf become null, listed
+    under ``"nonfinite"``). ``[output] figures = false`` skips the PNG figures, ``report =
+    false`` the HTML page.
+    """
+    from flightid.report.jsonout import dumps
+
+    directory = Path(directory)
+    (directory / "results.json").write_text(
+        dumps({"results": [run.to_dict()]}) + "\n", encoding="utf-8"
+    )
+    write_csv(run, directory / "estimates.csv")
     figures = (
-        write_figures(run, out_dir / "figures")
+        write_figures(run, directory / "figures")
         if run.case.output.get("figures", True)
         else {"fits": [], "prediction": [], "other": []}
     )
-    path = out_dir / "report.html"
-    path.write_text(render_html(run, figures))
+    path = directory / "report.html"
+    if run.case.output.get("report", True):
+        path.write_text(render_html(run, figures), encoding="utf-8")
     return path
+
+
+def write_report(run, out_dir: Path, *, overwrite: bool = False) -> Path:
+    """Write the run's result folder ``out_dir`` safely; returns the HTML path there.
+
+    The folder is checked and locked, the files are written to a temporary folder beside it
+    and moved into place at once (``flightid.report.folder``); a folder that already holds
+    a run is replaced (whole) only with ``overwrite=True``.
+
+    Raises:
+        OutputError: the folder cannot be used or written (nothing half written remains).
+    """
+    from flightid.report.folder import ResultFolder
+
+    with ResultFolder.open(out_dir, overwrite=overwrite, label="out_dir") as folder:
+        path = folder.write(lambda directory: write_files(run, directory))
+        return folder.target / path.name
