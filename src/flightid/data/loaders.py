@@ -397,6 +397,11 @@ def _tokens(text: str) -> list[tuple[str, str, int]]:
     return tokens
 
 
+# nesting of parentheses, signs and operations in an expression at most (deeper ones are
+# refused: parsing and evaluating recurse once per level)
+MAX_EXPRESSION_DEPTH = 100
+
+
 class _Parser:
     """Recursive-descent parser: expr := term (±term)*, term := unary (×÷ unary)*,
     unary := −unary | atom, atom := NUMBER | $N | NAME | ( expr ). Builds a tree of tuples."""
@@ -405,6 +410,18 @@ class _Parser:
         self.text = text
         self.tokens = _tokens(text)
         self.i = 0
+        self.nesting = 0  # open parentheses and unary signs, limited by MAX_EXPRESSION_DEPTH
+
+    def nest(self, parse):
+        self.nesting += 1
+        if self.nesting > MAX_EXPRESSION_DEPTH:
+            raise ChannelError(
+                f"expression {self.text[:40]!r}...: nested deeper than {MAX_EXPRESSION_DEPTH} "
+                "levels (parentheses and signs); simplify it"
+            )
+        tree = parse()
+        self.nesting -= 1
+        return tree
 
     def peek(self):
         return self.tokens[self.i] if self.i < len(self.tokens) else (None, None, len(self.text))
@@ -427,6 +444,12 @@ class _Parser:
         tree = self.expr()
         if self.i != len(self.tokens):
             self.fail("an operator or the end")
+        # chains such as a+a+...+a nest without recursion here, but evaluating them recurses
+        if _depth(tree) > MAX_EXPRESSION_DEPTH:
+            raise ChannelError(
+                f"expression {self.text[:40]!r}...: more than {MAX_EXPRESSION_DEPTH} nested "
+                "operations; simplify it"
+            )
         return tree
 
     def expr(self):
@@ -446,7 +469,7 @@ class _Parser:
     def unary(self):
         if self.peek()[1] in ("-", "+"):
             op = self.take()[1]
-            operand = self.unary()
+            operand = self.nest(self.unary)
             return ("neg", operand) if op == "-" else operand
         return self.atom()
 
@@ -454,6 +477,9 @@ class _Parser:
         kind, value, _ = self.peek()
         if kind == "number":
             self.take()
+            if not np.isfinite(float(value)):
+                self.i -= 1
+                self.fail("a finite number")
             return ("num", float(value))
         if kind == "column":
             self.take()
@@ -463,12 +489,23 @@ class _Parser:
             return ("col", value)
         if value == "(":
             self.take()
-            tree = self.expr()
+            tree = self.nest(self.expr)
             if self.peek()[1] != ")":
                 self.fail("')'")
             self.take()
             return tree
         self.fail("a number, a column ($N or a name) or '('")
+
+
+def _depth(tree: tuple) -> int:
+    """Depth of an expression tree (iterative: the tree may be deep)."""
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        if node[0] not in ("num", "col"):
+            stack.extend((child, depth + 1) for child in node[1:])
+    return deepest
 
 
 def parse_expression(text: str) -> tuple:
