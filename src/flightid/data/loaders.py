@@ -17,7 +17,10 @@ Two steps, each checked:
        {"column": "alpha", "subtract": "first"}                     # Δα about the first sample
 
    value = (source · scale + offset) · unit factor, then ``subtract`` ("first" or "mean")
-   removes a reference value.
+   removes a reference value. The unit factor follows the one channel rule of
+   ``flightid.data.units.channel_conversion``: with ``unit`` and ``to`` the values are
+   converted to ``to``; with ``unit`` alone they are delivered in SI with angles in radians
+   (deg → rad, deg/s → rad/s, ft/s → m/s, g → m/s², ...); an unknown unit is refused.
 
 Expressions are arithmetic (+ − × ÷, parentheses, numbers) over column references ``$N``
 (1-based column number) and column names; they are parsed here, never passed to ``eval``.
@@ -35,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.data.units import convert_factor
+from flightid.data.units import channel_conversion, parse_unit
 from flightid.errors import InputError, InputTypeError, describe
 
 __all__ = [
@@ -558,9 +561,13 @@ class ChannelSpec:
     Attributes:
         column: 1-based column number or column name (or use ``expr``).
         expr: arithmetic expression over ``$N`` / column names.
-        scale, offset: value = source · scale + offset (in the source unit).
-        unit: the source unit (e.g. ``"deg"``); with ``to`` the values are converted.
-        to: the target unit (e.g. ``"rad"``); the channel's unit in reports.
+        scale, offset: value = source · scale + offset (in the source unit), then
+            converted by the unit rule.
+        unit: the source unit (e.g. ``"deg"``). Without ``to`` the values are delivered in
+            SI with angles in rad (``flightid.data.units.channel_conversion``); an unknown
+            unit is refused.
+        to: the delivered unit (e.g. ``"deg"`` to keep degrees, ``"g"`` to keep g); the
+            channel's unit in reports.
         subtract: ``"first"`` or ``"mean"``: remove that reference value (perturbations).
     """
 
@@ -613,16 +620,21 @@ class ChannelSpec:
         spec = cls(**{k: value[k] for k in value})
         if spec.expr is not None:
             parse_expression(spec.expr)  # fail early
-        if spec.unit and spec.to:
-            try:
-                convert_factor(spec.unit, spec.to)
-            except InputError as exc:
-                raise ChannelError(f"{where}: {exc}") from None
+        if spec.unit or spec.to:
+            spec.conversion(where)  # unknown units and dimension mismatches fail early
         return spec
+
+    def conversion(self, where: str = "channel") -> tuple[float, str]:
+        """(factor, delivered unit) by the channel rule of ``channel_conversion``."""
+        try:
+            return channel_conversion(self.unit, self.to)
+        except InputError as exc:
+            raise ChannelError(f"{where}: {exc}") from None
 
     @property
     def target_unit(self) -> str:
-        return self.to or self.unit
+        """The unit the values are delivered in ("" where no unit is declared)."""
+        return self.conversion()[1]
 
     def evaluate(self, table: Table, where: str, keep: np.ndarray | None = None) -> np.ndarray:
         """The channel's values in the target unit, on the rows ``keep`` (default all)."""
@@ -635,12 +647,9 @@ class ChannelSpec:
             values = np.broadcast_to(np.asarray(values, dtype=float), (table.n_rows,)).copy()
         else:
             values = table.column(self.column, where).copy()
-        values = values * self.scale + self.offset
-        if self.unit and self.to:
-            try:
-                values = values * convert_factor(self.unit, self.to)
-            except InputError as exc:
-                raise ChannelError(f"{where}: {exc}") from None
+        factor, _ = self.conversion(where)
+        # value = (source · scale + offset) · factor   (scale, offset in the source unit)
+        values = (values * self.scale + self.offset) * factor
         if keep is not None:
             values = values[keep]
         if self.subtract == "first":
@@ -697,8 +706,10 @@ def to_flight_data(
             consecutive samples at the median interval (files holding several segments).
     """
     time_spec = ChannelSpec.from_value(time, "time")
-    if time_spec.unit and not time_spec.to:
-        time_spec = ChannelSpec(**{**time_spec.__dict__, "to": "s"})
+    if time_spec.unit and parse_unit(time_spec.target_unit) != parse_unit("s"):
+        raise ChannelError(
+            f"time: expected the time in s (leave out 'to', or to = 's'), got to = {time_spec.to!r}"
+        )
     t = time_spec.evaluate(table, "time")
     in_specs = _specs(inputs, "inputs")
     out_specs = _specs(outputs, "outputs")

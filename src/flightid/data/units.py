@@ -12,6 +12,25 @@ refused. ``convert_factor("deg", "rad")`` returns the multiplier from one unit t
     value_to = value_from · factor_from / factor_to
 
 The standard acceleration of gravity g = 9.80665 m/s² (ISO 80000-3) is the unit ``g``.
+
+The channel rule (one meaning of ``unit`` in every case file and loader)
+-------------------------------------------------------------------------
+A data channel declares the unit its source is recorded in (``unit``) and optionally the unit
+it is delivered in (``to``). ``channel_conversion(unit, to)`` is the only place that decides:
+
+* ``unit`` and ``to``: the values are converted from ``unit`` to ``to`` (same dimension).
+* ``unit`` only: the values are delivered in **SI, angles in radians** — the coherent SI unit
+  of the same dimension (``si_label``): deg → rad, deg/s → rad/s, deg/s² → rad/s², ft → m,
+  ft/s and kt → m/s, g → m/s², lbf → N, lbf/ft² → Pa, slug·ft² → kg·m², % → 1 (a fraction).
+  Accelerations given in ``g`` therefore arrive in m/s²; write ``to = "g"`` for a model
+  whose outputs are in g (as the RP-1153 equations are).
+* neither: the values are used as recorded (no unit declared, none shown in reports).
+* ``to`` without ``unit``: refused (``UnitError``).
+
+An unknown unit label is always refused with ``UnitError``, whose message lists the known
+names. The order of operations on a channel is fixed: value = (source · scale + offset),
+then multiplied by the conversion factor of this rule (scale and offset act in the source
+unit).
 """
 
 from __future__ import annotations
@@ -21,7 +40,15 @@ import re
 
 from flightid.errors import InputError
 
-__all__ = ["UnitError", "parse_unit", "convert_factor", "G0"]
+__all__ = [
+    "UnitError",
+    "parse_unit",
+    "convert_factor",
+    "si_label",
+    "channel_conversion",
+    "known_units",
+    "G0",
+]
 
 G0 = 9.80665  # m/s², standard gravity (ISO 80000-3)
 
@@ -50,7 +77,7 @@ _BASE: dict[str, tuple[float, tuple[int, ...]]] = {
     "slug": (14.5939029372, _M),
     "lbm": (0.45359237, _M),
     "n": (1.0, _FORCE),
-    "kn": (1000.0, _FORCE),
+    "kilonewton": (1000.0, _FORCE),
     "lbf": (4.4482216152605, _FORCE),
     "lb": (4.4482216152605, _FORCE),
     "pa": (1.0, (-1, 1, -2, 0)),
@@ -66,6 +93,8 @@ _BASE: dict[str, tuple[float, tuple[int, ...]]] = {
     "%": (0.01, _ONE),
 }
 _ALIASES = {"degree": "deg", "degrees": "deg", "radian": "rad", "radians": "rad", "meter": "m"}
+# Labels with two common meanings once case is ignored: refused, with the unambiguous names.
+_AMBIGUOUS = {"kn": "knots ('kt') or kilonewtons ('kilonewton')"}
 
 _TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z%][A-Za-z]*|1|-)(?P<power>(?:\^|\*\*)?-?\d+)?)\s*")
 
@@ -95,9 +124,11 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
             name = _ALIASES.get(match.group("name"), match.group("name"))
             power_text = match.group("power") or "1"
             power = int(power_text.lstrip("^*"))
+            if name in _AMBIGUOUS:
+                raise UnitError(f"unit {text!r}: {name!r} is ambiguous; write {_AMBIGUOUS[name]}")
             if name not in _BASE:
                 raise UnitError(
-                    f"unit {text!r}: unknown unit {name!r}; known: {sorted(_BASE)} "
+                    f"unit {text!r}: unknown unit {name!r}; known: {known_units()} "
                     "(with *, / and powers)"
                 )
             base_factor, base_dim = _BASE[name]
@@ -135,3 +166,77 @@ def convert_factor(from_unit: str, to_unit: str) -> float:
         )
     # value_to = value_from · factor_from / factor_to
     return f_from / f_to
+
+
+def known_units() -> list[str]:
+    """The unit names ``parse_unit`` accepts (combined with ``*``, ``/`` and powers)."""
+    return sorted({*_BASE, *_ALIASES})
+
+
+# Named coherent SI units of common dimensions (L, M, T, angle); others are composed.
+_SI_NAMES: dict[tuple[int, ...], str] = {
+    _ONE: "1",
+    _A: "rad",
+    (0, 0, -1, 1): "rad/s",
+    (0, 0, -2, 1): "rad/s^2",
+    _L: "m",
+    (2, 0, 0, 0): "m^2",
+    (3, 0, 0, 0): "m^3",
+    (1, 0, -1, 0): "m/s",
+    (1, 0, -2, 0): "m/s^2",
+    _T: "s",
+    _M: "kg",
+    _FORCE: "N",
+    (2, 1, -2, 0): "N*m",
+    (-1, 1, -2, 0): "Pa",
+    (2, 1, 0, 0): "kg*m^2",
+    (-3, 1, 0, 0): "kg/m^3",
+}
+_SI_BASE_NAMES = ("m", "kg", "s", "rad")
+
+
+def si_label(dimension: tuple[int, ...]) -> str:
+    """The coherent SI unit (angles in rad) of a dimension vector (L, M, T, angle).
+
+    Common dimensions have their usual name (N, Pa, m/s^2, rad/s); others are written as
+    products of m, kg, s and rad, e.g. ``"m*rad/s"``. ``parse_unit(si_label(d))`` is
+    (1.0, d).
+    """
+    if dimension in _SI_NAMES:
+        return _SI_NAMES[dimension]
+    up = [
+        name if p == 1 else f"{name}^{p}"
+        for name, p in zip(_SI_BASE_NAMES, dimension, strict=True)
+        if p > 0
+    ]
+    down = [
+        name if p == -1 else f"{name}^{-p}"
+        for name, p in zip(_SI_BASE_NAMES, dimension, strict=True)
+        if p < 0
+    ]
+    return "*".join(up or ["1"]) + "".join(f"/{part}" for part in down)
+
+
+def channel_conversion(unit: str, to: str = "") -> tuple[float, str]:
+    """The channel rule (module docstring): (factor, delivered unit) for a channel whose
+    source is in ``unit`` and that is asked for in ``to``.
+
+        value_delivered = factor · (source · scale + offset)
+
+    ``unit`` only → SI with angles in rad; ``unit`` and ``to`` → ``to``; neither →
+    (1.0, ""). Raises ``UnitError`` for an unknown unit, for ``to`` without ``unit`` and for
+    units of different dimensions.
+    """
+    for key, text in (("unit", unit), ("to", to)):
+        if not isinstance(text, str):
+            raise UnitError(f"{key}: expected a unit such as 'deg' or 'm/s', got {text!r}")
+    unit, to = unit.strip(), to.strip()
+    if not unit:
+        if to:
+            raise UnitError(f"to = {to!r}: give the source unit too ('unit')")
+        return 1.0, ""
+    if to:
+        return convert_factor(unit, to), to
+    factor, dimension = parse_unit(unit)
+    # value_SI = factor_to_SI · value
+    return factor, si_label(dimension)

@@ -7,8 +7,8 @@ A case names a data file, the signals taken from it and, per coefficient, the ca
     data_dir = "../../../shared/data"                           # relative to this case file
     format = "sidpac"                                          # fdata matrix, 1-based columns
 
-    [signals]                      # name = column, or {column = k, unit = "deg"}
-    alpha = { column = 4, unit = "deg" }                       # deg → rad
+    [signals]                      # name = column, or {column = k, unit = "deg", ...}
+    alpha = { column = 4, unit = "deg" }                       # deg → rad (the unit rule)
     Cm = 65
 
     [stepwise]                     # options of flightid.regression.stepwise (all optional)
@@ -27,6 +27,7 @@ A case names a data file, the signals taken from it and, per coefficient, the ca
     model = "alpha_q"              # flightid.regression.pipeline.alpha_q_model
     solver = "mnres"               # "mnres", "mnr", "fps"; also solver_settings, convergence
     noise = "max"                  # R policy; method = "rk4" | "euler"
+    input_interpolation = "linear" # input between samples: "linear" | "zoh" (held)
     time = "time"                  # the time column (s)
     prediction = ["sidpac_twin_otter/totter_lon_020213f1_017.mat"]   # prediction check
     [ml.inputs]                    # channels of the model, as in `flightid run` case files
@@ -37,6 +38,12 @@ A case names a data file, the signals taken from it and, per coefficient, the ca
     [ml.constants]                 # a number, or a column (name or number) whose mean is taken
     mass = "mass"
     g = 32.174
+
+Units follow the one channel rule of ``flightid.data.units.channel_conversion``, in
+``[signals]`` as in ``[ml.inputs]``/``[ml.outputs]`` and in ``flightid run`` case files: a
+signal with ``unit`` alone is delivered in SI with angles in radians (deg → rad, deg/s →
+rad/s, g → m/s²), ``to`` names another delivered unit (``to = "deg"`` keeps degrees), and an
+unknown unit is refused. A signal's value is source · scale, then converted.
 
 The data file is read with ``flightid.data.loaders`` (``format = "sidpac"``, the default, is a
 MATLAB file with SIDPAC's ``fdata``/``varlab``; "mat", "csv", "ascii" and "auto" work too), so
@@ -53,7 +60,6 @@ finally ``../../../shared/data`` relative to the case file (the repository's
 
 from __future__ import annotations
 
-import math
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -65,6 +71,7 @@ import numpy as np
 from flightid.data.flightdata import FlightData
 from flightid.data.loaders import ChannelSpec, Table, read_table, to_flight_data
 from flightid.data.location import data_directory
+from flightid.data.units import channel_conversion
 from flightid.errors import InputError
 from flightid.model.terms import TermError, parse_term
 from flightid.regression.stepwise import StepwiseResult, stepwise
@@ -81,7 +88,6 @@ __all__ = [
     "run_ml",
 ]
 
-_UNITS = {"rad": 1.0, "deg": math.pi / 180.0, "": 1.0}
 _STEPWISE_KEYS = {"f_enter", "f_remove", "sigma2_max", "select", "forced", "max_steps"}
 _FORMATS = {"sidpac": "mat", "mat": "mat", "csv": "csv", "ascii": "ascii", "auto": "auto"}
 _ML_KEYS = {
@@ -91,6 +97,7 @@ _ML_KEYS = {
     "convergence",
     "noise",
     "method",
+    "input_interpolation",
     "time",
     "prediction",
     "inputs",
@@ -137,6 +144,7 @@ class MLSpec:
     convergence: Mapping[str, Any] = field(default_factory=dict)
     noise: str = "max"
     method: str = "rk4"
+    input_interpolation: str = "linear"
 
 
 @dataclass(frozen=True)
@@ -228,21 +236,25 @@ def load_case(path: str | Path) -> StepwiseCase:
             raise CaseError(
                 f"{where}: expected a column (number or name) or {{column, unit}}, got {spec!r}"
             )
-        unknown = sorted(set(spec) - {"column", "unit", "scale"})
+        unknown = sorted(set(spec) - {"column", "unit", "to", "scale"})
         if unknown:
-            raise CaseError(f"{where}: unknown keys {unknown}; expected column, unit, scale")
+            raise CaseError(f"{where}: unknown keys {unknown}; expected column, unit, to, scale")
         col = spec.get("column")
         if not _is_column(col):
             raise CaseError(
                 f"{where}.column: expected a 1-based column number or a column name, got {col!r}"
             )
-        unit = spec.get("unit", "")
-        if unit not in _UNITS:
-            raise CaseError(f"{where}.unit: expected one of {sorted(_UNITS)}, got {unit!r}")
+        unit, to = spec.get("unit", ""), spec.get("to", "")
+        try:
+            # the one channel rule: unit alone → SI (angles in rad), unit and to → to
+            factor, _ = channel_conversion(unit, to)
+        except InputError as exc:
+            raise CaseError(f"{where}.{'unit' if unit else 'to'}: {exc}") from None
         scale = spec.get("scale", 1.0)
         if not isinstance(scale, (int, float)) or isinstance(scale, bool):
             raise CaseError(f"{where}.scale: expected a number, got {scale!r}")
-        signals.append(SignalSpec(name, col, float(scale) * _UNITS[unit]))
+        # value = (source · scale) · factor
+        signals.append(SignalSpec(name, col, float(scale) * factor))
 
     options = _options(_table(raw, "stepwise", required=False), "stepwise")
     coefficients = []
@@ -338,6 +350,7 @@ def _ml_spec(table: Mapping) -> MLSpec:
     if missing:
         raise CaseError(f"ml.outputs: missing {missing} (the alpha_q model's outputs)")
     from flightid.regression.pipeline import ALPHA_Q_INPUTS
+    from flightid.simulate.simulator import INPUT_INTERPOLATIONS
 
     missing = [n for n in ALPHA_Q_INPUTS if n not in inputs]
     if missing:
@@ -384,6 +397,7 @@ def _ml_spec(table: Mapping) -> MLSpec:
         convergence=dict(table.get("convergence", {})),
         noise=_choice(table, "noise", "max", ("max", "maxlik")),
         method=_choice(table, "method", "rk4", ("rk4", "euler")),
+        input_interpolation=_choice(table, "input_interpolation", "linear", INPUT_INTERPOLATIONS),
     )
 
 
@@ -587,6 +601,8 @@ def run_ml(
         return alpha_q_model(structure, parameters, x0=x0_of(data), **constants)
 
     solver, convergence = _solver(spec)
+    # the input between samples ("linear" or "zoh"); passed on only when not the default
+    interpolation = {} if spec.input_interpolation == "linear" else {"input_interpolation": "zoh"}
     say(
         f"regression → ML: {len(extras) + 2} signals, {data.n_samples} samples of "
         f"{data.name}; solver {spec.solver}, noise {spec.noise}"
@@ -599,6 +615,7 @@ def run_ml(
         method=spec.method,
         noise=spec.noise,
         convergence=convergence,
+        **interpolation,
     )
     est = pipeline.estimate
     say(
@@ -609,7 +626,12 @@ def run_ml(
     for k, file in enumerate(spec.prediction):
         other = _read(case, data_dir, file, f"ml.prediction[{k}]")
         maneuver = _ml_data(case, other, Path(file).stem, extras)
-        predicted = simulate(est.model.with_x0(x0_of(maneuver)), maneuver, method=spec.method)
+        predicted = simulate(
+            est.model.with_x0(x0_of(maneuver)),
+            maneuver,
+            method=spec.method,
+            input_interpolation=spec.input_interpolation,
+        )
         measured = np.column_stack([maneuver.output(n) for n in est.output_names])
         prediction = Prediction.from_outputs(
             maneuver.name, maneuver.time, measured, predicted, est.output_names
