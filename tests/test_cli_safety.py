@@ -55,11 +55,8 @@ def _small_case(directory: Path) -> Path:
     case = target / "my_case.toml"
     text = case.read_text()
     text = text.replace('time = "time"', 'time = "time"\nstop = 3.0')
-    text = text.replace(
-        'noise = "max"',
-        'noise = "max"\ncompiled = false\n[estimation.convergence]\nmax_iterations = 3\n'
-        "[output]\nfigures = false",
-    )
+    text = text.replace("[estimation]\n", "[estimation]\ncompiled = false\n")
+    text += "\n[estimation.convergence]\nmax_iterations = 3\n[output]\nfigures = false\n"
     case.write_text(text)
     return case
 
@@ -364,16 +361,21 @@ def test_sigint_during_the_final_rename_is_held_until_the_run_is_in_place(
 
 
 def test_real_sigint_in_a_subprocess(small, tmp_path):
-    """``python -m``-style run in a child process that receives SIGINT while writing."""
+    """A child process receives SIGINT while writing: one line, exit 130, the old run kept.
+
+    Its stdout is a file, so the child can record how much of the summary had reached it
+    (flushed, not just buffered) when writing began."""
     case, _ = small
     target = tmp_path / "run"
     _old_run(target)
     before = {p: p.read_bytes() for p in target.rglob("*") if p.is_file()}
+    seen = tmp_path / "stdout_bytes_when_writing"
     script = (
         "import os, signal, sys, time\n"
         "import flightid.report.html as h\n"
         "real = h.write_csv\n"
         "def write_csv(run, path):\n"
+        f"    open({str(seen)!r}, 'w').write(str(os.fstat(1).st_size))\n"
         "    real(run, path)\n"
         "    os.kill(os.getpid(), signal.SIGINT)\n"
         "    time.sleep(30)\n"
@@ -382,12 +384,22 @@ def test_real_sigint_in_a_subprocess(small, tmp_path):
         f"sys.exit(main(['run', {str(case)!r}, '--out', {str(target)!r}, '--overwrite', "
         "'--quiet']))\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, cwd=tmp_path
-    )
+    stdout = tmp_path / "stdout.txt"
+    with stdout.open("w") as stream:
+        done = subprocess.run(
+            [sys.executable, "-c", script],
+            stdout=stream,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=60,
+            cwd=tmp_path,
+        )
     assert done.returncode == 130, done.stderr
     assert done.stderr == "flightid: interrupted\n"
-    assert "Mde" in done.stdout  # the summary came before the files
+    summary = stdout.read_text()
+    assert "Mde" in summary
+    # the whole summary was on its way out before the first file was written
+    assert int(seen.read_text()) == len(summary.encode())
     assert {p: p.read_bytes() for p in target.rglob("*") if p.is_file()} == before
     assert _leftovers(tmp_path) == []
 
