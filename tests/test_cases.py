@@ -138,8 +138,8 @@ def test_csv_walkthrough_end_to_end(tmp_path, capsys):
     (entry,) = payload["results"]
     assert entry["converged"] is True
     values = {p["name"]: p["value"] for p in entry["parameters"]}
-    # true values of make_flight.py: Ma = -4.5, Mq = -1.6, Mde = -7.0 (simulated with a finer
-    # Euler step, so a few per cent apart from the RK4 model at the data step)
+    # true values of make_flight.py: Ma = -4.5, Mq = -1.6, Mde = -7.0 (the 3 σ check of all six
+    # is tests/test_input_interpolation.py::test_walkthrough_case_recovers_its_truth_within_3_sigma)
     assert values["Ma"] == pytest.approx(-4.5, rel=0.05)
     assert values["Mq"] == pytest.approx(-1.6, rel=0.05)
     assert values["Mde"] == pytest.approx(-7.0, rel=0.05)

@@ -8,6 +8,8 @@ of the interpolated input), not an earlier output of flightid.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -217,3 +219,56 @@ def test_regress_ml_section_declares_the_setting(tmp_path, value, ok):
             CaseError, match=r"ml\.input_interpolation: expected one of \['linear', 'zoh'\]"
         ):
             load_case(case)
+
+
+# ------------------------------------------------------------------ the CSV walk-through
+
+WALK = Path(__file__).resolve().parents[1] / "examples/csv_walkthrough"
+
+
+def _make_flight_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_flight", WALK / "make_flight.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_walkthrough_data_is_what_its_seeded_generator_writes(tmp_path):
+    make_flight = _make_flight_module()
+    make_flight.write(tmp_path / "my_flight.csv")
+    assert (tmp_path / "my_flight.csv").read_bytes() == (WALK / "my_flight.csv").read_bytes()
+
+
+def test_walkthrough_case_recovers_its_truth_within_3_sigma():
+    """The generator holds δe over each sample (zoh); the case says so and the estimates
+    lie within 3 Cramér–Rao bounds of the generator's true values (measured: at most
+    1.6 σ; a 20-seed Monte Carlo of the generator gives mean deviations ≤ 0.3 σ)."""
+    from flightid.cases import load_case, run_case
+
+    truth = _make_flight_module().TRUE  # the values make_flight.py simulates with
+    case = load_case(WALK / "my_case.toml")
+    assert case.estimation["input_interpolation"] == "zoh"
+    est = run_case(case).estimate
+    assert est.converged, est.message
+    assert set(est.names) == set(truth)
+    for name, value, std in zip(est.names, est.values, est.std, strict=True):
+        assert abs(value - truth[name]) < 3.0 * std, (name, value, truth[name], std)
+
+
+def test_walkthrough_with_linear_interpolation_misses_its_truth():
+    """The mismatch the zoh setting removes: the same data read with the linear rule put
+    five of six parameters 7–17 σ from the truth (measured on main before this setting)."""
+    from flightid.cases import load_case
+    from flightid.cases.run import prepare_case
+    from flightid.estimation import MNR, estimate
+
+    truth = _make_flight_module().TRUE
+    prepared = prepare_case(load_case(WALK / "my_case.toml"))
+    (data,) = prepared.maneuvers
+    est = estimate(prepared.model, data, solver=MNR(), input_interpolation="linear")
+    deviation = [
+        abs(v - truth[n]) / s for n, v, s in zip(est.names, est.values, est.std, strict=True)
+    ]
+    assert sum(d > 3.0 for d in deviation) >= 4, deviation
