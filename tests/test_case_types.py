@@ -248,3 +248,14 @@ def test_zoh_case_reaches_the_estimate(walk):
     _edit(walk, SOLVER, SOLVER + '\ncompiled = false\ninput_interpolation = "zoh"')
     _edit(walk, END, "[estimation.convergence]\nmax_iterations = 2")
     assert run_case(load_case(walk)).estimate.input_interpolation == "zoh"
+
+
+def test_unit_powers_are_limited(walk):
+    from flightid.data.units import MAX_UNIT_POWER, UnitError, parse_unit
+
+    assert parse_unit(f"s^{MAX_UNIT_POWER}")[1] == (0, 0, MAX_UNIT_POWER, 0)
+    with pytest.raises(UnitError, match=r"the power -9999 is out of range"):
+        parse_unit("kt^-9999")  # 0.514^-9999 overflowed: OverflowError on main
+    _edit(walk, 'unit = "deg", to = "rad"', 'unit = "deg^99999", to = "rad^99999"')
+    with pytest.raises(CaseError, match=r"^data\.inputs\.de: .*the power 99999 is out of range"):
+        load_case(walk)

@@ -99,6 +99,10 @@ _AMBIGUOUS = {"kn": "knots ('kt') or kilonewtons ('kilonewton')"}
 _TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z%][A-Za-z]*|1|-)(?P<power>(?:\^|\*\*)?-?\d+)?)\s*")
 
 
+# the largest power of one unit name (m^3, s^-2 are typical; huge ones only overflow)
+MAX_UNIT_POWER = 12
+
+
 class UnitError(InputError):
     """A unit that cannot be parsed, or a conversion between different dimensions."""
 
@@ -122,8 +126,14 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
             if not match or not match.group("name"):
                 raise UnitError(f"unit {text!r}: cannot read a unit name at position {position}")
             name = _ALIASES.get(match.group("name"), match.group("name"))
-            power_text = match.group("power") or "1"
-            power = int(power_text.lstrip("^*"))
+            power_text = (match.group("power") or "1").lstrip("^*")
+            digits = power_text.lstrip("-").lstrip("0") or "0"
+            if len(digits) > 2 or int(digits) > MAX_UNIT_POWER:
+                raise UnitError(
+                    f"unit {text[:40]!r}: the power {power_text[:20]} is out of range; at most "
+                    f"{MAX_UNIT_POWER} either way"
+                )
+            power = int(power_text)
             if name in _AMBIGUOUS:
                 raise UnitError(f"unit {text!r}: {name!r} is ambiguous; write {_AMBIGUOUS[name]}")
             if name not in _BASE:
