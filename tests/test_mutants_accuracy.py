@@ -14,12 +14,22 @@ the code under test for anything but the simulated outputs of the model.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from scipy import stats
 
 from conftest import PENDULUM_TRUE, pendulum_data, pendulum_model
 from flightid.accuracy import assess
+from flightid.accuracy.levels import (
+    beale_factor,
+    check_level,
+    contour_level,
+    residual_variance_factor,
+)
 from flightid.accuracy.nonlinearity import beale_nonlinearity
+from flightid.errors import InputError
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.simulate import simulate
 from test_accuracy_models import exp_estimate, exp_model, linear_estimate
@@ -166,3 +176,42 @@ def test_coloured_sigma_equals_scaled_cr_sigma_for_white_single_output_residuals
     # and the scaled bound itself is s·σ_CR with s² = J/(N − n_p)
     s = np.sqrt(accuracy.cost_min / (n - n_p))
     np.testing.assert_allclose(accuracy.std_scaled, s * np.sqrt(np.diag(est.covariance)))
+
+
+# ---------------------------------------------------------------- levels: boundaries, defaults
+def test_contour_level_defaults_are_individual_t_intervals():
+    # t_{0.975}(10)² = F_{0.95}(1, 10): the individual-interval level with the paper's F
+    expected = stats.t.ppf(0.975, 10) ** 2
+    assert contour_level(0.95, 12, 2, 1.0) == pytest.approx(expected, rel=1e-12)
+    assert contour_level(0.95, 12, 2, 2.0) == pytest.approx(2.0 * expected, rel=1e-12)
+
+
+def test_levels_at_the_smallest_degrees_of_freedom():
+    # N·n_o − n_p = 1 is the smallest usable case: s² = J/1, Δ = s² t²_{0.975}(1)
+    assert residual_variance_factor(5.0, 3, 2) == 5.0
+    assert contour_level(0.95, 3, 2, 1.0) == pytest.approx(stats.t.ppf(0.975, 1) ** 2)
+    # and N·n_o − n_p = 0 is refused with a message naming the counts
+    with pytest.raises(InputError, match=r"need more scalar measurements \(N·n_o = 2\)"):
+        residual_variance_factor(5.0, 2, 2)
+    with pytest.raises(InputError, match=r"N·n_o = 2 must exceed the 2 free parameters"):
+        contour_level(0.95, 2, 2, 1.0)
+    # the χ² level needs no degrees of freedom
+    assert contour_level(0.95, 2, 2, 1.0, distribution="normal") == pytest.approx(
+        stats.chi2.ppf(0.95, 1)
+    )
+
+
+def test_level_arguments_are_checked_by_name():
+    with pytest.raises(InputError, match=r"level: expected a probability such as 0\.95, got 'x'"):
+        check_level("x")
+    with pytest.raises(InputError, match="level: expected a probability strictly between 0 and 1"):
+        check_level(1.0)
+    with pytest.raises(InputError, match=r"kind: expected one of \('individual', 'simultaneous'\)"):
+        contour_level(0.95, 12, 2, 1.0, kind="joint")
+    with pytest.raises(InputError, match=r"distribution: expected one of \('t', 'normal'\)"):
+        contour_level(0.95, 12, 2, 1.0, distribution="F")
+
+
+def test_beale_factor_of_an_undefined_n_phi_is_nan():
+    assert math.isnan(beale_factor(float("nan"), 100, 4))
+    assert beale_factor(0.0, 100, 4) == 1.0
