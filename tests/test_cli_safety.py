@@ -528,3 +528,29 @@ def test_run_help_says_model_module_executes_python(capsys):
         main(["run", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "model.module" in text and "executed as Python code" in text
+
+
+def test_output_dir_of_the_case_is_the_default_result_folder(small, tmp_path, monkeypatch):
+    case, run = small
+    copy = tmp_path / "case" / case.name
+    shutil.copytree(case.parent, copy.parent)
+    copy.write_text(copy.read_text().replace("[output]\n", '[output]\ndir = "results"\n'))
+    monkeypatch.setattr(cli_run, "run_case", lambda *args, **kwargs: run)
+    assert main(["run", str(copy), "--quiet"]) == 0
+    assert (copy.parent / "results" / RUN_MARKER).is_file()
+    assert main(["run", str(copy), "--quiet"]) == 1  # the second run asks for --overwrite
+
+
+def test_regress_json_is_strict(tmp_path, capsys, monkeypatch):
+    import flightid.cli.regress as cli_regress
+
+    class Fit:
+        def to_dict(self):
+            return {"r2": float("nan"), "pse": 1.0}
+
+    monkeypatch.setattr(cli_regress, "load_case", lambda path: object())
+    monkeypatch.setattr(cli_regress, "run_case", lambda case, data_dir: {"Cm": Fit()})
+    assert main(["regress", "any.toml", "--json"]) == 0
+    document = _strict_loads(capsys.readouterr().out)
+    assert document["coefficients"]["Cm"]["r2"] is None
+    assert document["nonfinite"] == {"/coefficients/Cm/r2": "NaN"}
