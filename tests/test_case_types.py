@@ -7,7 +7,6 @@ files, deep expressions and huge powers ended in tracebacks.
 
 from __future__ import annotations
 
-import inspect
 import re
 import shutil
 from pathlib import Path
@@ -15,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import flightid.cases.run as case_run
-from flightid.cases import CaseError, load_case, prepare_case, run_case
+from flightid.cases import CaseError, load_case, run_case
 from flightid.cases.build import build_convergence, build_solver
 from flightid.cli.main import main
 from flightid.data.loaders import ChannelError, parse_expression
@@ -216,33 +215,13 @@ def test_input_interpolation_is_parsed_and_passed_to_estimate(walk, monkeypatch)
     assert seen == {"input_interpolation": "zoh"}
 
 
-def test_zoh_with_an_estimate_that_cannot_take_it_is_an_error(walk, monkeypatch):
-    """Never silently linear when the case asks for a zero-order hold."""
-    _edit(walk, SOLVER, SOLVER + '\ninput_interpolation = "zoh"')
-
-    def old_estimate(model, data, solver=None, *, method="rk4", **kwargs):
-        raise AssertionError("estimate was called")
-
-    monkeypatch.setattr(case_run, "estimate", old_estimate)
-    with pytest.raises(
-        CaseError, match=r"^estimation\.input_interpolation: 'zoh' is not supported"
-    ):
-        prepare_case(load_case(walk))
-
-
 def test_default_interpolation_is_linear(walk):
     case = load_case(walk)
     assert case_run.input_interpolation(case) == "linear"
-    if "input_interpolation" in inspect.signature(case_run.estimate).parameters:
-        assert case_run._interpolation_keyword(case_run.estimate, case) == {
-            "input_interpolation": "linear"
-        }
 
 
 def test_zoh_case_reaches_the_estimate(walk):
     """End to end (3 s of data, pure Python, 2 passes): the Estimate carries the setting."""
-    if "input_interpolation" not in inspect.signature(case_run.estimate).parameters:
-        pytest.skip("estimate() has no input_interpolation keyword in this version")
     text = walk.read_text().replace('time = "time"', 'time = "time"\nstop = 3.0')
     walk.write_text(text)
     _edit(walk, SOLVER, SOLVER + '\ncompiled = false\ninput_interpolation = "zoh"')

@@ -473,3 +473,29 @@ def build_convergence(case: Case) -> Convergence:
         raise CaseError(f"estimation.convergence: {exc}") from None
     except InputError as exc:
         raise CaseError(f"estimation.convergence: {exc}") from None
+
+
+def unbiased_model(
+    model: StateSpaceModel, base: StateSpaceModel, n_maneuvers: int
+) -> StateSpaceModel | None:
+    """The case's model *before* biases were wrapped around f and h, at the case's start
+    values and initial states — or None when f and h are not wrapped.
+
+    The bias wrappers call the user's f and h compiled (where numba can), and compiled code
+    does not check indices, so the user's own functions are checked on their own as well.
+    """
+    if model.f is base.f and model.h is base.h:
+        return None
+    theta = model.parameters.values
+    parameters = Parameters(list(model.parameters)[: len(base.parameters)])
+    x0 = [model.initial_state(theta, i).tolist() for i in range(n_maneuvers)]
+    return StateSpaceModel(
+        base.states,
+        base.inputs,
+        base.outputs,
+        base.f,
+        base.h,
+        parameters,
+        x0=x0 if model.per_maneuver_x0 else x0[0],
+        name=base.name,
+    )

@@ -23,7 +23,6 @@ simulated on each prediction maneuver (initial states at the first measured valu
 from __future__ import annotations
 
 import contextlib
-import inspect
 import sys
 import threading
 import time as _time
@@ -41,12 +40,14 @@ from flightid.cases.build import (
     build_solver,
     load_maneuvers,
     resolve_data_dir,
+    unbiased_model,
 )
 from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.data.flightdata import FlightData
 from flightid.errors import SimulationError
 from flightid.estimation import Estimate, estimate
 from flightid.estimation.problem import OutputErrorProblem
+from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate import simulate
 
@@ -178,7 +179,12 @@ def prepare_case(case: Case, data_dir: str | Path | None = None) -> Prepared:
     model, maneuvers = build_model(case, maneuvers, base=base)
     build_solver(case)
     build_convergence(case)
-    _interpolation_keyword(estimate, case)  # a setting this version cannot honour is an error
+    input_interpolation(case)
+    # the model contract, also for the user's own f and h inside the bias wrappers (compiled
+    # code does not check indices): named ModelError before any estimation
+    unbiased = unbiased_model(model, base, len(maneuvers))
+    if unbiased is not None:
+        check_model(unbiased, list(maneuvers), method=case.estimation.get("method", "rk4"))
     r = case.estimation.get("R")
     if r is not None and len(r) != len(model.outputs):
         raise CaseError(
@@ -206,20 +212,6 @@ def input_interpolation(case: Case) -> str:
     return case.estimation.get("input_interpolation", "linear")
 
 
-def _interpolation_keyword(function, case: Case) -> dict:
-    """``{"input_interpolation": ...}`` for ``function`` if it takes the keyword; a case
-    asking for anything but the default from a function without it is an error."""
-    value = input_interpolation(case)
-    if "input_interpolation" in inspect.signature(function).parameters:
-        return {"input_interpolation": value}
-    if value != "linear":
-        raise CaseError(
-            f"estimation.input_interpolation: {value!r} is not supported by "
-            f"{function.__module__}.{function.__name__} in this version"
-        )
-    return {}
-
-
 def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
     case = prepared.case
     values = dict(zip(result.names, result.values, strict=True))
@@ -238,7 +230,7 @@ def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
                 model,
                 data,
                 method=case.estimation.get("method", "rk4"),
-                **_interpolation_keyword(simulate, case),
+                input_interpolation=input_interpolation(case),
             )
         except SimulationError as exc:
             raise CaseError(f"prediction ({maneuver.name}): {exc}") from None
@@ -317,7 +309,7 @@ def _assess(
             data,
             method=result.method,
             compiled=compiled,
-            **_interpolation_keyword(OutputErrorProblem, case),
+            input_interpolation=input_interpolation(case),
         )
     with _heartbeat(None if bar else progress, "assessing accuracy", heartbeat_s):
         accuracy = assess(
@@ -388,7 +380,7 @@ def run_case(
             convergence=build_convergence(case),
             compiled=bool(case.estimation.get("compiled", True)),
             progress=report_pass,
-            **_interpolation_keyword(estimate, case),
+            input_interpolation=input_interpolation(case),
         )
     say(
         f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "

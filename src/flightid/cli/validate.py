@@ -16,10 +16,10 @@ import argparse
 from collections.abc import Sequence
 
 from flightid.cases import load_case, prepare_case
-from flightid.cases.build import build_model
+from flightid.cases.build import build_model, unbiased_model
 from flightid.cli.run import add_data_dir_argument
 from flightid.data.flightdata import FlightData
-from flightid.model import Parameters, StateSpaceModel, check_model
+from flightid.model import StateSpaceModel, check_model
 
 _MODULE_WARNING = (
     "A case whose model.module names a Python file EXECUTES that file (it is imported as "
@@ -44,30 +44,6 @@ def register(subparsers) -> None:
     parser.add_argument("case", help="case file (TOML)")
     add_data_dir_argument(parser)
     parser.set_defaults(func=run)
-
-
-def _base_for_check(model: StateSpaceModel, base: StateSpaceModel, n_maneuvers: int):
-    """The case's model *before* biases were wrapped around f and h, at the case's start
-    values and initial states — or None when f and h are not wrapped.
-
-    The bias wrappers call the user's f and h compiled (where numba can), and compiled code
-    does not check indices, so the user's own functions are checked on their own as well.
-    """
-    if model.f is base.f and model.h is base.h:
-        return None
-    theta = model.parameters.values
-    parameters = Parameters(list(model.parameters)[: len(base.parameters)])
-    x0 = [model.initial_state(theta, i).tolist() for i in range(n_maneuvers)]
-    return StateSpaceModel(
-        base.states,
-        base.inputs,
-        base.outputs,
-        base.f,
-        base.h,
-        parameters,
-        x0=x0 if model.per_maneuver_x0 else x0[0],
-        name=base.name,
-    )
 
 
 def _check(model: StateSpaceModel, maneuvers: Sequence[FlightData], method: str, label: str):
@@ -97,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if fixed:
         print(f"  {len(fixed)} fixed: {fixed}")
     _check(model, prepared.maneuvers, method, "")
-    base = _base_for_check(model, prepared.base, len(prepared.maneuvers))
+    base = unbiased_model(model, prepared.base, len(prepared.maneuvers))
     if base is not None:
         _check(base, prepared.maneuvers, method, "without biases: ")
     for maneuver in prepared.prediction_maneuvers:
