@@ -272,3 +272,18 @@ def test_walkthrough_with_linear_interpolation_misses_its_truth():
         abs(v - truth[n]) / s for n, v, s in zip(est.names, est.values, est.std, strict=True)
     ]
     assert sum(d > 3.0 for d in deviation) >= 4, deviation
+
+
+def test_accuracy_assessment_rebuilds_the_problem_with_the_estimate_setting():
+    """assess(estimate, data) must integrate as the estimate did (else the profile and search
+    limits would belong to another model)."""
+    from flightid.accuracy.assess import problem_for
+    from flightid.estimation import MNR, estimate
+
+    t, data = _step_data()
+    truth = _step_response(t)
+    measured = FlightData(t, {"u": data.channel("u")}, {"y": truth})
+    for setting in ("zoh", "linear"):
+        est = estimate(_lag(), measured, solver=MNR(), input_interpolation=setting)
+        assert est.input_interpolation == setting
+        assert problem_for(est, measured).input_interpolation == setting

@@ -77,12 +77,17 @@ def problem_for(
     data: FlightData | Sequence[FlightData] | OutputErrorProblem,
     compiled: bool = True,
 ) -> OutputErrorProblem:
-    """The output-error problem of ``estimate`` on ``data`` (same model, integration method)."""
+    """The output-error problem of ``estimate`` on ``data`` (same model, integration method,
+    input interpolation)."""
     if isinstance(data, OutputErrorProblem):
         problem = data
     else:
         problem = OutputErrorProblem(
-            estimate.model, data, method=estimate.method, compiled=compiled
+            estimate.model,
+            data,
+            method=estimate.method,
+            compiled=compiled,
+            input_interpolation=estimate.input_interpolation,
         )
     expected = list(estimate.free_names)
     if list(problem.free_names) != expected:
