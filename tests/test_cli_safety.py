@@ -131,12 +131,22 @@ def test_out_that_is_a_file_is_refused_before_estimating(no_estimation, tmp_path
     assert target.read_text() == "not a folder"
 
 
-def test_out_with_missing_parent_is_refused_before_estimating(no_estimation, tmp_path, capsys):
+def test_out_with_missing_parents_makes_them(no_estimation, tmp_path, capsys):
+    # `--out out/my_flight` on a fresh checkout: the parents are made (as mkdir -p) before
+    # the estimation starts (which this fixture stops with an error)
     target = tmp_path / "no" / "such" / "run"
+    main(["run", str(no_estimation), "--out", str(target), "--quiet"])
+    assert (tmp_path / "no" / "such").is_dir()
+    assert "parent folder" not in capsys.readouterr().err
+
+
+def test_out_under_a_file_is_refused_before_estimating(no_estimation, tmp_path, capsys):
+    (tmp_path / "plain").write_text("a file")
+    target = tmp_path / "plain" / "sub" / "run"
     assert main(["run", str(no_estimation), "--out", str(target), "--quiet"]) == 1
     line = _one_error_line(capsys.readouterr().err)
-    assert f"the parent folder {tmp_path / 'no' / 'such'} does not exist" in line
-    assert not (tmp_path / "no").exists()
+    assert "cannot be made: part of its path is a file" in line
+    assert (tmp_path / "plain").read_text() == "a file"
 
 
 def test_unwritable_out_is_refused_before_estimating(no_estimation, tmp_path, capsys, monkeypatch):

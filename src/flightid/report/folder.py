@@ -142,7 +142,7 @@ class ResultFolder:
         """Check ``path`` as a result folder and lock it (raises ``OutputError``).
 
         Args:
-            path: the result folder (need not exist; its parent must).
+            path: the result folder (need not exist; missing parent folders are made).
             overwrite: replace a folder that already holds a run.
             label: how the path is named in messages (the CLI option).
         """
@@ -168,9 +168,20 @@ class ResultFolder:
 
     def _check(self) -> None:
         target, parent = self.target, self.target.parent
+        if not parent.exists() and not parent.is_symlink():
+            # missing parent folders are made (as `mkdir -p`), unless one of them is a file
+            try:
+                parent.mkdir(parents=True, exist_ok=True)
+            except (FileExistsError, NotADirectoryError):
+                raise self._fail(
+                    f"the parent folder {parent} cannot be made: part of its path is a file"
+                ) from None
+            except OSError as exc:
+                raise self._fail(
+                    f"the parent folder {parent} cannot be made ({exc.strerror or exc})"
+                ) from None
         if not parent.is_dir():
-            what = "is not a folder" if parent.exists() else "does not exist"
-            raise self._fail(f"the parent folder {parent} {what}; create it first")
+            raise self._fail(f"the parent folder {parent} is not a folder")
         if not os.access(parent, os.W_OK | os.X_OK):
             raise self._fail(
                 f"cannot write in {parent} (permission denied); the results are written to a "
