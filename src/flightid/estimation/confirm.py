@@ -33,7 +33,7 @@ from flightid.estimation.solvers.common import bounded_gauss_newton_step, halvin
 
 __all__ = ["Confirmation", "confirm_convergence"]
 
-_CENTRAL_STEP = 1e-5  # relative step of the central differences (as for the CR bounds)
+_CENTRAL_STEP = 1e-7  # relative step of the central differences (also those of the CR bounds)
 
 
 @dataclass(frozen=True)

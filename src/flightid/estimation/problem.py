@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import InputError
+from flightid.errors import FlightIdError, InputError, ModelError
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate.simulator import SimulationBatch, Simulator, _as_data_list
 
@@ -165,8 +165,26 @@ class OutputErrorProblem:
 
     # ------------------------------------------------------------------ evaluations
     def run(self, theta_free_batch: np.ndarray) -> SimulationBatch:
-        """Simulate a batch (B, n_f) of free-parameter vectors: B equivalent evaluations."""
-        return self.simulator.run(self.full_theta(np.atleast_2d(theta_free_batch)))
+        """Simulate a batch (B, n_f) of free-parameter vectors: B equivalent evaluations.
+
+        An exception raised inside the user's f or h (after the start-value check passed,
+        e.g. a domain error at parameter values the search reached) becomes a ``ModelError``
+        naming the exception and the parameter values, never a bare traceback.
+        """
+        full = self.full_theta(np.atleast_2d(theta_free_batch))
+        try:
+            return self.simulator.run(full)
+        except FlightIdError:
+            raise
+        except Exception as exc:
+            values = ", ".join(
+                f"{name} = {value:.6g}"
+                for name, value in zip(self.model.parameters.names, full[0], strict=True)
+            )
+            raise ModelError(
+                f"the model functions f/h raised {type(exc).__name__}: {exc} while simulating "
+                f"at parameter values ({values}){' (first of the batch)' if len(full) > 1 else ''}"
+            ) from exc
 
     def outputs(self, theta_free_batch: np.ndarray) -> np.ndarray:
         """Model outputs (B, N, n_o); NaN rows where a trajectory diverged."""

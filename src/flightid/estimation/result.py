@@ -8,7 +8,6 @@ get σ = inf and the status message says which; they are never reported as NaN e
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -193,7 +192,11 @@ class Estimate:
         }
 
     def to_json(self, indent: int | None = 2) -> str:
-        return json.dumps(self.to_dict(), indent=indent)
+        """Strict JSON of ``to_dict()``: a non-finite number becomes null, listed under
+        ``"nonfinite"`` (``flightid.report.jsonout``)."""
+        from flightid.report.jsonout import dumps
+
+        return dumps(self.to_dict(), indent=indent)
 
     def __repr__(self) -> str:
         return (

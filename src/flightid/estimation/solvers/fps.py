@@ -1,6 +1,6 @@
 """FPS — flexible polyhedron search (Nelder–Mead simplex), the derivative-free benchmark.
 
-n_f + 1 vertices in scaled parameter space ϑ = θ / typical (RP-1153 §8). Each pass replaces
+n_f + 1 vertices in scaled parameter space ϑ (RP-1153 §8). Each pass replaces
 the worst vertex x_h, using the centroid x̄ of the others:
 
     reflection   x_r = x̄ + α (x̄ − x_h)           α = 1
@@ -13,6 +13,14 @@ costs and of every parameter across the vertices meet the ``Convergence`` tolera
 a Nelder–Mead simplex can collapse away from the minimum, the search then restarts from the
 best vertex with a fresh simplex (``initial_size``) and stops only when a restart converges
 without lowering the cost beyond the tolerance (or after ``max_restarts``).
+
+Coordinates and bounds. An unbounded parameter enters as ϑ_j = θ_j / m_j with m_j =
+max(|θ_j|, floor_j) at the start of each search. A bounded one enters through the transforms
+MINUIT and lmfit use, so every vertex maps inside the box whatever the simplex does:
+
+    two bounds:   θ = l + (u − l)(sin ϑ + 1)/2
+    lower only:   θ = l − 1 + √(ϑ² + 1)
+    upper only:   θ = u + 1 − √(ϑ² + 1)
 """
 
 from __future__ import annotations
@@ -26,6 +34,44 @@ from flightid.estimation.objective import Objective, SolverOutcome
 from flightid.estimation.solvers.common import budget_status
 
 __all__ = ["FPS"]
+
+
+class _Coordinates:
+    """θ ↔ ϑ: scaled for unbounded parameters, transformed into the box for bounded ones."""
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, magnitude: np.ndarray) -> None:
+        self.lower, self.upper, self.magnitude = lower, upper, magnitude
+        has_lower, has_upper = np.isfinite(lower), np.isfinite(upper)
+        self.both = has_lower & has_upper
+        self.only_lower = has_lower & ~has_upper
+        self.only_upper = has_upper & ~has_lower
+        self.free = ~(has_lower | has_upper)
+
+    def internal(self, theta: np.ndarray) -> np.ndarray:
+        theta = np.clip(theta, self.lower, self.upper)
+        z = np.where(self.free, theta / self.magnitude, 0.0)
+        lo, up = self.lower, self.upper
+        with np.errstate(invalid="ignore", divide="ignore"):
+            # ϑ = arcsin(2(θ − l)/(u − l) − 1)
+            both = np.arcsin(np.clip(2.0 * (theta - lo) / (up - lo) - 1.0, -1.0, 1.0))
+            # ϑ = √((θ − l + 1)² − 1),  ϑ = √((u − θ + 1)² − 1)
+            lower = np.sqrt(np.maximum((theta - lo + 1.0) ** 2 - 1.0, 0.0))
+            upper = np.sqrt(np.maximum((up - theta + 1.0) ** 2 - 1.0, 0.0))
+        z = np.where(self.both, both, z)
+        z = np.where(self.only_lower, lower, z)
+        return np.where(self.only_upper, upper, z)
+
+    def external(self, z: np.ndarray) -> np.ndarray:
+        lo, up = self.lower, self.upper
+        with np.errstate(invalid="ignore"):
+            both = lo + (up - lo) * (np.sin(z) + 1.0) / 2.0
+            lower = lo - 1.0 + np.sqrt(z**2 + 1.0)
+            upper = up + 1.0 - np.sqrt(z**2 + 1.0)
+        theta = np.where(self.free, z * self.magnitude, 0.0)
+        theta = np.where(self.both, both, theta)
+        theta = np.where(self.only_lower, lower, theta)
+        theta = np.where(self.only_upper, upper, theta)
+        return np.clip(theta, lo, up)
 
 
 @dataclass(frozen=True)
@@ -85,9 +131,10 @@ class FPS:
         start: SolverOutcome | None = None,
     ) -> SolverOutcome:
         conv = objective.convergence
+        problem = objective.problem
         typical = objective.typical
         if state is not None:
-            vertices, outputs = state
+            vertices, outputs, coordinates = state
             costs = objective.costs_of(outputs)
         else:
             theta = np.array(theta0, dtype=float)
@@ -96,15 +143,20 @@ class FPS:
                 objective.record(theta, cost)
             else:
                 cost, start_outputs = start.cost, start.outputs
-            magnitude = np.maximum(np.abs(theta), typical)
-            others = theta[None, :] + np.diag(self.initial_size * magnitude)
+            magnitude = problem.magnitude(theta)
+            coordinates = _Coordinates(problem.lower, problem.upper, magnitude)
+            deltas = self.initial_size * magnitude
+            # a vertex that would cross a bound goes the other way (and stays inside the box)
+            deltas = np.where(theta + deltas > problem.upper, -deltas, deltas)
+            others = problem.project(theta[None, :] + np.diag(deltas))
             other_costs, other_outputs = objective.evaluate(others)
-            vertices = np.vstack([theta[None, :], others]) / typical
+            vertices = coordinates.internal(np.vstack([theta[None, :], others]))
             outputs = np.concatenate([start_outputs[None], other_outputs])
             costs = np.concatenate([[cost], other_costs])
+        to_theta = coordinates.external
 
         def trial(point: np.ndarray) -> tuple[float, np.ndarray]:
-            c, y = objective.evaluate((point * typical)[None, :])
+            c, y = objective.evaluate(to_theta(point)[None, :])
             return float(c[0]), y[0]
 
         for iteration in range(1, conv.max_iterations + 1):
@@ -116,7 +168,7 @@ class FPS:
                     vertices,
                     outputs,
                     costs,
-                    typical,
+                    coordinates,
                     iteration - 1,
                     False,
                     *budget_status(objective),
@@ -144,20 +196,21 @@ class FPS:
                     vertices[-1], outputs[-1], costs[-1] = contracted, y_c, c_c
                 else:
                     vertices[1:] = vertices[0] + self.shrink * (vertices[1:] - vertices[0])
-                    shrunk_costs, shrunk_outputs = objective.evaluate(vertices[1:] * typical)
+                    shrunk_costs, shrunk_outputs = objective.evaluate(to_theta(vertices[1:]))
                     costs[1:], outputs[1:] = shrunk_costs, shrunk_outputs
             best = int(np.argmin(costs))
-            objective.record(vertices[best] * typical, costs[best])
+            objective.record(to_theta(vertices[best]), costs[best])
             relative = conv.relative_cost_change(best_previous, costs[best])
             noise_settled = objective.maxlik_update(outputs[best], relative)
             if noise_settled is not None:
                 costs = objective.costs_of(outputs)
             spread_cost = float(np.max(costs) - np.min(costs))
-            spread_theta = (np.max(vertices, axis=0) - np.min(vertices, axis=0)) * typical
+            in_theta = to_theta(vertices)
+            spread_theta = np.max(in_theta, axis=0) - np.min(in_theta, axis=0)
             settled = (
                 np.all(np.isfinite(costs))
                 and conv.cost_settled(float(np.min(costs)), float(np.min(costs)) + spread_cost)
-                and conv.params_settled(spread_theta, vertices[best] * typical, typical)
+                and conv.params_settled(spread_theta, in_theta[best], typical)
                 and noise_settled is not False
             )
             if settled:
@@ -165,7 +218,7 @@ class FPS:
                     vertices,
                     outputs,
                     costs,
-                    typical,
+                    coordinates,
                     iteration,
                     True,
                     "converged",
@@ -175,7 +228,7 @@ class FPS:
             vertices,
             outputs,
             costs,
-            typical,
+            coordinates,
             conv.max_iterations,
             False,
             "max_iterations",
@@ -183,15 +236,15 @@ class FPS:
         )
 
     @staticmethod
-    def _outcome(vertices, outputs, costs, typical, iterations, converged, status, message):
+    def _outcome(vertices, outputs, costs, coordinates, iterations, converged, status, message):
         best = int(np.argmin(costs))
         return SolverOutcome(
-            vertices[best] * typical,
+            coordinates.external(vertices[best]),
             outputs[best],
             float(costs[best]),
             iterations,
             converged,
             status,
             message,
-            state=(vertices, outputs),
+            state=(vertices, outputs, coordinates),
         )
