@@ -204,7 +204,8 @@ def estimate(
             "these data (their Cramér–Rao bounds are reported as infinite)"
         )
 
-    values = problem.full_theta(outcome.theta)
+    # every solver keeps θ in its bounds; the projection only guards round-off at a bound
+    values = problem.full_theta(problem.project(outcome.theta))
     std = np.full(values.shape, np.nan)
     std[problem.free_index] = std_free
     estimated_model = model.with_parameters(model.parameters.with_values(values))

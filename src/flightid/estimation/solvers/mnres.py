@@ -152,8 +152,9 @@ class MNRES:
     ) -> _PointSet:
         """Perturb each parameter from θ (n_f integrations in one batch)."""
         problem = objective.problem
-        # a perturbation that would cross a bound goes the other way
+        # a perturbation that would cross a bound goes the other way (and stays in the box)
         deltas = np.where(theta + deltas > problem.upper, -deltas, deltas)
+        deltas = problem.project(theta + deltas) - theta
         trial = theta[None, :] + np.diag(deltas)
         costs, trial_outputs = objective.evaluate(trial)
         # A perturbation that makes the simulation diverge is retried 10 times smaller.
