@@ -263,6 +263,8 @@ def test_every_solver_respects_an_active_bound(flight, solver):
         assert np.isfinite(result.stddev(name))
         assert abs(result.value(name) - fixed.value(name)) < 0.1 * fixed.stddev(name)
     assert result.to_dict()["at_bound"] == ["Mde"]
+    (row,) = [line for line in result.summary().splitlines() if line.startswith("Mde ")]
+    assert row.rstrip().endswith("at bound")
 
 
 def test_an_inactive_bound_changes_nothing(flight):

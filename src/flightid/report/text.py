@@ -26,7 +26,9 @@ def estimate_summary(result) -> str:
     rows = []
     for i, name in enumerate(result.names):
         value = result.values[i]
-        if result.free[i]:
+        if name in getattr(result, "at_bound", ()):
+            rows.append([name, f"{value:.6g}", "-", "-", f"{result.initial[i]:.6g}", "at bound"])
+        elif result.free[i]:
             std = result.std[i]
             relative = abs(std / value) * 100 if value != 0 and np.isfinite(std) else np.inf
             rows.append(
@@ -49,6 +51,8 @@ def estimate_summary(result) -> str:
         f"equivalent evaluations {result.equivalent_evaluations} "
         f"(+{result.accuracy_evaluations} for the information matrix)   "
         f"wall time {result.wall_time_s:.3g} s",
+        f"optimality: the next Gauss–Newton step is {result.optimality_sigma:.2g} σ long "
+        "(central differences)",
         "",
     ]
     table = format_table(["parameter", "estimate", "CR bound", "rel. %", "start", ""], rows)
