@@ -114,12 +114,12 @@ def test_beale_n_phi_through_assess_matches_a_plain_numpy_recomputation(exp_case
     assert nl.beale_factor == pytest.approx(factor, rel=1e-9)
 
 
-def test_beale_terms_two_outputs_unequal_weights_any_point():
-    """beale_nonlinearity at an arbitrary θ̂ (the formula does not need an optimum) on the
-    two-output pendulum, R with unequal entries, perturbation 2: every term by hand."""
+@pytest.fixture(scope="module")
+def pendulum_point():
+    """The two-output pendulum at an arbitrary θ̂ (the formula does not need an optimum), R with
+    unequal entries, and central-difference sensitivities computed here."""
     model = pendulum_model(PENDULUM_TRUE)
     data = pendulum_data()
-    problem = OutputErrorProblem(model, data, compiled=False)
     theta_hat = np.array(PENDULUM_TRUE) * np.array([1.02, 0.9, 1.1, 0.97])
     r = np.array([0.01**2, 0.05**2])
     n_p = theta_hat.size
@@ -127,7 +127,7 @@ def test_beale_terms_two_outputs_unequal_weights_any_point():
     def y_of(theta):
         return simulate(model, data, theta=theta, compiled=False)
 
-    # central-difference sensitivities G_i = ∂y_i/∂θ, computed here
+    # G_i = ∂y_i/∂θ by central differences
     h = 1e-6 * np.abs(theta_hat)
     g = np.stack(
         [
@@ -137,16 +137,76 @@ def test_beale_terms_two_outputs_unequal_weights_any_point():
         ],
         axis=-1,
     )
+
+    def problem():
+        return OutputErrorProblem(model, data, compiled=False)
+
+    return problem, theta_hat, g, r, y_of
+
+
+def test_beale_terms_two_outputs_unequal_weights_any_point(pendulum_point):
+    """Every term by hand, perturbation 2."""
+    problem, theta_hat, g, r, y_of = pendulum_point
+    n_p = theta_hat.size
     std = np.array([0.05, 0.02, 0.03, 0.01])
     s2 = 1.3
-    result = beale_nonlinearity(problem, theta_hat, g, r, std, s2, perturbation=2.0)
+    result = beale_nonlinearity(problem(), theta_hat, g, r, std, s2, perturbation=2.0)
     q_phi, d, n_phi = _beale_by_hand(y_of, theta_hat, g, r, 2.0 * std, s2)
     assert result.q_phi == pytest.approx(q_phi, rel=1e-8)
     assert result.d == pytest.approx(d, rel=1e-10)
     assert result.n_phi == pytest.approx(n_phi, rel=1e-8)
     # far from round-off (4.5e-6, Q_φ ≈ 0.65): a wrong factor cannot hide below tolerance
     assert result.n_phi > 1e-6 and result.q_phi > 0.1
-    assert result.evaluations == 2 * n_p + 1
+    assert result.evaluations == 2 * n_p + 1 and result.points == 2 * n_p
+    assert (result.s2, result.perturbation) == (1.3, 2.0)
+    # Beale's factor [5.29] with N n_o scalar measurements
+    n_data = 2 * pendulum_data().n_samples
+    factor = 1.0 + n_data * (n_p + 2) / ((n_data - n_p) * n_p) * result.n_phi
+    assert result.beale_factor == pytest.approx(factor, rel=1e-12)
+    # the default perturbation is one standard error
+    default = beale_nonlinearity(problem(), theta_hat, g, r, std, s2)
+    q_phi1, d1, _ = _beale_by_hand(y_of, theta_hat, g, r, std, s2)
+    assert default.perturbation == 1.0
+    assert default.q_phi == pytest.approx(q_phi1, rel=1e-8)
+    assert default.d == pytest.approx(d1, rel=1e-10)
+    # the JSON form carries the same numbers under the documented keys
+    assert default.to_dict() == {
+        "N_phi": default.n_phi, "Q_phi": default.q_phi, "D": default.d, "s2": 1.3,
+        "perturbation_sigmas": 1.0, "points": 8, "beale_factor": default.beale_factor,
+        "evaluations": 9,
+    }  # fmt: skip
+
+
+def test_beale_skips_undetermined_parameters(pendulum_point):
+    """An infinite (or zero) standard error is not perturbed: W = 2 (n_p − 1), and the tangent
+    plane is spanned by the sensitivities of the perturbed parameters only."""
+    problem, theta_hat, g, r, y_of = pendulum_point
+    usable = [0, 2, 3]
+    std = np.array([0.05, np.inf, 0.03, 0.01])
+    result = beale_nonlinearity(problem(), theta_hat, g, r, std, 1.0)
+    assert result.points == 6 and result.evaluations == 7
+
+    def y_usable(theta_sub):
+        theta = theta_hat.copy()
+        theta[usable] = theta_sub
+        return y_of(theta)
+
+    q_phi, d, _ = _beale_by_hand(y_usable, theta_hat[usable], g[:, :, usable], r, std[usable], 1.0)
+    assert result.q_phi == pytest.approx(q_phi, rel=1e-8)
+    assert result.d == pytest.approx(d, rel=1e-10)
+    with_zero = beale_nonlinearity(problem(), theta_hat, g, r, np.where(std == np.inf, 0, std), 1.0)
+    assert with_zero.points == 6 and with_zero.q_phi == pytest.approx(q_phi, rel=1e-8)
+    # nothing to perturb: N_φ is undefined (NaN), no integration is spent
+    none = beale_nonlinearity(problem(), theta_hat, g, r, np.full(4, np.inf), 1.0)
+    assert (none.points, none.evaluations, none.s2, none.perturbation) == (0, 0, 1.0, 1.0)
+    assert all(math.isnan(v) for v in (none.n_phi, none.q_phi, none.d, none.beale_factor))
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+def test_beale_perturbation_must_be_positive_and_finite(pendulum_point, bad):
+    problem, theta_hat, g, r, _ = pendulum_point
+    with pytest.raises(InputError, match="perturbation: expected a positive multiple of σ, got"):
+        beale_nonlinearity(problem(), theta_hat, g, r, np.full(4, 0.01), 1.0, perturbation=bad)
 
 
 def test_beale_n_phi_is_zero_for_a_model_linear_in_its_parameters():
