@@ -469,7 +469,7 @@ def print_robustness(rows: list[Row]) -> None:
 
 def part1(problems: list[Problem], quick: bool) -> list[Row]:
     rows: list[Row] = []
-    print("## Part 1: start values\n")
+    print("### Part 1: start values\n")
     described = []
     refs = {}
     for problem in problems:
@@ -495,7 +495,7 @@ def part1(problems: list[Problem], quick: bool) -> list[Row]:
 
 
 def part2(problems: list[Problem]) -> list[tuple]:
-    print("\n## Part 2: default tolerances against the tight reference\n")
+    print("\n### Part 2: default tolerances against the tight reference\n")
     print(
         "| problem | solver | status | evaluations (tight) | opt. σ | d = max_j abs(Δθ)/σ (at) | "
         "d, R̂ | ≤ 0.05 σ |"
