@@ -12,9 +12,10 @@ Real flight data (../shared/data, skipped if absent, as tests/test_cases_real.py
 - the book's unstable aircraft set-ups 3c (equation decoupling) and 3e (eigenvalue
   transformation) of ../shared/reference/CASES.md §3: default tolerances within 0.05 σ of
   the tight optimum (they stopped 0.45–0.65 σ short before the confirmation existed).
-- known core failures, xfail(strict=True) with the reason: ATTAS lateral from zeros under
-  MNRES ends "converged" in another local minimum; HFB-320 from Cmde × 1e3 raises in the
-  middle of the estimation instead of ending with a status.
+- known core failure, xfail(strict=True) with the reason: ATTAS lateral from zeros under
+  MNRES ends "converged" in another local minimum;
+- HFB-320 from Cmde × 1e3 ends with a status (it used to raise from the finite differences
+  of a later iterate, losing the estimation).
 
 Checked by breaking the core (monkeypatched in a throw-away plugin): with
 ``Convergence.confirmed`` always true, ATTAS short period (a) MNRES stops 958 σ away, Twin
@@ -35,7 +36,6 @@ import pytest
 
 from flightid.cases import load_case, prepare_case
 from flightid.data import FlightData
-from flightid.errors import FlightIdError
 from flightid.estimation import MNR, MNRES, Convergence, estimate
 from flightid.model import Parameter, Parameters, StateSpaceModel
 from flightid.simulate import simulate
@@ -136,17 +136,6 @@ def test_attas_lateral_from_zeros_mnres():
     assert (not result.converged) or _distance(result, theta, sigma) <= 0.1, result.message
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=FlightIdError,
-    reason=(
-        "known core failure (reported to the lead): HFB-320 with Cmde = -990.7 (1e3 x its "
-        "start) simulates at the start, but MNR raises SimulationError from the forward "
-        "differences at a later iterate (mnr.py -> problem.sensitivities) and MNRES raises "
-        "EstimationError from the central differences of the confirmation (confirm.py "
-        "_central): the estimation is lost instead of ending with a status"
-    ),
-)
 @pytest.mark.parametrize("solver", ["mnres", "mnr"])
 def test_hfb320_far_start_ends_with_a_status(solver):
     model, data, _ = _case("hfb320_longitudinal")

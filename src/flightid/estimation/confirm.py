@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flightid.errors import EstimationError, SimulationError
+from flightid.errors import SimulationError
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import GaussNewtonStep
 from flightid.estimation.objective import Objective, SolverOutcome
@@ -48,13 +48,16 @@ class Confirmation:
 
 
 def _central(objective: Objective, theta: np.ndarray, outputs: np.ndarray):
+    """Central-difference G at θ (one-sided where a perturbation diverges), its cost in
+    integrations, and None or the reason it could not be computed."""
     problem = objective.problem
     before = problem.evaluations
     try:
         g, _ = problem.sensitivities(theta, outputs, relative_step=_CENTRAL_STEP, central=True)
     except SimulationError as exc:
-        raise EstimationError(f"information matrix at the estimate: {exc}") from exc
-    return g, problem.evaluations - before
+        g = np.zeros((problem.n_samples, problem.n_outputs, problem.n_free))
+        return g, problem.evaluations - before, str(exc)
+    return g, problem.evaluations - before, None
 
 
 def _noise_settled(objective: Objective, policy: str, outputs: np.ndarray) -> bool:
@@ -92,7 +95,16 @@ def confirm_convergence(
     confirmed = False
     passes = 0
     while True:
-        g, used = _central(objective, theta, outputs)
+        g, used, failure = _central(objective, theta, outputs)
+        if failure is not None:
+            # no sensitivities here: nothing can be confirmed, and there are no CR bounds
+            gn = GaussNewtonStep(np.zeros(problem.n_free), 0, float("inf"), float("nan"))
+            message = (
+                f"not converged: the sensitivities cannot be computed at the end point, the "
+                f"perturbed simulations diverge ({failure}); the solver said: {outcome.message}"
+            )
+            outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
+            return Confirmation(outcome, g, gn, passes, used)
         gn = bounded_gauss_newton_step(objective, g, outputs, theta)
         if conv.confirmed(gn, theta, problem.magnitude(theta)):
             if _noise_settled(objective, policy, outputs):

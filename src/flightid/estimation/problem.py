@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import FlightIdError, InputError, ModelError
+from flightid.errors import FlightIdError, InputError, ModelError, SimulationError
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate.simulator import SimulationBatch, Simulator, _as_data_list
 
@@ -234,7 +234,9 @@ class OutputErrorProblem:
         if central:
             batch = np.vstack([theta_free + eye, theta_free - eye])
             sim = self.run(batch)
-            self._raise_if_diverged(sim, "sensitivities")
+            if sim.diverged.any():
+                # near the edge of stability: one-sided differences, which retry smaller
+                return self.sensitivities(theta_free, outputs, relative_step, central=False)
             plus, minus = sim.outputs[: self.n_free], sim.outputs[self.n_free :]
             # G_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
             g = (plus - minus) / (2.0 * steps[:, None, None])
@@ -242,14 +244,34 @@ class OutputErrorProblem:
                 outputs = self.outputs(theta_free[None, :])[0]
         else:
             if outputs is None:
-                batch = np.vstack([theta_free[None, :], theta_free + eye])
-                sim = self.run(batch)
+                sim = self.run(theta_free[None, :])
                 self._raise_if_diverged(sim, "sensitivities")
-                outputs, perturbed = sim.outputs[0], sim.outputs[1:]
-            else:
-                sim = self.run(theta_free + eye)
-                self._raise_if_diverged(sim, "sensitivities")
-                perturbed = sim.outputs
+                outputs = sim.outputs[0]
+            sim = self.run(theta_free + eye)
+            perturbed = sim.outputs
+            diverged, messages = sim.diverged.copy(), list(sim.messages)
+            # a perturbed simulation that diverges is retried the other way, then 10× and
+            # 100× smaller (within the bounds), before the sensitivities are given up
+            first_steps = steps.copy()
+            for factor in (-1.0, 0.1, -0.1, 0.01, -0.01):
+                bad = np.flatnonzero(diverged)
+                if bad.size == 0:
+                    break
+                retry = factor * first_steps[bad]
+                moved = theta_free[bad] + retry
+                inside = (moved >= self.lower[bad]) & (moved <= self.upper[bad])
+                if not inside.any():
+                    continue
+                bad, retry = bad[inside], retry[inside]
+                steps[bad] = retry
+                again = self.run(theta_free + np.diag(steps)[bad])
+                perturbed[bad] = again.outputs
+                diverged[bad] = again.diverged
+                for row, message in zip(bad, again.messages, strict=True):
+                    messages[row] = message
+            if diverged.any():
+                first = int(np.flatnonzero(diverged)[0])
+                raise SimulationError(f"sensitivities: {messages[first]}")
             # G_j = (y(θ + δ_j e_j) − y(θ)) / δ_j
             g = (perturbed - outputs[None]) / steps[:, None, None]
         return np.moveaxis(g, 0, -1), outputs
@@ -273,7 +295,5 @@ class OutputErrorProblem:
     @staticmethod
     def _raise_if_diverged(sim: SimulationBatch, what: str) -> None:
         if sim.diverged.any():
-            from flightid.errors import SimulationError
-
             first = int(np.flatnonzero(sim.diverged)[0])
             raise SimulationError(f"{what}: {sim.messages[first]}")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flightid.errors import InputError
+from flightid.errors import InputError, SimulationError
 from flightid.estimation.objective import Objective, SolverOutcome
 from flightid.estimation.solvers.common import (
     bounded_gauss_newton_step,
@@ -100,10 +100,19 @@ class MNR:
         for iteration in range(1, conv.max_iterations + 1):
             if objective.budget_exhausted():
                 return outcome(iteration - 1, False, *budget_status(objective))
-            if g is None and self.sensitivities == "equations":
-                g, _ = problem.sensitivities_from_equations(theta)
-            elif g is None:
-                g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
+            try:
+                if g is None and self.sensitivities == "equations":
+                    g, _ = problem.sensitivities_from_equations(theta)
+                elif g is None:
+                    g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
+            except SimulationError as exc:
+                return outcome(
+                    iteration - 1,
+                    False,
+                    "stalled",
+                    f"stalled: the perturbed simulations for the sensitivities diverge here "
+                    f"({exc})",
+                )
             gn = bounded_gauss_newton_step(objective, g, outputs, theta)
             if conv.step_settled(gn, theta, problem.typical, cost):
                 return outcome(
