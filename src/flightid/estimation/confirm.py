@@ -44,6 +44,7 @@ class Confirmation:
     sensitivities: np.ndarray  # central-difference G at outcome.theta (N, n_o, n_f)
     step: GaussNewtonStep  # the Gauss–Newton step from there
     passes: int  # Gauss–Newton passes taken after the solver stopped
+    initial_sigma: float  # √(ΔθᵀMΔθ) where the solver stopped
     sensitivity_evaluations: int  # integrations of the last central-difference G
 
 
@@ -94,6 +95,7 @@ def confirm_convergence(
     )
     confirmed = False
     passes = 0
+    initial = float("nan")
     while True:
         g, used, failure = _central(objective, theta, outputs)
         if failure is not None:
@@ -104,8 +106,10 @@ def confirm_convergence(
                 f"perturbed simulations diverge ({failure}); the solver said: {outcome.message}"
             )
             outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
-            return Confirmation(outcome, g, gn, passes, used)
+            return Confirmation(outcome, g, gn, passes, initial, used)
         gn = bounded_gauss_newton_step(objective, g, outputs, theta)
+        if passes == 0:
+            initial = gn.sigma_distance
         if conv.confirmed(gn, theta, problem.magnitude(theta)):
             if _noise_settled(objective, policy, outputs):
                 confirmed = True
@@ -165,7 +169,7 @@ def confirm_convergence(
         outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
     elif confirmed:
         outcome = _replace(outcome, theta, outputs, cost, True, "converged", outcome.message)
-    return Confirmation(outcome, g, gn, passes, used)
+    return Confirmation(outcome, g, gn, passes, initial, used)
 
 
 def _replace(outcome, theta, outputs, cost, converged, status, message) -> SolverOutcome:

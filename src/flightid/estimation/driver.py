@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError, InputTypeError, describe
-from flightid.estimation.confirm import confirm_convergence
+from flightid.estimation.confirm import Confirmation, confirm_convergence
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import information_matrix, undetermined_parameters
 from flightid.estimation.objective import NOISE_POLICIES, Objective
@@ -88,6 +88,101 @@ def _covariance(m: np.ndarray, held: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return covariance, std, [int(active[j]) for j in undetermined_sub]
 
 
+# An MNRES "converged" whose central-difference check puts the optimum more than this many
+# σ away was misled by its surface; MNR is then run from the start values as well.
+SECOND_OPINION_SIGMA = 10.0
+
+
+@dataclass
+class _Run:
+    """One optimisation from the start values: objective, confirmation, passes, R cycles."""
+
+    objective: Objective
+    confirmation: Confirmation
+    iterations: int
+    cycles: int
+    note: str = ""
+
+
+def _optimise(
+    problem: OutputErrorProblem,
+    solver: MNRES | MNR | FPS,
+    r_diag: np.ndarray,
+    noise: str,
+    convergence: Convergence,
+    progress: Callable[[int, int, float], None] | None,
+) -> _Run:
+    """Solver from the start values, MAX noise cycles, then the confirmation."""
+    theta = problem.theta_start
+    objective = Objective(problem, r_diag, noise, convergence, progress)
+    if noise != "fixed":
+        # R from the residuals at the start values; the solver reuses this integration.
+        _, start_outputs = objective.evaluate(theta[None, :])
+        if not np.all(np.isfinite(start_outputs)):
+            raise EstimationError(
+                "the simulation at the start values does not stay finite; "
+                "check the start values and x0"
+            )
+        objective.r_diag = problem.noise_covariance(start_outputs[0])
+        objective.prime(theta, start_outputs[0])
+
+    outcome = solver.minimize(objective, theta)
+    iterations, cycles = outcome.iterations, 0
+    if noise == "max":
+        # Program MAX: with θ converged, update R and re-converge until a cycle moves nothing.
+        while outcome.converged and cycles < convergence.max_noise_cycles:
+            change = objective.update_noise(outcome.outputs)
+            cycles += 1
+            if change <= convergence.noise_rtol:
+                break
+            outcome = solver.minimize(objective, outcome.theta, state=outcome.state)
+            iterations += outcome.iterations
+            if outcome.iterations <= 1:
+                break
+        outcome = replace(outcome, cost=float(objective.costs_of(outcome.outputs)[0]))
+    elif noise == "maxlik":
+        cycles = objective.noise_updates
+    # Central-difference sensitivities at θ̂: confirm the solver's convergence (continuing
+    # with Gauss–Newton passes if it stopped short), then the information matrix.
+    updates_before = objective.noise_updates
+    confirmation = confirm_convergence(
+        objective, outcome, noise, fallback=isinstance(solver, MNRES)
+    )
+    iterations += confirmation.passes
+    cycles += objective.noise_updates - updates_before
+    return _Run(objective, confirmation, iterations, cycles)
+
+
+def _negative_log_likelihood(problem: OutputErrorProblem, noise: str, run: _Run) -> float:
+    """What ML minimises: J under a fixed R, else ln det R̂ (R estimated [3.45])."""
+    outputs = run.confirmation.outcome.outputs
+    if noise == "fixed":
+        return float(problem.cost(outputs, run.objective.r_diag))
+    return float(np.sum(np.log(problem.noise_covariance(outputs))))
+
+
+def _better(problem: OutputErrorProblem, noise: str, first: _Run, second: _Run) -> _Run:
+    """The run with the higher likelihood, its message saying what happened."""
+    criterion = "J" if noise == "fixed" else "ln det R"
+    values = [_negative_log_likelihood(problem, noise, run) for run in (first, second)]
+    distance = first.confirmation.initial_sigma
+    head = (
+        f"MNRES stopped {distance:.3g} σ from an optimum (its surface misled it), so MNR was "
+        f"also run from the start values: {criterion} = {values[0]:.6g} (MNRES) and "
+        f"{values[1]:.6g} (MNR); "
+    )
+    chosen, label = (second, "MNR's") if values[1] < values[0] else (first, "MNRES's")
+    outcome = chosen.confirmation.outcome
+    message = f"{head}{label} result is reported — {outcome.message}"
+    confirmation = replace(chosen.confirmation, outcome=replace(outcome, message=message))
+    return _Run(
+        chosen.objective,
+        confirmation,
+        first.iterations + second.iterations,
+        chosen.cycles,
+    )
+
+
 def estimate(
     model: StateSpaceModel,
     data: FlightData | Sequence[FlightData],
@@ -146,46 +241,18 @@ def estimate(
         model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
     )
     r_diag = _check_r(R, problem.n_outputs)
-    theta = problem.theta_start
-    objective = Objective(problem, r_diag, noise, convergence, progress)
-    if noise != "fixed":
-        # R from the residuals at the start values; the solver reuses this integration.
-        _, start_outputs = objective.evaluate(theta[None, :])
-        if not np.all(np.isfinite(start_outputs)):
-            raise EstimationError(
-                "the simulation at the start values does not stay finite; "
-                "check the start values and x0"
-            )
-        objective.r_diag = problem.noise_covariance(start_outputs[0])
-        objective.prime(theta, start_outputs[0])
-
-    outcome = solver.minimize(objective, theta)
-    iterations, cycles = outcome.iterations, 0
-    if noise == "max":
-        # Program MAX: with θ converged, update R and re-converge until a cycle moves nothing.
-        while outcome.converged and cycles < convergence.max_noise_cycles:
-            change = objective.update_noise(outcome.outputs)
-            cycles += 1
-            if change <= convergence.noise_rtol:
-                break
-            outcome = solver.minimize(objective, outcome.theta, state=outcome.state)
-            iterations += outcome.iterations
-            if outcome.iterations <= 1:
-                break
-        outcome = replace(outcome, cost=float(objective.costs_of(outcome.outputs)[0]))
-    elif noise == "maxlik":
-        cycles = objective.noise_updates
-    # Central-difference sensitivities at θ̂: confirm the solver's convergence (continuing
-    # with Gauss–Newton passes if it stopped short), then the information matrix.
-    updates_before = objective.noise_updates
-    confirmation = confirm_convergence(
-        objective, outcome, noise, fallback=isinstance(solver, MNRES)
-    )
-    outcome = confirmation.outcome
-    iterations += confirmation.passes
-    cycles += objective.noise_updates - updates_before
+    evaluations_before = problem.evaluations
+    run = _optimise(problem, solver, r_diag, noise, convergence, progress)
+    if isinstance(solver, MNRES) and run.confirmation.initial_sigma > SECOND_OPINION_SIGMA:
+        # MNRES's surface misled it far from any optimum: its path is not to be trusted, so
+        # MNR (fresh finite differences every pass) runs from the start values too and the
+        # higher likelihood wins.
+        second = _optimise(problem, MNR(), r_diag, noise, convergence, progress)
+        run = _better(problem, noise, run, second)
+    objective, confirmation = run.objective, run.confirmation
+    outcome, iterations, cycles = confirmation.outcome, run.iterations, run.cycles
     accuracy_evaluations = confirmation.sensitivity_evaluations
-    optimizer_evaluations = objective.evaluations - accuracy_evaluations
+    optimizer_evaluations = problem.evaluations - evaluations_before - accuracy_evaluations
     g = confirmation.sensitivities
     m = information_matrix(g, objective.r_diag)
     on_bound = problem.at_bound(outcome.theta)
