@@ -163,8 +163,10 @@ def test_beale_terms_two_outputs_unequal_weights_any_point(pendulum_point):
     n_data = 2 * pendulum_data().n_samples
     factor = 1.0 + n_data * (n_p + 2) / ((n_data - n_p) * n_p) * result.n_phi
     assert result.beale_factor == pytest.approx(factor, rel=1e-12)
-    # the default perturbation is one standard error
-    default = beale_nonlinearity(problem(), theta_hat, g, r, std, s2)
+    # the default perturbation is one standard error; evaluations count this call only
+    used = problem()
+    used.outputs(theta_hat[None, :])
+    default = beale_nonlinearity(used, theta_hat, g, r, std, s2)
     q_phi1, d1, _ = _beale_by_hand(y_of, theta_hat, g, r, std, s2)
     assert default.perturbation == 1.0
     assert default.q_phi == pytest.approx(q_phi1, rel=1e-8)
@@ -275,3 +277,13 @@ def test_level_arguments_are_checked_by_name():
 def test_beale_factor_of_an_undefined_n_phi_is_nan():
     assert math.isnan(beale_factor(float("nan"), 100, 4))
     assert beale_factor(0.0, 100, 4) == 1.0
+
+
+def test_beale_reports_a_diverging_perturbed_point(pendulum_point):
+    # c − 10³: strong negative damping, the pendulum's simulation overflows within 8 s
+    problem, theta_hat, g, r, _ = pendulum_point
+    std = np.array([0.05, 1e3, 0.03, 0.01])
+    with pytest.raises(
+        InputError, match="makes the simulation diverge; use a smaller perturbation"
+    ):
+        beale_nonlinearity(problem(), theta_hat, g, r, std, 1.0)
