@@ -19,10 +19,10 @@ Real flight data (../shared/data, skipped if absent, as tests/test_cases_real.py
 - HFB-320 from Cmde × 1e3 ends with a status (it used to raise from the finite differences
   of a later iterate, losing the estimation).
 
-Checked by breaking the core (monkeypatched in a throw-away plugin): with
-``Convergence.confirmed`` always true, ATTAS short period (a) MNRES stops 958 σ away, Twin
-Otter (c) 51 σ (MNR) and 2e6 σ (MNRES) away, 3c/3e 0.45–0.65 σ short, all "converged": 9
-tests fail; with it always false, every "do converge" test fails.
+Checked by breaking the core (monkeypatched in a throw-away plugin, at 6858593): with
+``Convergence.confirmed`` always true, 11 tests fail (Twin Otter (a) and (c) under both
+solvers, ATTAS lateral, HFB-320, 3c/3e, which then stop 0.45–0.65 σ short, all
+"converged"); with it always false, all fail (the references do not converge either).
 Run time ≈ 15 s on 2 cores with OPENBLAS_NUM_THREADS=1, ≈ 35–40 s with OpenBLAS's default
 threads (the ATTAS lateral run alone takes 11 s then, 2.5 s on one thread).
 """
