@@ -14,9 +14,10 @@ pass) until the test holds, no step lowers the cost (``stalled``), or the passes
 evaluation budget run out. A solver that *stalled* is continued the same way, and so is MNRES
 when it reached ``max_iterations`` (it falls back to finite-difference Gauss–Newton steps,
 within ``max_confirmation_passes``). A solver that spent the evaluation budget, or MNR / FPS
-at ``max_iterations``, is not continued: its status stands and the message says how far the
-optimum may be, in σ. Whatever the solver said, the end point counts as converged only when
-the test above holds there.
+at ``max_iterations``, is not continued. Whatever the solver said, its end point counts as
+converged exactly when the test holds there; otherwise its status stands and the message
+says how far the optimum may be, in σ. M is weighted by the residuals' own R̂ (see
+``Convergence``), so the σ are those of the data's noise even under a fixed R.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ class Confirmation:
     step: GaussNewtonStep  # the Gauss–Newton step from there
     passes: int  # Gauss–Newton passes taken after the solver stopped
     initial_sigma: float  # √(ΔθᵀMΔθ) where the solver stopped
+    sigma: float  # √(ΔθᵀMΔθ) at the end point (M weighted by R̂)
     sensitivity_evaluations: int  # integrations of the last central-difference G
 
 
@@ -59,6 +61,17 @@ def _central(objective: Objective, theta: np.ndarray, outputs: np.ndarray):
         g = np.zeros((problem.n_samples, problem.n_outputs, problem.n_free))
         return g, problem.evaluations - before, str(exc)
     return g, problem.evaluations - before, None
+
+
+def _sigma_distance(problem, g: np.ndarray, step: np.ndarray, outputs: np.ndarray) -> float:
+    """√(ΔθᵀMΔθ) with M = Σ GᵀR̂⁻¹G, R̂ the residuals' covariance [3.45] at ``outputs``.
+
+    ΔθᵀMΔθ = Σ_i Σ_k (G_i Δθ)_k² / R̂_k: the step's length in Cramér–Rao σ of the data's own
+    noise level, whatever R the cost is weighted with.
+    """
+    r_hat = problem.noise_covariance(outputs)
+    change = g @ step  # (N, n_o): G_i Δθ
+    return float(np.sqrt(np.sum(change**2 / r_hat[None, :])))
 
 
 def _noise_settled(objective: Objective, policy: str, outputs: np.ndarray) -> bool:
@@ -101,26 +114,28 @@ def confirm_convergence(
         if failure is not None:
             # no sensitivities here: nothing can be confirmed, and there are no CR bounds
             gn = GaussNewtonStep(np.zeros(problem.n_free), 0, float("inf"), float("nan"))
+            distance = float("nan")
             message = (
                 f"not converged: the sensitivities cannot be computed at the end point, the "
                 f"perturbed simulations diverge ({failure}); the solver said: {outcome.message}"
             )
             outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
-            return Confirmation(outcome, g, gn, passes, initial, used)
+            return Confirmation(outcome, g, gn, passes, initial, distance, used)
         gn = bounded_gauss_newton_step(objective, g, outputs, theta)
+        distance = _sigma_distance(problem, g, gn.step, outputs)
         if passes == 0:
-            initial = gn.sigma_distance
-        if conv.confirmed(gn, theta, problem.magnitude(theta)):
+            initial = distance
+        if conv.confirmed(distance, gn, problem.magnitude(theta)):
             if _noise_settled(objective, policy, outputs):
                 confirmed = True
                 break
             # R moved: same sensitivities, new weights
             cost = float(objective.costs_of(outputs)[0])
             gn = bounded_gauss_newton_step(objective, g, outputs, theta)
-            if conv.confirmed(gn, theta, problem.magnitude(theta)):
+            distance = _sigma_distance(problem, g, gn.step, outputs)
+            if conv.confirmed(distance, gn, problem.magnitude(theta)):
                 confirmed = True
                 break
-        distance = gn.sigma_distance
         if not may_continue:
             message = (
                 f"{outcome.message}; a Gauss–Newton step from central differences would still "
@@ -164,12 +179,12 @@ def confirm_convergence(
     elif confirmed and not outcome.converged:
         message = (
             f"converged: central differences confirm the optimum within "
-            f"{gn.sigma_distance:.2g} σ (the solver said: {outcome.message})"
+            f"{distance:.2g} σ (the solver said: {outcome.message})"
         )
         outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
     elif confirmed:
         outcome = _replace(outcome, theta, outputs, cost, True, "converged", outcome.message)
-    return Confirmation(outcome, g, gn, passes, initial, used)
+    return Confirmation(outcome, g, gn, passes, initial, distance, used)
 
 
 def _replace(outcome, theta, outputs, cost, converged, status, message) -> SolverOutcome:

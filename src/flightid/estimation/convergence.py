@@ -17,11 +17,15 @@ for it: at the point where the solver stops it computes the sensitivities by cen
 differences (the ones the Cramér–Rao bounds need anyway) and the Gauss–Newton step Δθ they
 give. Convergence is confirmed only when
 
-    √(ΔθᵀMΔθ) ≤ confirm_sigma          (default 0.02)
+    √(ΔθᵀMΔθ) ≤ confirm_sigma          (default 0.02),  M = Σ GᵀR̂⁻¹G
 
 i.e. the optimum the linearised model predicts lies within ``confirm_sigma`` Cramér–Rao
-standard deviations (|Δθ_j| ≤ σ_j·√(ΔθᵀMΔθ) for every j), or when every |Δθ_j| is below
-``numerical_rtol``·max(|θ_j|, floor_j) (noise-free data, where σ is at rounding level).
+standard deviations (|Δθ_j| ≤ σ_j·√(ΔθᵀMΔθ) for every j). M is weighted by R̂, the
+residuals' own covariance [3.45], whatever R the cost uses: with a fixed R = I the σ of the
+cost's units would say nothing about the data. Also confirmed: when the step's predicted
+cost drop is below a positive ``cost_atol`` (the user's own absolute tolerance), or every
+|Δθ_j| is below ``numerical_rtol``·max(|θ_j|, floor_j) (noise-free data, where σ is at
+rounding level).
 Otherwise the estimation continues with Gauss–Newton passes on those sensitivities (with
 step halving, and R re-estimated each pass under the MAX / MAXLIK policies) until it is
 confirmed, or reports that it is not converged and by how many σ.
@@ -132,9 +136,17 @@ class Convergence:
             step.predicted_reduction <= self.cost_rtol * abs(cost) + self.cost_atol
         )
 
-    def confirmed(self, step, theta: np.ndarray, magnitude: np.ndarray) -> bool:
-        """The central-difference Gauss–Newton step confirms convergence (see module doc)."""
-        if step.sigma_distance <= self.confirm_sigma:
+    def confirmed(self, sigma_distance: float, step, magnitude: np.ndarray) -> bool:
+        """The central-difference Gauss–Newton step confirms convergence (see module doc).
+
+        Args:
+            sigma_distance: √(ΔθᵀMΔθ) with M weighted by the residuals' own R̂.
+            step: the ``GaussNewtonStep`` (its predicted drop is under the R in use).
+            magnitude: max(|θ_j|, floor_j).
+        """
+        if sigma_distance <= self.confirm_sigma:
+            return True
+        if self.cost_atol > 0 and step.predicted_reduction <= self.cost_atol:
             return True
         return bool(np.all(np.abs(step.step) <= self.numerical_rtol * magnitude))
 

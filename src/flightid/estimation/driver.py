@@ -309,6 +309,6 @@ def estimate(
         input_interpolation=input_interpolation,
         wall_time_s=_time.perf_counter() - started,
         model=estimated_model,
-        optimality_sigma=confirmation.step.sigma_distance,
+        optimality_sigma=confirmation.sigma,
         at_bound=at_bound,
     )
