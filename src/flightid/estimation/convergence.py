@@ -72,7 +72,7 @@ class Convergence:
     noise_rtol: float = 1e-2
     max_noise_cycles: int = 6
     confirm_sigma: float = 0.02
-    numerical_rtol: float = 1e-9
+    numerical_rtol: float = 1e-8
     max_confirmation_passes: int = 50
 
     def __post_init__(self) -> None:
