@@ -107,14 +107,14 @@ def independent_optimum(flight):
     return theta, std
 
 
-def model(start=TRUTH, extra=(), **overrides) -> StateSpaceModel:
+def model(start=TRUTH, extra=(), f=short_period_f, **overrides) -> StateSpaceModel:
     params = [Parameter(n, v) for n, v in zip(NAMES, start, strict=True)]
     params = [overrides.get(p.name, p) for p in params] + list(extra)
     return StateSpaceModel(
         states=("alpha", "q"),
         inputs=("de",),
         outputs=("alpha", "q"),
-        f=short_period_f,
+        f=f,
         h=short_period_h,
         parameters=Parameters(params),
     )
@@ -201,17 +201,7 @@ def test_a_parameter_only_its_sum_with_another_enters_is_undetermined(flight, so
         dx[1] = (theta[3] + theta[6]) * x[0] + theta[4] * x[1] + theta[5] * u[0]
         return dx
 
-    params = [Parameter(n, v) for n, v in zip(NAMES, TRUTH, strict=True)]
-    params.append(Parameter("Ma2", -492694.0))
-    params[3] = Parameter("Ma", 492690.0)
-    m = StateSpaceModel(
-        states=("alpha", "q"),
-        inputs=("de",),
-        outputs=("alpha", "q"),
-        f=f,
-        h=short_period_h,
-        parameters=Parameters(params),
-    )
+    m = model(extra=[Parameter("Ma2", -492694.0)], f=f, Ma=Parameter("Ma", 492690.0))
     result = estimate(m, flight, solver)
     assert "cannot be determined" in result.message
     assert np.isinf(result.stddev("Ma")) and np.isinf(result.stddev("Ma2"))
@@ -287,14 +277,7 @@ def test_an_exception_inside_f_during_the_search_is_a_named_model_error(flight):
             raise ValueError("Z_alpha table exceeded")
         return short_period_f(t, x, u, theta)
 
-    m = StateSpaceModel(
-        states=("alpha", "q"),
-        inputs=("de",),
-        outputs=("alpha", "q"),
-        f=f,
-        h=short_period_h,
-        parameters=Parameters(Parameter(n, 1.3 * v) for n, v in zip(NAMES, TRUTH, strict=True)),
-    )
+    m = model(tuple(1.3 * v for v in TRUTH), f=f)
     with pytest.raises(
         ModelError,
         match=r"raised ValueError: Z_alpha table exceeded while "
