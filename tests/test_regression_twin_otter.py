@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import flightid.cli.regress
+import flightid.regression.case
 from flightid.cli.main import main
 from flightid.data.loaders import read_mat
 from flightid.regression import Airframe, equation_error_signals
@@ -165,7 +166,8 @@ def test_regression_to_output_error_pipeline_and_prediction(ml_run):
 
 def test_cli_ml_json_contract(ml_run, monkeypatch, capsys):
     # the ML stage itself is the fixture's (the CLI only calls run_ml and prints)
-    monkeypatch.setattr(flightid.cli.regress, "run_ml", lambda *args, **kw: ml_run)
+    # (flightid.cli.regress imports run_ml when the command runs, so patch it at its source)
+    monkeypatch.setattr(flightid.regression.case, "run_ml", lambda *args, **kw: ml_run)
     assert main(["regress", str(CASE), "--ml", "--json", "--data-dir", str(DATA)]) == 0
     payload = json.loads(capsys.readouterr().out)
     assert set(payload) == {"coefficients", "ml"}

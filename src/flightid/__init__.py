@@ -3,14 +3,35 @@
 Output-error maximum likelihood with the MNRES, MNR and FPS optimizers of NASA RP-1153
 (Murphy, 1986), model-structure determination by stepwise regression, and confidence limits
 from the likelihood region.
+
+The top-level names (``from flightid import estimate, FlightData, ...``) are loaded lazily
+(PEP 562 module ``__getattr__``): ``import flightid`` alone does not import numpy, scipy or
+numba, so that ``flightid --help`` starts quickly.
 """
 
-from flightid.data import FlightData
-from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate
-from flightid.model import Parameter, Parameters, StateSpaceModel
-from flightid.simulate import Simulator, simulate
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
+
+# public name -> module that defines it
+_LAZY_EXPORTS: dict[str, str] = {
+    "Convergence": "flightid.estimation",
+    "Estimate": "flightid.estimation",
+    "FPS": "flightid.estimation",
+    "MNR": "flightid.estimation",
+    "MNRES": "flightid.estimation",
+    "estimate": "flightid.estimation",
+    "FlightData": "flightid.data",
+    "Parameter": "flightid.model",
+    "Parameters": "flightid.model",
+    "StateSpaceModel": "flightid.model",
+    "Simulator": "flightid.simulate",
+}
 
 __all__ = [
     "Convergence",
@@ -27,3 +48,42 @@ __all__ = [
     "simulate",
     "__version__",
 ]
+
+if TYPE_CHECKING:  # static tools see the eager imports
+    from flightid.data import FlightData
+    from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate
+    from flightid.model import Parameter, Parameters, StateSpaceModel
+    from flightid.simulate import Simulator, simulate
+
+
+def __getattr__(name: str) -> Any:
+    """Import a top-level export on first use and keep it in the module namespace."""
+    module_name = _LAZY_EXPORTS.get(name)
+    if module_name is None:
+        raise AttributeError(f"module 'flightid' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module_name), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY_EXPORTS) | {"simulate"})
+
+
+class _FlightidModule(types.ModuleType):
+    """``flightid.simulate`` is the function ``simulate`` (as with the eager imports before),
+    although a sub-package of the same name exists: when the import system loads
+    ``flightid.simulate`` it binds the sub-package here, which would shadow the function."""
+
+    @property
+    def simulate(self) -> Any:
+        return importlib.import_module("flightid.simulate").simulate
+
+    @simulate.setter
+    def simulate(self, value: Any) -> None:
+        # the import system binding the sub-package: the public name stays the function, and
+        # the sub-package stays reachable through sys.modules["flightid.simulate"]
+        pass
+
+
+sys.modules[__name__].__class__ = _FlightidModule

@@ -23,8 +23,6 @@ from __future__ import annotations
 import argparse
 
 from flightid.cli.run import add_data_dir_argument
-from flightid.regression.case import load_case, run_case, run_ml
-from flightid.report.jsonout import dumps
 
 
 def register(subparsers) -> None:
@@ -51,6 +49,10 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
+    from flightid.regression.case import load_case, run_case, run_ml
+    from flightid.report.jsonout import dumps
+
     case = load_case(args.case)
     results = run_case(case, args.data_dir)
     ml = None

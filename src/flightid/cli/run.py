@@ -33,11 +33,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from flightid.cases import load_case, run_case
-from flightid.cases.run import stderr_progress
-from flightid.report.folder import ResultFolder
-from flightid.report.jsonout import dumps
-
 
 def add_data_dir_argument(parser: argparse.ArgumentParser) -> None:
     """The ``--data-dir`` option of the commands that read a case's data files."""
@@ -117,6 +112,12 @@ def print_summary(result) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
+    from flightid.cases import load_case, run_case
+    from flightid.cases.run import stderr_progress
+    from flightid.report.folder import ResultFolder
+    from flightid.report.jsonout import dumps
+
     case = load_case(args.case)
     out = output_folder(case, args.out)
     # the result folder is checked (and locked) before any work, so that a bad --out costs

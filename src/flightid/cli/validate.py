@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-from flightid.cases import load_case, prepare_case
-from flightid.cases.build import build_model, unbiased_model
 from flightid.cli.run import add_data_dir_argument
-from flightid.data.flightdata import FlightData
-from flightid.model import StateSpaceModel, check_model
+
+if TYPE_CHECKING:
+    from flightid.data.flightdata import FlightData
+    from flightid.model import StateSpaceModel
 
 _MODULE_WARNING = (
     "A case whose model.module names a Python file EXECUTES that file (it is imported as "
@@ -47,11 +48,17 @@ def register(subparsers) -> None:
 
 
 def _check(model: StateSpaceModel, maneuvers: Sequence[FlightData], method: str, label: str):
+    from flightid.model import check_model
+
     report = check_model(model, list(maneuvers), method=method)
     print(f"  {label}{report.summary()}")
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
+    from flightid.cases import load_case, prepare_case
+    from flightid.cases.build import build_model, unbiased_model
+
     case = load_case(args.case)
     prepared = prepare_case(case, args.data_dir)
     model = prepared.model
