@@ -95,7 +95,8 @@ class Prediction:
         Args:
             name: maneuver name.
             time: (N,) s.
-            measured, predicted: (N, n_o) in the outputs' units.
+            measured: (N, n_o) measured outputs, in the outputs' units.
+            predicted: (N, n_o) model outputs, in the outputs' units.
             output_names: the n_o outputs.
         """
         residual = measured - predicted

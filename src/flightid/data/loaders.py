@@ -699,9 +699,11 @@ def to_flight_data(
         time: spec of the time column (default column 1), in s after conversion. Time is
             re-gridded as t_0 + k·Δt when the file's stored times are uniform only to
             within ``1e-3`` relative (rounded stored stamps), else ``FlightData`` refuses it.
-        inputs, outputs: ``{channel: spec}`` (see ``ChannelSpec``).
+        inputs: ``{channel: spec}`` (see ``ChannelSpec``).
+        outputs: ``{channel: spec}`` (see ``ChannelSpec``).
         name: maneuver label.
-        start, stop: keep ``start ≤ t ≤ stop`` (s, in the time column's values).
+        start: keep ``start ≤ t ≤ stop`` (s, in the time column's values).
+        stop: see ``start``.
         gaps: ``"error"`` (default) refuses non-uniform time; ``"join"`` treats the rows as
             consecutive samples at the median interval (files holding several segments).
     """

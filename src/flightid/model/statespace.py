@@ -45,8 +45,9 @@ class StateSpaceModel:
     """A nonlinear state-space model with named states, inputs, outputs and parameters.
 
     Args:
-        states, inputs, outputs: channel names; ``inputs`` and ``outputs`` are looked up by
-            name in the ``FlightData``.
+        states: state names.
+        inputs: input channel names, looked up by name in the ``FlightData``.
+        outputs: output channel names, looked up by name in the ``FlightData``.
         f: state derivative ``f(t, x, u, theta) -> dx/dt``.
         h: output map ``h(t, x, u, theta) -> y``.
         parameters: ``Parameters`` (or anything ``Parameters`` accepts).

@@ -103,10 +103,13 @@ def force_coefficients(
     """C_X, C_Y, C_Z from body-axis accelerations (g units); None skips an axis.
 
     Args:
-        a_x, a_y, a_z: accelerations at the centre of gravity, g.
+        a_x: longitudinal acceleration at the centre of gravity, g (None skips C_X).
+        a_y: lateral acceleration at the centre of gravity, g (None skips C_Y).
+        a_z: normal acceleration at the centre of gravity, g (None skips C_Z).
         qbar: dynamic pressure [Pa or lbf/ft²].
         airframe: needs mass, S and g.
-        thrust_x, thrust_z: thrust force components to remove [N or lbf].
+        thrust_x: thrust force component along x to remove [N or lbf].
+        thrust_z: thrust force component along z to remove [N or lbf].
     """
     n = _length(a_x, a_y, a_z)
     m = _series(airframe.mass, n, "airframe.mass")

@@ -77,7 +77,9 @@ class RecursiveLeastSquares:
     """Growing-window recursive least squares.
 
     Args:
-        X0, Y0: a first batch of rows (N0 ≥ n_p, full rank) fitted exactly to start from.
+        X0: regressors of a first batch of rows (N0 ≥ n_p, full rank) fitted exactly to
+            start from.
+        Y0: the dependent variable of those rows.
     """
 
     def __init__(self, X0: np.ndarray, Y0: np.ndarray) -> None:
@@ -122,7 +124,8 @@ class SlidingWindowLeastSquares:
     """Constant-size-window recursive least squares, [3.9–3.10].
 
     Args:
-        X0, Y0: the first window (its length is the window size; full rank).
+        X0: regressors of the first window (its length is the window size; full rank).
+        Y0: the dependent variable of the first window.
     """
 
     def __init__(self, X0: np.ndarray, Y0: np.ndarray) -> None:
