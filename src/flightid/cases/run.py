@@ -23,11 +23,12 @@ simulated on each prediction maneuver (initial states at the first measured valu
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import sys
 import threading
 import time as _time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +81,10 @@ class Prediction:
     output_names: tuple[str, ...]
     rms: np.ndarray
     r2: np.ndarray
+    # the maneuver's control inputs (N, n_u) and channel units, for the report's figures
+    inputs: np.ndarray | None = None
+    input_names: tuple[str, ...] = ()
+    units: dict = field(default_factory=dict)
 
     @classmethod
     def from_outputs(
@@ -130,6 +135,7 @@ class CaseRun:
     predictions: tuple[Prediction, ...] = field(default_factory=tuple)
     model_description: str = ""
     accuracy: AccuracyResult | None = None
+    case_sha256: str = ""  # SHA-256 of the case file's bytes when the run started
 
     def to_dict(self) -> dict:
         """The core's JSON entry, plus ``case``, ``maneuvers`` and ``prediction``.
@@ -145,6 +151,7 @@ class CaseRun:
         entry["case"] = {
             "title": self.case.title,
             "file": str(self.case.path),
+            "sha256": self.case_sha256,
             "model": self.model_description,
         }
         entry["maneuvers"] = [
@@ -236,7 +243,15 @@ def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
         except SimulationError as exc:
             raise CaseError(f"prediction ({maneuver.name}): {exc}") from None
         z = np.column_stack([data.output(n) for n in model.outputs])
-        predictions.append(Prediction.from_outputs(maneuver.name, data.time, z, y, model.outputs))
+        prediction = Prediction.from_outputs(maneuver.name, data.time, z, y, model.outputs)
+        predictions.append(
+            replace(
+                prediction,
+                inputs=np.asarray(data.inputs) if data.input_names else None,
+                input_names=tuple(data.input_names),
+                units=dict(data.units),
+            )
+        )
     return predictions
 
 
@@ -352,6 +367,9 @@ def run_case(
     """
     say = progress or (lambda message: None)
     methods = accuracy_methods(case, accuracy)
+    case_file = Path(case.path)
+    # the report names the exact case text that ran: SHA-256 of the file's bytes
+    case_sha256 = hashlib.sha256(case_file.read_bytes()).hexdigest() if case_file.is_file() else ""
     say(f"case {case.title!r}: loading data and building the model")
     prepared = prepare_case(case, data_dir)
     model = prepared.model
@@ -408,4 +426,5 @@ def run_case(
         tuple(predictions),
         prepared.model_description,
         assessed,
+        case_sha256,
     )

@@ -289,6 +289,7 @@ def estimate(
         cost=float(objective.costs_of(outcome.outputs)[0]),
         cost_history=tuple(objective.cost_history),
         evaluation_history=tuple(objective.evaluation_history),
+        noise_update_passes=tuple(objective.noise_update_passes),
         equivalent_evaluations=optimizer_evaluations,
         accuracy_evaluations=accuracy_evaluations,
         iterations=iterations,

@@ -72,6 +72,8 @@ class Objective:
         self.evaluation_history: list[int] = []
         self.theta_history: list[np.ndarray] = []
         self.noise_updates = 0
+        # per R re-estimation, the index in cost_history of the first cost under the new R
+        self.noise_update_passes: list[int] = []
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ accounting
@@ -146,4 +148,5 @@ class Objective:
         change = float(np.max(np.abs(new - self.r_diag) / self.r_diag))
         self.r_diag = new
         self.noise_updates += 1
+        self.noise_update_passes.append(len(self.cost_history))
         return change

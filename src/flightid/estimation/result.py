@@ -40,6 +40,9 @@ class Estimate:
         accuracy_evaluations: integrations for the final information matrix.
         iterations: passes (all noise cycles).
         noise_cycles: R re-estimations.
+        noise_update_passes: for each R re-estimation, the index in ``cost_history`` of the
+            first cost under the new R (the costs before it were computed under the old R;
+            an index equal to ``len(cost_history)`` means no pass followed the update).
         converged, status, message: outcome (status: converged | max_iterations |
             max_evaluations | stalled).
         time, measured, predicted, residuals: (N,), (N, n_o) over all maneuvers.
@@ -88,6 +91,7 @@ class Estimate:
     optimality_sigma: float = float("nan")
     input_interpolation: str = "linear"
     at_bound: tuple[str, ...] = ()
+    noise_update_passes: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         for name in (
@@ -188,6 +192,7 @@ class Estimate:
             "at_bound": list(self.at_bound),
             "cost_history": [float(c) for c in self.cost_history],
             "evaluation_history": [int(e) for e in self.evaluation_history],
+            "noise_update_passes": [int(p) for p in self.noise_update_passes],
             "parameters": parameters,
         }
 

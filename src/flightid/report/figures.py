@@ -213,3 +213,180 @@ def plot_residuals(
         maneuver_index=getattr(result, "maneuver_index", None),
         dpi=dpi,
     )
+
+
+# ------------------------------------------------------------------ report figures
+# The HTML report embeds these (``flightid.report.html``): each function returns a Figure,
+# ``png_bytes`` renders it. Axis labels carry units as "name [unit]".
+
+
+def axis_label(name: str, unit: str | None) -> str:
+    """``"alpha [rad]"``; a channel without a known unit shows ``[?]`` rather than nothing."""
+    return f"{name} [{unit or '?'}]"
+
+
+def png_bytes(figure: Figure, dpi: int = 90) -> bytes:
+    """The figure as PNG bytes (Agg canvas)."""
+    import io
+
+    FigureCanvasAgg(figure)
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi)
+    return buffer.getvalue()
+
+
+def maneuver_figure(
+    time: np.ndarray,
+    inputs: np.ndarray | None,
+    input_names: Sequence[str],
+    measured: np.ndarray,
+    predicted: np.ndarray,
+    output_names: Sequence[str],
+    units: Mapping[str, str],
+    title: str,
+    input_steps: bool = False,
+) -> Figure:
+    """One maneuver: the inputs on top (full width), then per output the measured (+) and
+    predicted (line) response on the left and the residual z − y on the right, against the
+    time from the maneuver's first sample.
+
+    Args:
+        time: (N,) s (absolute; shown as t − t₀).
+        inputs: (N, n_u) in the inputs' units, or None.
+        measured, predicted: (N, n_o) in the outputs' units.
+        units: {channel: unit}.
+        input_steps: draw the inputs as held steps (zero-order-hold interpolation).
+    """
+    time = np.asarray(time, dtype=float)
+    n = time.shape[0]
+    t0 = float(time[0]) if n else 0.0
+    time = time - t0
+    z = _as_matrix(measured, n, "measured")
+    y = _as_matrix(predicted, n, "predicted")
+    u = None if inputs is None or not len(input_names) else _as_matrix(inputs, n, "inputs")
+    n_u = 0 if u is None else u.shape[1]
+    n_o = len(output_names)
+    figure = Figure(figsize=(11.0, 1.0 * n_u + 1.5 * n_o + 1.0))
+    grid = figure.add_gridspec(
+        n_u + n_o, 2, width_ratios=(3, 2), height_ratios=[1.0] * n_u + [1.5] * n_o
+    )
+    first = None
+    for i in range(n_u):
+        ax = figure.add_subplot(grid[i, :], sharex=first)
+        first = first or ax
+        ax.plot(
+            time,
+            u[:, i],
+            color="k",
+            linewidth=1.1,
+            drawstyle="steps-post" if input_steps else "default",
+        )
+        ax.set_ylabel(axis_label(input_names[i], units.get(input_names[i])), fontsize=8)
+        ax.set_facecolor("#f6f6ee")
+        if i == 0:
+            ax.set_title("inputs", fontsize=9, loc="left")
+    for j, name in enumerate(output_names):
+        label = axis_label(name, units.get(name))
+        ax = figure.add_subplot(grid[n_u + j, 0], sharex=first)
+        first = first or ax
+        ax.plot(time, z[:, j], label="measured z", **_MEASURED_STYLE)
+        ax.plot(time, y[:, j], label="predicted y", **_PREDICTED_STYLE)
+        ax.set_ylabel(label, fontsize=8)
+        res = figure.add_subplot(grid[n_u + j, 1], sharex=first)
+        res.plot(time, z[:, j] - y[:, j], color="tab:red", linewidth=0.8)
+        res.axhline(0.0, color="k", linewidth=0.5)
+        res.set_ylabel(f"z − y [{units.get(name) or '?'}]", fontsize=8)
+        if j == 0:
+            ax.set_title("outputs: measured vs predicted", fontsize=9, loc="left")
+            res.set_title("residuals", fontsize=9, loc="left")
+            ax.legend(fontsize=7, loc="upper right", frameon=False, ncol=2)
+        if j == n_o - 1:
+            ax.set_xlabel(f"t − t₀ [s]   (t₀ = {t0:g} s)", fontsize=8)
+            res.set_xlabel("t − t₀ [s]", fontsize=8)
+    for ax in figure.axes:
+        # time tick labels only under the bottom row
+        ax.tick_params(labelsize=7, labelbottom=ax.get_subplotspec().is_last_row())
+        ax.grid(True, linewidth=0.4, alpha=0.5)
+        ax.margins(x=0)
+    figure.suptitle(title, fontsize=10)
+    figure.tight_layout()
+    return figure
+
+
+def autocorrelation_figure(
+    rho: np.ndarray, band: float, dt: float, names: Sequence[str], lag_used: int | None = None
+) -> Figure:
+    """Residual autocorrelation ρ_o(k) per output against the lag in seconds, with the
+    white-noise band ±1.96/√N; ``lag_used`` marks the coloured-residual correction's L."""
+    rho = np.asarray(rho, dtype=float)
+    lags_s = np.arange(rho.shape[0]) * dt
+    columns = min(len(names), 3)
+    rows = -(-len(names) // columns)
+    figure = Figure(figsize=(3.7 * columns, 2.3 * rows + 0.5))
+    axes = figure.subplots(rows, columns, squeeze=False)
+    for j, name in enumerate(names):
+        ax = axes[j // columns, j % columns]
+        outside = np.abs(rho[:, j]) > band
+        outside[0] = False
+        ax.vlines(lags_s, 0.0, rho[:, j], color=np.where(outside, "tab:red", "tab:blue"), lw=1.2)
+        ax.axhspan(-band, band, color="0.85", zorder=0, label="±1.96/√N")
+        ax.axhline(0.0, color="k", linewidth=0.5)
+        if lag_used:
+            ax.axvline(
+                lag_used * dt,
+                color="tab:orange",
+                linestyle="--",
+                linewidth=0.9,
+                label=f"correction lag L = {lag_used}",
+            )
+        ax.set_title(f"{name}: {int(outside.sum())} of {len(rho) - 1} lags outside", fontsize=8)
+        ax.set_xlabel("lag [s]", fontsize=8)
+        ax.set_ylabel("ρ(k) [–]", fontsize=8)
+        ax.set_ylim(min(-0.3, rho[:, j].min() - 0.05), 1.05)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, linewidth=0.4, alpha=0.5)
+        if j == 0:
+            ax.legend(fontsize=7, frameon=False, loc="upper right")
+    for k in range(len(names), rows * columns):
+        axes[k // columns, k % columns].set_visible(False)
+    figure.suptitle("residual autocorrelation", fontsize=10)
+    figure.tight_layout()
+    return figure
+
+
+def cost_history_figure(
+    costs: Sequence[float],
+    noise_update_passes: Sequence[int] = (),
+    title: str = "cost history",
+) -> Figure:
+    """Cost J per recorded pass (log scale), a dashed line before each pass whose cost is
+    under a re-estimated R."""
+    costs = np.asarray(costs, dtype=float)
+    figure = Figure(figsize=(6.5, 3.2))
+    ax = figure.subplots()
+    passes = np.arange(costs.size)
+    # one line per stretch under one R: a cost under a new R is not comparable with the last
+    edges = sorted({0, costs.size, *(p for p in noise_update_passes if 0 < p < costs.size)})
+    for a, b in zip(edges[:-1], edges[1:], strict=False):
+        part = slice(a, b)
+        positive = costs[part] > 0
+        ax.semilogy(
+            passes[part][positive], costs[part][positive], "o-", markersize=3.5, color="tab:blue"
+        )
+    for k, p in enumerate(noise_update_passes):
+        ax.axvline(
+            p - 0.5,
+            color="tab:orange",
+            linestyle="--",
+            linewidth=1.0,
+            label="R re-estimated" if k == 0 else None,
+        )
+    if len(noise_update_passes):
+        ax.legend(fontsize=7, frameon=False)
+    ax.set_xlabel("pass [–]", fontsize=8)
+    ax.set_ylabel("cost J = Σ νᵀR⁻¹ν [–]", fontsize=8)
+    ax.set_title(title, fontsize=9)
+    ax.tick_params(labelsize=7)
+    ax.grid(True, which="both", linewidth=0.3)
+    figure.tight_layout()
+    return figure

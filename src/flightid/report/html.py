@@ -18,11 +18,16 @@ CR bounds of real data are optimistic). The report only reads results.
 
 from __future__ import annotations
 
+import base64
 import csv
 import html
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+
+from flightid.report.diagnostics import COLOURED_RATIO_WARNING
 
 __all__ = ["write_report", "write_files", "interval_half_widths"]
 
@@ -38,118 +43,112 @@ def interval_half_widths(std: np.ndarray, confidence: float, bound_factor: float
 # ------------------------------------------------------------------------------ figures
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _fit_figure(path: Path, title: str, time, measured, predicted, names, units) -> None:
-    plt = _plt()
-    n = len(names)
-    fig, axes = plt.subplots(n, 2, figsize=(11, 1.8 * n + 0.8), sharex=True, squeeze=False)
-    for j, name in enumerate(names):
-        ax = axes[j, 0]
-        ax.plot(time, measured[:, j], color="0.45", lw=1.0, label="measured")
-        ax.plot(time, predicted[:, j], color="tab:red", lw=1.0, label="model")
-        unit = units.get(name, "")
-        ax.set_ylabel(f"{name}" + (f" [{unit}]" if unit else ""), fontsize=8)
-        ax.tick_params(labelsize=7)
-        res = axes[j, 1]
-        res.plot(time, measured[:, j] - predicted[:, j], color="tab:blue", lw=0.8)
-        res.axhline(0.0, color="k", lw=0.5)
-        res.tick_params(labelsize=7)
-        if j == 0:
-            ax.set_title("measured vs model", fontsize=9)
-            res.set_title("residual", fontsize=9)
-            ax.legend(fontsize=7, loc="best")
-    axes[-1, 0].set_xlabel("time [s]", fontsize=8)
-    axes[-1, 1].set_xlabel("time [s]", fontsize=8)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
-def _convergence_figure(path: Path, estimate) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 3.2))
-    costs = np.asarray(estimate.cost_history, dtype=float)
-    evaluations = np.asarray(estimate.evaluation_history, dtype=float)
-    x = evaluations if evaluations.size == costs.size else np.arange(costs.size)
-    ax.semilogy(x, costs, "o-", ms=3)
-    ax.set_xlabel("equivalent evaluations" if evaluations.size == costs.size else "pass")
-    ax.set_ylabel("cost J")
-    ax.set_title(f"convergence ({estimate.solver}, {estimate.status})", fontsize=9)
-    ax.grid(True, which="both", lw=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
-def _correlation_figure(path: Path, estimate) -> None:
-    plt = _plt()
-    corr = np.asarray(estimate.correlation, dtype=float)
-    names = estimate.free_names
-    size = max(4.0, 0.35 * len(names) + 2)
-    fig, ax = plt.subplots(figsize=(size + 1, size))
-    image = ax.imshow(corr, vmin=-1, vmax=1, cmap="RdBu_r")
-    ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
-    ax.set_yticks(range(len(names)), names, fontsize=7)
-    fig.colorbar(image, ax=ax, shrink=0.8)
-    ax.set_title("correlation of the estimates", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
 def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name) or "maneuver"
 
 
-def write_figures(run, directory: Path) -> dict[str, list[str]]:
-    """Write the PNG figures; returns {kind: [relative paths]}."""
-    directory.mkdir(parents=True, exist_ok=True)
+def channel_units(run) -> dict[str, str]:
+    """{channel: unit} of the run: the data's channel units (``FlightData.units``, set by the
+    loaders from each channel's ``unit`` / ``to``), the estimate's ``output_units`` where the
+    data has none."""
+    units: dict[str, str] = {}
+    est = run.estimate
+    for name, unit in zip(est.output_names, getattr(est, "output_units", ()) or (), strict=False):
+        if unit:
+            units[name] = unit
+    for maneuver in run.maneuvers:
+        units.update({k: v for k, v in maneuver.units.items() if v})
+    return units
+
+
+@dataclass
+class Figures:
+    """Rendered report figures: (file name, PNG bytes) per kind."""
+
+    fits: list[tuple[str, bytes]] = field(default_factory=list)
+    prediction: list[tuple[str, bytes]] = field(default_factory=list)
+    autocorrelation: tuple[str, bytes] | None = None
+    convergence: tuple[str, bytes] | None = None
+
+    def all(self) -> list[tuple[str, bytes]]:
+        extra = [f for f in (self.autocorrelation, self.convergence) if f is not None]
+        return [*self.fits, *self.prediction, *extra]
+
+
+def render_figures(run, dpi: int = 80) -> Figures:
+    """Draw the report's figures (time histories with inputs per maneuver and per held-out
+    maneuver, residual autocorrelation, cost history) as PNG bytes."""
+    from flightid.report.diagnostics import autocorrelation_lags, residual_autocorrelation
+    from flightid.report.figures import (
+        autocorrelation_figure,
+        cost_history_figure,
+        maneuver_figure,
+        png_bytes,
+    )
+
     est = run.estimate
     names = list(est.output_names)
-    units = {}
-    for m in run.maneuvers:
-        units.update(m.units)
-    figures: dict[str, list[str]] = {"fits": [], "prediction": [], "other": []}
+    units = channel_units(run)
+    figures = Figures()
+    steps = getattr(est, "input_interpolation", "linear") == "zoh"
     for k, maneuver in enumerate(run.maneuvers):
         rows = est.maneuver_index == k
-        path = directory / f"fit_{k + 1}_{_safe(maneuver.name)}.png"
-        _fit_figure(
-            path,
-            f"{run.case.title} — maneuver {maneuver.name}",
+        figure = maneuver_figure(
             est.time[rows],
+            maneuver.inputs if maneuver.input_names else None,
+            list(maneuver.input_names),
             est.measured[rows],
             est.predicted[rows],
             names,
             units,
+            f"maneuver {maneuver.name} (estimation)",
+            input_steps=steps,
         )
-        figures["fits"].append(f"figures/{path.name}")
+        figures.fits.append((f"fit_{k + 1}_{_safe(maneuver.name)}.png", png_bytes(figure, dpi)))
     for p in run.predictions:
-        path = directory / f"prediction_{_safe(p.name)}.png"
-        _fit_figure(
-            path,
-            f"prediction on {p.name}",
+        figure = maneuver_figure(
             p.time,
+            getattr(p, "inputs", None),
+            list(getattr(p, "input_names", ())),
             p.measured,
             p.predicted,
             list(p.output_names),
-            units,
+            {**units, **getattr(p, "units", {})},
+            f"maneuver {p.name} (held out: prediction check)",
+            input_steps=steps,
         )
-        figures["prediction"].append(f"figures/{path.name}")
-    _convergence_figure(directory / "convergence.png", est)
-    figures["other"].append("figures/convergence.png")
-    if len(est.free_names) > 1:
-        _correlation_figure(directory / "correlation.png", est)
-        figures["other"].append("figures/correlation.png")
+        figures.prediction.append((f"prediction_{_safe(p.name)}.png", png_bytes(figure, dpi)))
+    shortest = min(int(np.sum(est.maneuver_index == k)) for k in range(len(run.maneuvers)))
+    rho, band = residual_autocorrelation(
+        est.residuals, autocorrelation_lags(est.time.shape[0], shortest), est.maneuver_index
+    )
+    coloured = _coloured(run)
+    figure = autocorrelation_figure(rho, band, run.maneuvers[0].dt, names, coloured.lag)
+    figures.autocorrelation = ("autocorrelation.png", png_bytes(figure, dpi))
+    figure = cost_history_figure(
+        est.cost_history,
+        getattr(est, "noise_update_passes", ()),
+        f"cost history ({est.solver}, noise {est.noise_policy})",
+    )
+    figures.convergence = ("convergence.png", png_bytes(figure, dpi))
     return figures
+
+
+def _coloured(run):
+    from flightid.report.diagnostics import coloured_sigma
+
+    return coloured_sigma(run.estimate, getattr(run, "accuracy", None))
+
+
+def _img(figure: tuple[str, bytes] | None, alt: str, width: str = "100%") -> str:
+    """An <img> with the PNG embedded as a base64 data URI: the page needs no other file."""
+    if figure is None:
+        return ""
+    data = base64.b64encode(figure[1]).decode("ascii")
+    return (
+        f"<figure><img alt='{html.escape(alt)}' style='max-width:{width}' "
+        f"src='data:image/png;base64,{data}'><figcaption>{html.escape(alt)}</figcaption></figure>"
+    )
 
 
 # ------------------------------------------------------------------------------ tables
@@ -160,6 +159,7 @@ def _estimate_rows(run) -> list[dict]:
     confidence = float(run.case.accuracy.get("confidence", 0.95))
     factor = float(run.case.accuracy.get("bound_factor", 1.0))
     half = interval_half_widths(np.where(est.free, est.std, 0.0), confidence, factor)
+    units = tuple(getattr(est, "parameter_units", ()) or ("",) * len(est.names))
     rows = []
     for i, name in enumerate(est.names):
         free = bool(est.free[i])
@@ -167,6 +167,7 @@ def _estimate_rows(run) -> list[dict]:
         rows.append(
             {
                 "name": name,
+                "unit": units[i],
                 "value": value,
                 "cr_bound": std if free else None,
                 "relative_percent": 100 * std / abs(value) if free and value != 0 else None,
@@ -212,151 +213,380 @@ def _fmt(value, digits: int = 6) -> str:
     return f"{value:.{digits}g}"
 
 
-def _table(headers: list[str], rows: list[list[str]], classes: list[str] | None = None) -> str:
+def _table(
+    headers: list[str],
+    rows: list[list[str]],
+    classes: list[str] | None = None,
+    table_class: str = "",
+) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+    thead = f"<thead><tr>{head}</tr></thead>" if any(headers) else ""
     body = []
     for i, row in enumerate(rows):
         cls = f' class="{classes[i]}"' if classes and classes[i] else ""
         body.append(f"<tr{cls}>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>")
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    attribute = f" class='{table_class}'" if table_class else ""
+    return f"<table{attribute}>{thead}<tbody>{''.join(body)}</tbody></table>"
 
 
 _STYLE = """
-body { font-family: system-ui, sans-serif; margin: 2em; max-width: 1200px; color: #222; }
-table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.9em; }
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1180px; color: #222;
+       padding: 0 1em; }
+h1 { margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #ccc; margin-top: 1.6em; }
+table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.88em; }
 th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: right; }
 th { background: #f0f0f0; } td:first-child { text-align: left; font-family: monospace; }
-tr.fixed td { color: #888; } td.high { background: #fbd5d5; }
-.ok { color: #176117; } .bad { color: #a11; } img { max-width: 100%; border: 1px solid #ddd; }
+table.facts td, table.facts th { text-align: left; }
+table.facts td:first-child { font-family: inherit; }
+tr.fixed td { color: #888; } .high { background: #fbd5d5; }
+.ok { color: #176117; } .bad { color: #a11; }
+.warning { border: 2px solid #c33; background: #fff1f0; padding: 0.6em 1em; margin: 1em 0; }
+.note { border: 1px solid #cb3; background: #fffbe6; padding: 0.5em 1em; margin: 1em 0; }
+figure { margin: 0.5em 0 1.2em; } figcaption { font-size: 0.85em; color: #555; }
+img { border: 1px solid #ddd; } code { font-size: 0.95em; }
+.small { font-size: 0.85em; color: #555; }
 """
 
 
-def render_html(run, figures: dict[str, list[str]]) -> str:
-    est = run.estimate
+def _unit(unit: str | None) -> str:
+    return html.escape(unit) if unit else "—"
+
+
+def _provenance(run, generated_utc: str) -> list[list[str]]:
+    from flightid import __version__
+
     case = run.case
-    confidence = float(case.accuracy.get("confidence", 0.95))
-    factor = float(case.accuracy.get("bound_factor", 1.0))
-    threshold = float(case.accuracy.get("correlation_warning", 0.9))
-    parts = [
-        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
-        f"<title>{html.escape(case.title)}</title><style>{_STYLE}</style></head><body>",
-        f"<h1>{html.escape(case.title)}</h1>",
-    ]
-    if case.description:
-        parts.append(f"<p>{html.escape(case.description)}</p>")
-    status_class = "ok" if est.converged else "bad"
-    parts.append(
-        f"<p class='{status_class}'><b>{html.escape(est.status)}</b>: "
-        f"{html.escape(est.message)}</p>"
-    )
-    summary = [
-        ["case file", html.escape(str(case.path))],
+    digest = getattr(run, "case_sha256", "") or "— (the case was not read from a file)"
+    return [
+        ["produced by", f"flightid {html.escape(__version__)}"],
+        ["generated (UTC)", html.escape(generated_utc)],
+        ["case file", f"<code>{html.escape(str(case.path))}</code>"],
+        ["case file SHA-256", f"<code>{html.escape(digest)}</code>"],
+        ["data directory", f"<code>{html.escape(str(run.data_dir))}</code>"],
         ["model", html.escape(run.model_description)],
+    ]
+
+
+def _run_facts(run) -> list[list[str]]:
+    est = run.estimate
+    optimality = est.optimality_sigma
+    return [
         [
-            "maneuvers",
-            html.escape(", ".join(f"{m.name} ({m.n_samples} × {m.dt:g} s)" for m in run.maneuvers)),
+            "maneuvers (estimation)",
+            html.escape(
+                ", ".join(f"{m.name} ({m.n_samples} samples × {m.dt:g} s)" for m in run.maneuvers)
+            ),
         ],
-        ["solver / noise / integration", f"{est.solver} / {est.noise_policy} / {est.method}"],
-        ["cost J", _fmt(est.cost)],
-        ["iterations", str(est.iterations)],
+        [
+            "maneuvers (held out)",
+            html.escape(", ".join(p.name for p in run.predictions) or "none"),
+        ],
+        [
+            "solver / noise policy / integration",
+            f"{est.solver} / {est.noise_policy} / {est.method}",
+        ],
+        ["input interpolation", html.escape(getattr(est, "input_interpolation", "linear"))],
+        ["cost J = Σ νᵀR⁻¹ν [–]", _fmt(est.cost)],
+        ["passes / R re-estimations", f"{est.iterations} / {est.noise_cycles}"],
         [
             "equivalent evaluations",
             f"{est.equivalent_evaluations} (+{est.accuracy_evaluations} for the information "
             "matrix)",
         ],
-        ["wall time", f"{est.wall_time_s:.2f} s"],
+        [
+            "optimality (next Gauss–Newton step) [σ]",
+            (_fmt(optimality, 3) if np.isfinite(optimality) else "—")
+            + " <span class='small'>(√(ΔθᵀMΔθ) at θ̂; small means at the optimum)</span>",
+        ],
+        [
+            "parameters on a bound",
+            html.escape(", ".join(est.at_bound)) if est.at_bound else "none",
+        ],
+        ["wall time [s]", f"{est.wall_time_s:.2f}"],
     ]
-    parts.append("<h2>Run</h2>" + _table(["item", "value"], summary))
 
+
+def _coloured_warning(coloured) -> str:
+    """The plain-words warning (or note) about coloured residuals."""
+    worst = coloured.worst
+    if coloured.lag == 0 or worst is None:
+        return (
+            "<p class='ok'>The residuals are white within the ±1.96/√N band: the Cramér–Rao "
+            "σ and the coloured-residual σ agree.</p>"
+        )
+    name, ratio = worst
+    if coloured.understated:
+        return (
+            "<div class='warning'><b>Warning: coloured residuals.</b> The residuals are "
+            f"autocorrelated (correlation outside the white-noise band up to lag "
+            f"{coloured.lag} samples), and the Cramér–Rao bounds understate the uncertainty "
+            f"by up to ×{ratio:.2g} (parameter <code>{html.escape(name)}</code>). "
+            "<b>Use the corrected σ</b> (column “coloured σ”).</div>"
+        )
+    return (
+        f"<div class='note'>The residuals are coloured (lag {coloured.lag} samples), but the "
+        f"corrected σ is at most ×{ratio:.2g} the Cramér–Rao σ (parameter "
+        f"<code>{html.escape(name)}</code>).</div>"
+    )
+
+
+def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
+    est = run.estimate
+    confidence = float(run.case.accuracy.get("confidence", 0.95))
+    factor = float(run.case.accuracy.get("bound_factor", 1.0))
+    free_index = {n: j for j, n in enumerate(coloured.names)}
+    scaled = abs(coloured.s2 - 1.0) > 0.05
     rows, classes = [], []
-    for row in _estimate_rows(run):
+    for row, unit in zip(_estimate_rows(run), units, strict=True):
+        j = free_index.get(row["name"])
+        std_cr = coloured.std_cr[j] if j is not None else None
+        std_col = coloured.std_coloured[j] if j is not None else None
+        ratio = coloured.ratio[j] if j is not None else None
+        high = ratio is not None and np.isfinite(ratio) and ratio > COLOURED_RATIO_WARNING
+        ratio_text = _fmt(ratio, 3) if ratio is not None and np.isfinite(ratio) else "—"
+        cells = [
+            html.escape(row["name"]),
+            _unit(unit),
+            _fmt(row["value"]),
+            _fmt(row["cr_bound"], 3),
+        ]
+        if scaled:
+            cells.append(_fmt(std_cr, 3))
+        cells += [
+            _fmt(std_col, 3) if std_col is not None and np.isfinite(std_col) else "—",
+            f"<span class='high'>{ratio_text}</span>" if high else ratio_text,
+            _fmt(row["relative_percent"], 3),
+            _fmt(row["lower"]),
+            _fmt(row["upper"]),
+            _fmt(row["initial"]),
+            "on a bound"
+            if row["name"] in run.estimate.at_bound
+            else ("free" if row["free"] else "fixed"),
+        ]
+        rows.append(cells)
+        classes.append("" if row["free"] else "fixed")
+    interval = f"{100 * confidence:g} % CR interval" + (f" (×{factor:g})" if factor != 1 else "")
+    headers = ["parameter", "unit", "estimate", "CR σ"]
+    if scaled:
+        headers.append("s·σ (CR)")
+    headers += [
+        "coloured σ",
+        "coloured / CR",
+        "σ/|θ| %",
+        f"{interval} low",
+        "high",
+        "start",
+        "",
+    ]
+    note = (
+        "<p class='small'>Estimate, σ, intervals and start in the parameter's unit. CR σ: "
+        "Cramér–Rao bound √((M⁻¹)ⱼⱼ). Coloured σ: the sandwich covariance "
+        "M⁻¹[ΣᵢΣⱼ GᵢᵀR⁻¹R̂ν(i−j)R⁻¹Gⱼ]M⁻¹ with the residual autocorrelation up to lag "
+        f"L = {coloured.lag} (<code>flightid.accuracy.coloured_covariance</code>), compared "
+        f"with s·σ (s² = J/(N·n_o − n_p) = {coloured.s2:.4g}).</p>"
+    )
+    del est
+    return _table(headers, rows, classes) + note
+
+
+def _squared(unit: str) -> str:
+    """``rad`` → ``rad²``, ``rad/s`` → ``(rad/s)²``."""
+    return f"({unit})²" if any(c in unit for c in "/ ·*^") else f"{unit}²"
+
+
+def _outputs_table(run, units: dict[str, str], rho_band) -> str:
+    from flightid.report.diagnostics import log_det_r, theil_u
+
+    est = run.estimate
+    rho, band = rho_band
+    u = theil_u(est.measured, est.predicted)
+    rows = []
+    for j, name in enumerate(est.output_names):
+        unit = units.get(name)
+        outside = int(np.sum(np.abs(rho[1:, j]) > band))
         rows.append(
             [
-                html.escape(row["name"]),
-                _fmt(row["value"]),
-                _fmt(row["cr_bound"], 3),
-                _fmt(row["relative_percent"], 3),
-                _fmt(row["lower"]),
-                _fmt(row["upper"]),
-                _fmt(row["initial"]),
-                "free" if row["free"] else "fixed",
+                html.escape(name),
+                _unit(unit),
+                _fmt(est.r_diag[j], 4),
+                _fmt(est.fit_error()[j], 4),
+                _fmt(u[j], 3),
+                _fmt(float(rho[1, j]) if rho.shape[0] > 1 else None, 3),
+                f"{outside} of {rho.shape[0] - 1}",
             ]
         )
-        classes.append("" if row["free"] else "fixed")
-    interval = f"{100 * confidence:g} % interval" + (f" (×{factor:g})" if factor != 1 else "")
-    parts.append(
-        "<h2>Estimates</h2>"
-        + _table(
+    det, log_det = log_det_r(est.r_diag)
+    squared = " · ".join(_squared(units.get(n) or "?") for n in est.output_names)
+    return (
+        _table(
             [
-                "parameter",
-                "estimate",
-                "CR bound σ",
-                "σ/|θ| %",
-                f"{interval} low",
-                "high",
-                "start",
-                "",
+                "output",
+                "unit",
+                "R (variance) [unit²]",
+                "fit RMS [unit]",
+                "Theil U [–]",
+                "ρ(1) [–]",
+                f"lags outside ±1.96/√N = ±{band:.3g}",
             ],
             rows,
-            classes,
         )
+        + _table(
+            ["noise covariance", "value"],
+            [
+                ["det R", f"{_fmt(det, 6)} [{html.escape(squared)}]"],
+                ["ln det R", _fmt(log_det, 8)],
+            ],
+            table_class="facts",
+        )
+        + "<p class='small'>Theil inequality coefficient U = √(Σν²/N) / (√(Σz²/N) + "
+        "√(Σy²/N)): 0 is a perfect fit, below about 0.3 is usually taken as good "
+        "agreement. ρ(k): normalised residual autocorrelation.</p>"
     )
+
+
+def _prediction_section(run, units: dict[str, str], figures) -> str:
+    from flightid.report.diagnostics import theil_u
+
+    parts = [
+        "<h2>Prediction check on held-out maneuvers</h2>",
+        "<p>The estimated model, simulated on maneuvers not used for the estimation.</p>",
+    ]
+    for k, p in enumerate(run.predictions):
+        u = theil_u(p.measured, p.predicted)
+        rows = [
+            [html.escape(n), _unit(units.get(n)), _fmt(e, 4), _fmt(r, 4), _fmt(t, 3)]
+            for n, e, r, t in zip(p.output_names, p.rms, p.r2, u, strict=True)
+        ]
+        parts.append(
+            f"<h3>{html.escape(p.name)} ({p.time.shape[0]} samples)</h3>"
+            + _table(["output", "unit", "RMS error [unit]", "R² [–]", "Theil U [–]"], rows)
+        )
+        if k < len(figures.prediction):
+            parts.append(
+                _img(figures.prediction[k], f"held-out maneuver {p.name}: inputs, responses")
+            )
+    return "\n".join(parts)
+
+
+def _convergence_section(run, figures) -> str:
+    est = run.estimate
+    updates = list(getattr(est, "noise_update_passes", ()))
+    evaluations = list(est.evaluation_history)
+    rows = []
+    for i, cost in enumerate(est.cost_history):
+        mark = "R re-estimated before this pass" if i in updates else ""
+        evaluation = str(evaluations[i]) if i < len(evaluations) else "—"
+        rows.append([str(i), evaluation, _fmt(cost), mark])
+    tail = [u for u in updates if u >= len(est.cost_history)]
+    text = [
+        "<h2>Convergence</h2>",
+        _img(figures.convergence, "cost J per pass; dashed: R re-estimated", "640px")
+        if figures
+        else "",
+        f"<p>{est.noise_cycles} R re-estimation(s) (noise policy {html.escape(est.noise_policy)})"
+        + (
+            "; the last one changed R by less than the tolerance and no pass followed it"
+            if tail
+            else ""
+        )
+        + ". Costs are computed under the R in force at that pass.</p>",
+        _table(["pass", "equivalent evaluations", "cost J [–]", ""], rows),
+    ]
+    return "\n".join(text)
+
+
+def _correlation_section(run) -> str:
+    est = run.estimate
+    threshold = float(run.case.accuracy.get("correlation_warning", 0.9))
+    corr = np.asarray(est.correlation, dtype=float)
+    if corr.size <= 1:
+        return ""
+    names = est.free_names
+    crow = []
+    for i, name in enumerate(names):
+        cells = [html.escape(name)]
+        for j in range(len(names)):
+            v = corr[i, j]
+            high = i != j and np.isfinite(v) and abs(v) > threshold
+            text = _fmt(v, 2)
+            cells.append(f"<span class='high'>{text}</span>" if high else text)
+        crow.append(cells)
+    high_pairs = [
+        f"{names[i]}–{names[j]} ({corr[i, j]:.3f})"
+        for i in range(len(names))
+        for j in range(i + 1, len(names))
+        if np.isfinite(corr[i, j]) and abs(corr[i, j]) > threshold
+    ]
+    parts = ["<h2>Correlation matrix [–]</h2>"]
+    if high_pairs:
+        parts.append(
+            f"<p class='bad'>|correlation| above {threshold:g}: "
+            f"{html.escape(', '.join(high_pairs))}</p>"
+        )
+    parts.append(_table([""] + [html.escape(n) for n in names], crow))
+    return "\n".join(parts)
+
+
+def render_html(run, figures: Figures | None, generated_utc: str | None = None) -> str:
+    """The whole report page as one self-contained HTML string (figures embedded)."""
+    from flightid.report.diagnostics import autocorrelation_lags, residual_autocorrelation
+
+    est = run.estimate
+    case = run.case
+    generated_utc = generated_utc or _utc_now()
+    units = channel_units(run)
+    parameter_units = tuple(
+        getattr(est, "parameter_units", None)
+        or (getattr(est.model.parameters[n], "unit", "") for n in est.names)
+    )
+    coloured = _coloured(run)
+    shortest = min(int(np.sum(est.maneuver_index == k)) for k in range(len(run.maneuvers)))
+    rho_band = residual_autocorrelation(
+        est.residuals, autocorrelation_lags(est.time.shape[0], shortest), est.maneuver_index
+    )
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        "<meta name='generator' content='flightid'>",
+        f"<title>{html.escape(case.title)}</title><style>{_STYLE}</style></head><body>",
+        f"<h1>{html.escape(case.title)}</h1>",
+    ]
+    if case.description:
+        parts.append(f"<p>{html.escape(case.description)}</p>")
+    parts.append(_table(["", ""], _provenance(run, generated_utc), table_class="facts"))
+    status_class = "ok" if est.converged else "bad"
+    message = est.message
+    if message.startswith(est.status + ":"):
+        message = message[len(est.status) + 1 :].strip()
+    parts.append(
+        f"<p class='{status_class}'><b>{html.escape(est.status)}</b>: {html.escape(message)}</p>"
+    )
+    parts.append(_coloured_warning(coloured))
+    parts.append("<h2>Run</h2>" + _table(["item", "value"], _run_facts(run), table_class="facts"))
+    parts.append("<h2>Estimates</h2>" + _estimates_table(run, coloured, parameter_units))
     if getattr(run, "accuracy", None) is not None:
         parts.append(_accuracy_section(run))
-    noise_rows = [
-        [html.escape(n), _fmt(r, 4), _fmt(e, 4)]
-        for n, r, e in zip(est.output_names, est.r_diag, est.fit_error(), strict=True)
-    ]
-    parts.append("<h2>Outputs</h2>" + _table(["output", "R (variance)", "fit RMS"], noise_rows))
+    parts.append("<h2>Outputs: noise, fit, whiteness</h2>" + _outputs_table(run, units, rho_band))
+    if figures is not None:
+        parts.append(_img(figures.autocorrelation, "residual autocorrelation per output"))
+    parts.append("<h2>Time histories: inputs, measured and predicted outputs, residuals</h2>")
+    if figures is None:
+        parts.append("<p>Figures were switched off (<code>[output] figures = false</code>).</p>")
+    else:
+        parts.extend(
+            _img(f, f"maneuver {m.name}: inputs, responses, residuals")
+            for f, m in zip(figures.fits, run.maneuvers, strict=True)
+        )
     if run.predictions:
-        parts.append("<h2>Prediction check</h2>")
-        for k, p in enumerate(run.predictions):
-            pr = [
-                [html.escape(n), _fmt(e, 4), _fmt(r, 4)]
-                for n, e, r in zip(p.output_names, p.rms, p.r2, strict=True)
-            ]
-            parts.append(
-                f"<p>maneuver <b>{html.escape(p.name)}</b> (not used for estimation)</p>"
-                + _table(["output", "RMS error", "R²"], pr)
-            )
-            parts.extend(f"<p><img src='{f}'></p>" for f in figures["prediction"][k : k + 1])
-    parts.append("<h2>Measured vs model and residuals</h2>")
-    parts.extend(f"<p><img src='{f}'></p>" for f in figures["fits"])
-    parts.append("<h2>Convergence</h2>")
-    parts.append(
-        _table(["pass", "cost J"], [[str(i), _fmt(c)] for i, c in enumerate(est.cost_history)])
-    )
-    if "figures/convergence.png" in figures["other"]:
-        parts.append("<p><img src='figures/convergence.png' style='max-width:600px'></p>")
-    corr = np.asarray(est.correlation, dtype=float)
-    if corr.size > 1:
-        names = est.free_names
-        crow = []
-        for i, name in enumerate(names):
-            cells = [html.escape(name)]
-            for j in range(len(names)):
-                v = corr[i, j]
-                high = i != j and np.isfinite(v) and abs(v) > threshold
-                text = _fmt(v, 2)
-                cells.append(f"<span class='high'>{text}</span>" if high else text)
-            crow.append(cells)
-        high_pairs = [
-            f"{names[i]}–{names[j]} ({corr[i, j]:.3f})"
-            for i in range(len(names))
-            for j in range(i + 1, len(names))
-            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > threshold
-        ]
-        parts.append("<h2>Correlation matrix</h2>")
-        if high_pairs:
-            parts.append(
-                f"<p class='bad'>|correlation| above {threshold:g}: "
-                f"{html.escape(', '.join(high_pairs))}</p>"
-            )
-        parts.append(_table([""] + [html.escape(n) for n in names], crow))
-        if "figures/correlation.png" in figures["other"]:
-            parts.append("<p><img src='figures/correlation.png' style='max-width:700px'></p>")
+        parts.append(_prediction_section(run, units, figures or Figures()))
+    parts.append(_convergence_section(run, figures))
+    parts.append(_correlation_section(run))
     parts.append("</body></html>")
-    return "\n".join(parts)
+    return "\n".join(p for p in parts if p)
+
+
+def _utc_now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def _interval(pair) -> str:
@@ -416,21 +646,21 @@ def write_files(run, directory: Path) -> Path:
     exists); returns the HTML path. ``write_report`` calls this on a temporary folder.
 
     results.json is strict JSON (``flightid.report.jsonout``: NaN / ±inf become null, listed
-    under ``"nonfinite"``). ``[output] figures = false`` skips the PNG figures, ``report =
-    false`` the HTML page.
+    under ``"nonfinite"``). The figures are written to ``figures/`` and embedded in
+    report.html (base64 PNG), so the page stands alone. ``[output] figures = false`` skips the
+    figures (folder and page), ``report = false`` the HTML page.
     """
-    from flightid.report.jsonout import dumps
+    from flightid.report.histories import write_results_and_histories
 
     directory = Path(directory)
-    (directory / "results.json").write_text(
-        dumps({"results": [run.to_dict()]}) + "\n", encoding="utf-8"
-    )
+    # results.json (versioned: docs/schema/results.schema.json) and time_histories.csv
+    write_results_and_histories(run, directory)
     write_csv(run, directory / "estimates.csv")
-    figures = (
-        write_figures(run, directory / "figures")
-        if run.case.output.get("figures", True)
-        else {"fits": [], "prediction": [], "other": []}
-    )
+    figures = render_figures(run) if run.case.output.get("figures", True) else None
+    if figures is not None:
+        (directory / "figures").mkdir(parents=True, exist_ok=True)
+        for name, data in figures.all():
+            (directory / "figures" / name).write_bytes(data)
     path = directory / "report.html"
     if run.case.output.get("report", True):
         path.write_text(render_html(run, figures), encoding="utf-8")
