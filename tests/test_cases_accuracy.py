@@ -44,7 +44,7 @@ def test_run_accuracy_profile_json_and_report(tmp_path, capsys):
     assert code == 0
     captured = capsys.readouterr()
     payload = json.loads(captured.out)
-    assert set(payload) == {"results"}
+    assert set(payload) == {"schema_version", "results"}
     (entry,) = payload["results"]
     # the run's own keys are kept beside the accuracy document
     assert {"case", "maneuvers", "prediction"} <= set(entry)

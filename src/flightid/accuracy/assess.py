@@ -291,6 +291,7 @@ def assess(
         search=search,
         evaluations=evaluations,
         warnings=tuple(messages),
+        units=tuple(u for u, f in zip(estimate.parameter_units, estimate.free, strict=True) if f),
     )
 
 

@@ -9,13 +9,24 @@ import numpy as np
 from flightid.accuracy.nonlinearity import Nonlinearity
 from flightid.accuracy.profile import ProfileLimits
 from flightid.accuracy.search import SearchLimits
+from flightid.errors import InputError
+from flightid.results import ResultSurface, check_method, finite_or_none
 
-__all__ = ["AccuracyResult", "accuracy_json"]
+__all__ = ["AccuracyResult", "accuracy_json", "INTERVAL_METHODS"]
+
+# interval methods an AccuracyResult can hold, in report order (profile and search when run)
+INTERVAL_METHODS = ("cr", "cr_simultaneous", "cr_coloured", "cr_beale", "profile", "search")
+# the ones that follow from the information matrix and may be re-levelled without new runs
+_QUADRATIC = ("cr", "cr_simultaneous", "cr_coloured", "cr_beale")
 
 
 @dataclass(frozen=True, eq=False)
-class AccuracyResult:
+class AccuracyResult(ResultSurface):
     """Accuracy statements for the free parameters of an estimate.
+
+    The result surface (``flightid.results``): ``summary()``, ``to_dict()`` / ``to_json()``,
+    ``to_frame()`` (pandas: every held interval as ``<method>_lower`` / ``<method>_upper``),
+    ``conf_int(level=None, method="cr")`` and ``plot()``.
 
     All intervals are (n_f, 2) arrays [lower, upper] over the *free* parameters, in their
     units, at ``level`` and of ``kind`` (individual or simultaneous, see ``levels``).
@@ -40,6 +51,7 @@ class AccuracyResult:
         profile, search: likelihood-region limits, or None if not run.
         evaluations: integrations spent per part ("polish", "beale", "profile", "search").
         warnings: messages (also issued as ``AccuracyWarning``).
+        units: unit of each free parameter (``Parameter.unit``; ``()`` when not given).
     """
 
     names: tuple[str, ...]
@@ -70,6 +82,118 @@ class AccuracyResult:
     search: SearchLimits | None
     evaluations: dict = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    units: tuple[str, ...] = ()
+
+    @property
+    def methods(self) -> tuple[str, ...]:
+        """The interval methods this result holds (``conf_int``'s choices)."""
+        return tuple(m for m in INTERVAL_METHODS if getattr(self, f"ci_{m}") is not None)
+
+    @property
+    def conf_int_names(self) -> list[str]:
+        """The rows of ``conf_int``: the free parameters, in order."""
+        return list(self.names)
+
+    @property
+    def unit_map(self) -> dict[str, str]:
+        """{free parameter: unit}; ``""`` where none is known."""
+        units = tuple(self.units) or ("",) * len(self.names)
+        return dict(zip(self.names, units, strict=True))
+
+    def conf_int(self, level: float | None = None, method: str = "cr") -> np.ndarray:
+        """The (n_f, 2) intervals [lower, upper] of ``method`` (one of ``methods``).
+
+        Args:
+            level: None (default) or the result's ``level``: the held intervals. Another
+                level re-levels the quadratic methods with ``contour_level`` (same ``kind``
+                and ``distribution``):
+                ``cr`` θ̂ ± √(Δ C_jj); ``cr_simultaneous`` with the simultaneous Δ;
+                ``cr_beale`` with Δ_B = Δ · (Δ_B/Δ of the assessment) [5.28];
+                ``cr_coloured`` θ̂ ± √(Δ/s² · C^col_jj). Profile and search limits exist at
+                the assessed level only (run ``assess(..., level=...)`` again).
+            method: ``cr``, ``cr_simultaneous``, ``cr_coloured``, ``cr_beale``, ``profile``,
+                ``search``.
+
+        Returns:
+            (n_f, 2) array in the parameters' units, rows as in ``conf_int_names``; an open
+            side is ±inf.
+        """
+        from flightid.accuracy.intervals import ellipsoid_intervals
+        from flightid.accuracy.levels import check_level, contour_level
+
+        check_method(method, INTERVAL_METHODS)
+        table = getattr(self, f"ci_{method}")
+        if table is None:
+            raise InputError(
+                f"method: {method!r} was not run in this assessment; held: {list(self.methods)}"
+            )
+        if level is None or abs(check_level(level) - self.level) <= 1e-12:
+            return np.array(table, dtype=float)
+        if method not in _QUADRATIC:
+            raise InputError(
+                f"level: the {method} limits were traced at level {self.level:g}, got "
+                f"{level!r}; run flightid.accuracy.assess(..., level={level!r}) for them"
+            )
+        kind = "simultaneous" if method == "cr_simultaneous" else self.kind
+        delta = contour_level(level, self.n_data, self.n_free, self.s2, kind, self.distribution)
+        if method == "cr_beale":
+            # Δ_B = Δ · [1 + N n_o (n_p + 2)/((N n_o − n_p) n_p) N_φ]        [5.28–5.29]
+            delta *= self.delta_beale / self.delta
+        if method == "cr_coloured":
+            # the coloured covariance carries s² already: level Δ / s²
+            return ellipsoid_intervals(self.center, self.covariance_coloured, delta / self.s2)
+        return ellipsoid_intervals(self.center, self.covariance, delta)
+
+    def _frame_rows(self) -> list[dict]:
+        rows = []
+        units = self.unit_map
+        for j, name in enumerate(self.names):
+            row = {
+                "name": name,
+                "estimate": float(self.center[j]),
+                "std": float(self.std[j]),
+                "std_scaled": float(self.std_scaled[j]),
+                "std_coloured": float(self.std_coloured[j]),
+            }
+            for method in self.methods:
+                lower, upper = getattr(self, f"ci_{method}")[j]
+                row[f"{method}_lower"] = float(lower)
+                row[f"{method}_upper"] = float(upper)
+            row["unit"] = units[name]
+            rows.append(row)
+        return rows
+
+    def to_dict(self) -> dict:
+        """JSON-ready statement: level, kind, distribution, s², Δ, N_φ, per parameter the
+        estimate, standard errors, unit and every held interval ([lower, upper], an open
+        side null), evaluations and warnings. (``accuracy_json`` merges the same into an
+        estimate's document for results.json.)"""
+        parameters = []
+        for row in self._frame_rows():
+            entry = {"name": row["name"], "unit": row["unit"]}
+            for key in ("estimate", "std", "std_scaled", "std_coloured"):
+                entry[key] = finite_or_none(row[key])
+            for method in self.methods:
+                entry[f"ci_{method}"] = [
+                    finite_or_none(row[f"{method}_lower"]),
+                    finite_or_none(row[f"{method}_upper"]),
+                ]
+            parameters.append(entry)
+        return {
+            "confidence_level": float(self.level),
+            "interval_kind": self.kind,
+            "distribution": self.distribution,
+            "methods": list(self.methods),
+            "s2": float(self.s2),
+            "delta": float(self.delta),
+            "delta_beale": float(self.delta_beale),
+            "cost_min": float(self.cost_min),
+            "coloured_lag": int(self.coloured_lag),
+            "nonlinearity": self.nonlinearity.to_dict(),
+            "evaluations": {k: int(v) for k, v in self.evaluations.items()},
+            "warnings": list(self.warnings),
+            "parameters": parameters,
+        }
 
     @property
     def ci_profile(self) -> np.ndarray | None:
@@ -96,7 +220,10 @@ class AccuracyResult:
             lo, hi = pair
             return f"[{lo:.4g}, {hi:.4g}]"
 
-        headers = ["parameter", "estimate", "s·σ (CR)", "σ coloured", f"CR {self.level:g}"]
+        units = self.unit_map
+        show_units = any(units.values())
+        headers = ["parameter", *(["unit"] if show_units else [])]
+        headers += ["estimate", "s·σ (CR)", "σ coloured", f"CR {self.level:g}"]
         headers += ["CR Beale"]
         if self.profile is not None:
             headers.append("profile")
@@ -106,6 +233,7 @@ class AccuracyResult:
         for j, name in enumerate(self.names):
             row = [
                 name,
+                *([units[name]] if show_units else []),
                 f"{self.center[j]:.6g}",
                 f"{self.std_scaled[j]:.3g}",
                 f"{self.std_coloured[j]:.3g}",

@@ -303,6 +303,11 @@ def estimate(
         residuals=problem.residuals(outcome.outputs),
         maneuver_index=problem.maneuver_index,
         output_names=tuple(model.outputs),
+        # the outputs' units from the data's channel units (the first maneuver that has one)
+        output_units=tuple(
+            next((m.units[n] for m in problem.maneuvers if m.units.get(n)), "")
+            for n in model.outputs
+        ),
         solver=solver.name,
         solver_settings=solver.settings(),
         noise_policy=noise,

@@ -15,13 +15,19 @@ import numpy as np
 
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
+from flightid.results import ResultSurface, check_method
 
 __all__ = ["Estimate"]
 
 
 @dataclass(frozen=True, eq=False)
-class Estimate:
+class Estimate(ResultSurface):
     """Result of ``estimate``. All arrays are read-only.
+
+    The result surface (``flightid.results``): ``summary()``, ``to_dict()`` / ``to_json()``,
+    ``to_frame()`` (pandas), ``conf_int(level, method="cr")`` and ``plot()``. Units: each
+    parameter's ``Parameter.unit`` (``parameter_units``) and the outputs' units
+    (``output_units``, from the data's channel units when known) appear in all of them.
 
     Attributes:
         names: parameter names (full vector, free and fixed).
@@ -51,6 +57,7 @@ class Estimate:
         solver, solver_settings, noise_policy, method: what ran.
         wall_time_s: seconds.
         model: the model with the estimated values.
+        output_units: unit of each output (``""`` where unknown; ``()`` when not given).
         optimality_sigma: √(ΔθᵀMΔθ) of the Gauss–Newton step from central differences at
             θ̂: how far (in Cramér–Rao σ) the linearised model puts the optimum; a converged
             estimate has it ≤ ``Convergence.confirm_sigma``.
@@ -88,6 +95,7 @@ class Estimate:
     method: str
     wall_time_s: float
     model: StateSpaceModel = field(repr=False)
+    output_units: tuple[str, ...] = ()
     optimality_sigma: float = float("nan")
     input_interpolation: str = "linear"
     at_bound: tuple[str, ...] = ()
@@ -137,6 +145,87 @@ class Estimate:
         """N·n_o, the number of scalar measurements."""
         return int(self.measured.size)
 
+    @property
+    def parameter_units(self) -> tuple[str, ...]:
+        """Unit of each parameter in ``names`` (its ``Parameter.unit``; ``""`` if none)."""
+        parameters = self.model.parameters
+        return tuple(parameters[n].unit if n in parameters else "" for n in self.names)
+
+    @property
+    def output_unit_map(self) -> dict[str, str]:
+        """{output name: unit}; ``""`` where the unit is not known."""
+        units = tuple(self.output_units) or ("",) * len(self.output_names)
+        return dict(zip(self.output_names, units, strict=True))
+
+    @property
+    def conf_int_names(self) -> list[str]:
+        """The rows of ``conf_int``: the free parameters, in order."""
+        return self.free_names
+
+    def conf_int(
+        self,
+        level: float = 0.95,
+        method: str = "cr",
+        *,
+        kind: str = "individual",
+        distribution: str = "t",
+    ) -> np.ndarray:
+        """Confidence intervals of the free parameters from the Cramér–Rao bounds.
+
+        The quadratic approximation of the likelihood region (``flightid.accuracy``, the
+        functions ``residual_variance_factor``, ``contour_level`` and ``ellipsoid_intervals``
+        — the same as ``AccuracyResult.ci_cr``, here at the estimate's own J(θ̂), without
+        the polish of ``assess``):
+
+            s² = J(θ̂)/(N·n_o − n_p)                                          [5.30]
+            individual:   Δ = s² t²_{(1+c)/2}(N·n_o − n_p)  (Student t) or s² χ²_c(1)
+            simultaneous: Δ = n_p s² F_c(n_p, N·n_o − n_p)  or s² χ²_c(n_p)   [5.20–5.25]
+            interval_j = θ̂_j ± √(Δ·(M⁻¹)_jj)                                  [5.24–5.27]
+
+        Args:
+            level: confidence level c, e.g. 0.95.
+            method: ``"cr"`` (the only one an estimate holds; ``flightid.accuracy.assess``
+                gives coloured-residual, Beale, profile and search limits).
+            kind: ``"individual"`` or ``"simultaneous"``.
+            distribution: ``"t"`` (Student t / F quantiles with N·n_o − n_p degrees of
+                freedom, default) or ``"normal"`` (χ², the large-sample limit).
+
+        Returns:
+            (n_f, 2) array [lower, upper] in the parameters' units, rows as in
+            ``conf_int_names``; an undetermined parameter (σ = inf) gets (-inf, inf).
+        """
+        from flightid.accuracy.intervals import ellipsoid_intervals
+        from flightid.accuracy.levels import contour_level, residual_variance_factor
+
+        check_method(method, ("cr",))
+        n_free = len(self.free_names)
+        s2 = residual_variance_factor(self.cost, self.n_data, n_free)
+        delta = contour_level(level, self.n_data, n_free, s2, kind, distribution)
+        center = np.asarray(self.values, dtype=float)[np.asarray(self.free, dtype=bool)]
+        return ellipsoid_intervals(center, self.covariance, delta)
+
+    def _frame_rows(self) -> list[dict]:
+        # the default intervals (95 %, individual, t); none without residual dof
+        enough = self.n_data > len(self.free_names)
+        intervals = dict(zip(self.free_names, self.conf_int(), strict=True)) if enough else {}
+        rows = []
+        for i, name in enumerate(self.names):
+            free = bool(self.free[i])
+            lower, upper = intervals.get(name, (np.nan, np.nan))
+            rows.append(
+                {
+                    "name": name,
+                    "value": float(self.values[i]),
+                    "std": float(self.std[i]) if free else np.nan,
+                    "lower": float(lower),
+                    "upper": float(upper),
+                    "initial": float(self.initial[i]),
+                    "free": free,
+                    "unit": self.parameter_units[i],
+                }
+            )
+        return rows
+
     def value(self, name: str) -> float:
         return float(self.values[self.names.index(name)])
 
@@ -166,6 +255,7 @@ class Estimate:
                     "initial": float(self.initial[i]),
                     "std": std if (self.free[i] and np.isfinite(std)) else None,
                     "free": bool(self.free[i]),
+                    "unit": self.parameter_units[i],
                 }
             )
         return {
@@ -185,6 +275,7 @@ class Estimate:
             "solver_settings": dict(self.solver_settings),
             "R": [float(r) for r in self.r_diag],
             "outputs": list(self.output_names),
+            "output_units": list(self.output_unit_map.values()),
             "fit_rms": [float(e) for e in self.fit_error()],
             "optimality_sigma": float(self.optimality_sigma)
             if np.isfinite(self.optimality_sigma)

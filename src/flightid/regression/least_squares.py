@@ -25,7 +25,7 @@ equivalently the diagonal of the inverse correlation matrix of the non-constant 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -33,6 +33,7 @@ import numpy as np
 from scipy import stats
 
 from flightid.errors import InputError, describe
+from flightid.results import ResultSurface, check_method, finite_or_none, t_intervals
 
 __all__ = ["LeastSquaresResult", "least_squares", "LeastSquaresError"]
 
@@ -42,8 +43,11 @@ class LeastSquaresError(InputError):
 
 
 @dataclass(frozen=True, eq=False)
-class LeastSquaresResult:
+class LeastSquaresResult(ResultSurface):
     """Frozen result of a least-squares fit. Arrays are read-only.
+
+    The result surface (``flightid.results``): ``summary()``, ``to_dict()`` / ``to_json()``,
+    ``to_frame()`` (pandas), ``conf_int(level=0.95, method="t")`` and ``plot()``.
 
     Attributes:
         names: regressor names, one per column of X.
@@ -56,6 +60,7 @@ class LeastSquaresResult:
         n_samples, n_parameters: N and n_p.
         has_constant: whether a column is constant (R², F are then about the mean).
         sigma2_max: the σ²_max used in PSE.
+        units: unit of each estimate (``""`` where unknown; ``()`` when not given).
     """
 
     names: tuple[str, ...]
@@ -72,6 +77,7 @@ class LeastSquaresResult:
     sigma2_max: float
     condition_number: float
     vif: np.ndarray = field(repr=False)
+    units: tuple[str, ...] = ()
 
     # ----------------------------------------------------------------- statistics
     @property
@@ -134,9 +140,53 @@ class LeastSquaresResult:
         j = self.names.index(name)
         return float(self.estimates[j]), float(self.std[j])
 
+    @property
+    def unit_map(self) -> dict[str, str]:
+        """{regressor: unit of its estimate}; ``""`` where none is known."""
+        units = tuple(self.units) or ("",) * len(self.names)
+        return dict(zip(self.names, units, strict=True))
+
+    @property
+    def conf_int_names(self) -> list[str]:
+        """The rows of ``conf_int``: the regressors, in order."""
+        return list(self.names)
+
+    def conf_int(self, level: float = 0.95, method: str = "t") -> np.ndarray:
+        """Individual confidence intervals θ̂_j ± q·std_j of the estimates.
+
+        Args:
+            level: confidence level c, e.g. 0.95.
+            method: ``"t"`` (q = t_{(1+c)/2}(N − n_p), exact for Gaussian residuals, default)
+                or ``"normal"`` (q = z_{(1+c)/2}, the large-sample limit).
+
+        Returns:
+            (n_p, 2) array [lower, upper], rows as in ``conf_int_names``.
+        """
+        check_method(method, ("t", "normal"))
+        return t_intervals(self.estimates, self.std, level, self.dof, method)
+
+    def _frame_rows(self) -> list[dict]:
+        intervals = self.conf_int() if self.dof > 0 else np.full((len(self.names), 2), np.nan)
+        units = self.unit_map
+        return [
+            {
+                "name": name,
+                "value": float(self.estimates[j]),
+                "std": float(self.std[j]),
+                "t": float(self.t_values[j]),
+                "partial_f": float(self.partial_f[j]),
+                "p": float(self.p_values[j]),
+                "vif": float(self.vif[j]),
+                "lower": float(intervals[j, 0]),
+                "upper": float(intervals[j, 1]),
+                "unit": units[name],
+            }
+            for j, name in enumerate(self.names)
+        ]
+
     # ----------------------------------------------------------------- reports
     def summary(self) -> str:
-        """A statsmodels-like text table."""
+        """A statsmodels-like text table (with a unit column when units are known)."""
         lines = [
             "Least-squares regression",
             "=" * 78,
@@ -150,6 +200,10 @@ class LeastSquaresResult:
             f"{'p':>8s}{'VIF':>9s}",
             "-" * 78,
         ]
+        units = self.unit_map
+        show_units = any(units.values())
+        if show_units:
+            lines[-2] += "  unit"
         for j, name in enumerate(self.names):
             vif = self.vif[j]
             vif_text = "" if np.isnan(vif) else f"{vif:9.3g}"
@@ -157,6 +211,7 @@ class LeastSquaresResult:
                 f"{name:<16s}{self.estimates[j]:>14.6g}{self.std[j]:>13.4g}"
                 f"{self.t_values[j]:>10.3g}{self.partial_f[j]:>12.4g}"
                 f"{self.p_values[j]:>8.3f}{vif_text:>9s}"
+                + (f"  {units[name]}" if show_units else "")
             )
         lines.append("=" * 78)
         return "\n".join(lines)
@@ -165,7 +220,7 @@ class LeastSquaresResult:
         """Plain-Python dictionary (JSON-ready)."""
         return {
             "parameters": [
-                {"name": n, "value": float(v), "std": float(s)}
+                {"name": n, "value": float(v), "std": finite_or_none(s), "unit": self.unit_map[n]}
                 for n, v, s in zip(self.names, self.estimates, self.std, strict=True)
             ],
             "r2": float(self.r2),
@@ -222,6 +277,7 @@ def least_squares(
     *,
     sigma2_max: float | None = None,
     rcond: float = 1e-12,
+    units: Mapping[str, str] | None = None,
 ) -> LeastSquaresResult:
     """Fit z ≈ X θ by least squares and compute the regression statistics.
 
@@ -234,6 +290,7 @@ def least_squares(
             bound used by Morelli for PSE).
         rcond: X is rejected as rank deficient when its smallest singular value (of the
             unit-length-scaled columns) is below ``rcond`` times the largest.
+        units: {regressor name: unit of its estimate} for reports (any subset of ``names``).
 
     Returns:
         A frozen ``LeastSquaresResult``.
@@ -260,6 +317,12 @@ def least_squares(
     names = tuple(f"x{j}" for j in range(p)) if names is None else tuple(names)
     if len(names) != p:
         raise LeastSquaresError(f"names: expected {p} names (columns of X), got {len(names)}")
+    units = dict(units or {})
+    unknown = sorted(set(units) - set(names))
+    if unknown:
+        raise LeastSquaresError(
+            f"units: expected regressor names from {list(names)}, got {unknown}"
+        )
 
     # Column scaling to unit length makes the rank test and the condition number unit-free.
     norms = np.linalg.norm(X, axis=0)
@@ -312,4 +375,5 @@ def least_squares(
         sigma2_max=float(sigma2_max),
         condition_number=condition,
         vif=_readonly(_vif(X, constant)),
+        units=tuple(str(units.get(n, "")) for n in names) if units else (),
     )

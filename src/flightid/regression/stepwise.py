@@ -47,6 +47,7 @@ import numpy as np
 from flightid.errors import InputError, describe
 from flightid.model.terms import Term, parse_term
 from flightid.regression.least_squares import LeastSquaresResult, least_squares
+from flightid.results import ResultSurface
 
 __all__ = ["Step", "StepwiseResult", "stepwise", "StepwiseError"]
 
@@ -94,8 +95,12 @@ def _finite_or_none(value: float) -> float | None:
 
 
 @dataclass(frozen=True, eq=False)
-class StepwiseResult:
+class StepwiseResult(ResultSurface):
     """Result of a stepwise regression.
+
+    The result surface (``flightid.results``): ``summary()``, ``to_dict()`` / ``to_json()``,
+    ``to_frame()`` (pandas; the selected model's estimates), ``conf_int(level=0.95,
+    method="t")`` (those of ``fit``) and ``plot()`` (R², PSE per step and the fit).
 
     Attributes:
         response: name of the modelled coefficient.
@@ -157,6 +162,19 @@ class StepwiseResult:
             "sigma2_max": float(self.sigma2_max),
             "steps": [s.to_dict() for s in self.steps],
         }
+
+    @property
+    def conf_int_names(self) -> list[str]:
+        """The rows of ``conf_int``: the selected terms, in order."""
+        return list(self.fit.names)
+
+    def conf_int(self, level: float = 0.95, method: str = "t") -> np.ndarray:
+        """Intervals of the selected model's estimates: ``fit.conf_int(level, method)``
+        ((n_p, 2) array; ``"t"`` or ``"normal"``; see ``LeastSquaresResult.conf_int``)."""
+        return self.fit.conf_int(level, method)
+
+    def _frame_rows(self) -> list[dict]:
+        return self.fit._frame_rows()
 
 
 def _as_term(item: str | Term, argument: str) -> Term:

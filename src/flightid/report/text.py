@@ -55,12 +55,20 @@ def estimate_summary(result) -> str:
         "(central differences)",
         "",
     ]
-    table = format_table(["parameter", "estimate", "CR bound", "rel. %", "start", ""], rows)
+    headers = ["parameter", "estimate", "CR bound", "rel. %", "start", ""]
+    # units (Parameter.unit, the outputs' channel units) in a column when any is known
+    units = tuple(getattr(result, "parameter_units", ()))
+    if any(units):
+        headers.insert(1, "unit")
+        rows = [[row[0], unit, *row[1:]] for row, unit in zip(rows, units, strict=True)]
+    table = format_table(headers, rows)
+    output_units = dict(getattr(result, "output_unit_map", {}))
+    show = any(output_units.values())
+    noise_rows = [
+        [n, *([output_units.get(n, "")] if show else []), f"{r:.4g}", f"{e:.4g}"]
+        for n, r, e in zip(result.output_names, result.r_diag, result.fit_error(), strict=True)
+    ]
     noise = format_table(
-        ["output", "R (variance)", "fit RMS"],
-        [
-            [n, f"{r:.4g}", f"{e:.4g}"]
-            for n, r, e in zip(result.output_names, result.r_diag, result.fit_error(), strict=True)
-        ],
+        ["output", *(["unit"] if show else []), "R (variance)", "fit RMS"], noise_rows
     )
     return "\n".join(head) + table + "\n\n" + noise
