@@ -349,7 +349,7 @@ def _assess(
 
 
 def run_case(
-    case: Case,
+    case: Case | str | Path,
     data_dir: str | Path | None = None,
     progress: Progress | None = None,
     heartbeat_s: float = 5.0,
@@ -358,13 +358,24 @@ def run_case(
     """Prepare, estimate, assess accuracy and predict; ``progress`` receives one-line messages.
 
     Args:
-        case: a checked case (``load_case``).
+        case: a checked case (``load_case``), or the path of a case file (read with
+            ``load_case``).
         data_dir: the data directory (overrides the case's).
         progress: receives progress messages (None: silent).
         heartbeat_s: seconds between "still running" messages.
         accuracy: accuracy methods (``"cr"``, ``"profile"``, ``"search"``, ``"all"`` or a
             list; ``"none"`` for no assessment); None: the case's ``accuracy.methods``.
     """
+    if isinstance(case, (str, Path)):
+        from flightid.cases.spec import load_case
+
+        case = load_case(case)
+    elif not isinstance(case, Case):
+        from flightid.errors import InputTypeError
+
+        raise InputTypeError(
+            f"case: expected a Case (load_case) or a case file path, got {type(case).__name__}"
+        )
     say = progress or (lambda message: None)
     methods = accuracy_methods(case, accuracy)
     case_file = Path(case.path)

@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
     from flightid.cases.run import stderr_progress
     from flightid.report.folder import ResultFolder
     from flightid.report.jsonout import dumps
+    from flightid.results import results_document
 
     case = load_case(args.case)
     out = output_folder(case, args.out)
@@ -132,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         )
         # the answer goes to stdout first: a failure to write files cannot lose it
         if args.json:
-            print(dumps({"results": [result.to_dict()]}))
+            print(dumps(results_document([result.to_dict()])))
         else:
             print_summary(result)
         sys.stdout.flush()
