@@ -1,0 +1,90 @@
+"""results.json follows its versioned JSON Schema (docs/schema/results.schema.json), and the
+time histories are written beside it."""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import csv
+import io
+import json
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from flightid.cli.main import main
+from flightid.results import SCHEMA_VERSION
+
+ROOT = Path(__file__).resolve().parents[1]
+SCHEMA = ROOT / "docs" / "schema" / "results.schema.json"
+CSV_CASE = ROOT / "examples" / "csv_walkthrough" / "my_case.toml"
+
+
+@pytest.fixture(scope="module")
+def schema() -> dict:
+    document = json.loads(SCHEMA.read_text(encoding="utf-8"))
+    jsonschema.Draft202012Validator.check_schema(document)
+    return document
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """One `flightid run --json --out` of the CSV walk-through case, with profile limits."""
+    out = tmp_path_factory.mktemp("schema") / "run"
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream):
+        code = main(
+            ["run", str(CSV_CASE), "--json", "--out", str(out), "--accuracy", "profile", "--quiet"]
+        )
+    assert code == 0
+    return out, json.loads(stream.getvalue())
+
+
+def _validator(schema: dict) -> jsonschema.Draft202012Validator:
+    return jsonschema.Draft202012Validator(schema)
+
+
+def test_results_json_of_a_run_validates(schema, written):
+    out, printed = written
+    document = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    _validator(schema).validate(document)
+    _validator(schema).validate(printed)  # the --json output is the same document
+    assert document["schema_version"] == SCHEMA_VERSION == "1"
+    (entry,) = document["results"]
+    assert entry["output_units"] == ["rad", "rad/s"]
+    assert all("ci_profile" in p and "unit" in p for p in entry["parameters"])
+    assert document["results"] == printed["results"]
+
+
+def test_the_schema_rejects_what_it_describes_as_wrong(schema, written):
+    # the schema is not a rubber stamp: a wrong version, a missing key, a wrong type fail
+    document = json.loads((written[0] / "results.json").read_text(encoding="utf-8"))
+    validator = _validator(schema)
+    wrong = copy.deepcopy(document)
+    wrong["schema_version"] = "2"
+    assert not validator.is_valid(wrong)
+    wrong = copy.deepcopy(document)
+    del wrong["results"][0]["parameters"][0]["unit"]
+    assert not validator.is_valid(wrong)
+    wrong = copy.deepcopy(document)
+    wrong["results"][0]["parameters"][0]["ci_cr"] = [1.0]
+    assert not validator.is_valid(wrong)
+    wrong = copy.deepcopy(document)
+    wrong["results"][0]["status"] = "finished"
+    assert not validator.is_valid(wrong)
+
+
+def test_time_histories_are_written_beside_results_json(written):
+    out, _ = written
+    document = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    histories = document["time_histories"]
+    path = out / histories["file"]
+    assert path.name == "time_histories.csv"
+    with path.open(newline="", encoding="utf-8") as stream:
+        rows = list(csv.reader(stream))
+    assert rows[0] == [c["name"] for c in histories["columns"]]
+    (maneuver,) = document["results"][0]["maneuvers"]
+    assert len(rows) - 1 == maneuver["samples"]
+    units = {c["name"]: c["unit"] for c in histories["columns"]}
+    assert units["alpha_measured"] == "rad" and units["de"] == "rad"
