@@ -222,7 +222,8 @@ def plot_residuals(
 
 def axis_label(name: str, unit: str | None) -> str:
     """``"alpha [rad]"``; a channel without a known unit shows ``[?]`` rather than nothing."""
-    return f"{name} [{unit or '?'}]"
+    unit = (unit or "?").replace("^2", "²").replace("^3", "³")
+    return f"{name} [{unit}]"
 
 
 def png_bytes(figure: Figure, dpi: int = 90) -> bytes:
@@ -295,7 +296,7 @@ def maneuver_figure(
         res = figure.add_subplot(grid[n_u + j, 1], sharex=first)
         res.plot(time, z[:, j] - y[:, j], color="tab:red", linewidth=0.8)
         res.axhline(0.0, color="k", linewidth=0.5)
-        res.set_ylabel(f"z − y [{units.get(name) or '?'}]", fontsize=8)
+        res.set_ylabel(axis_label("z − y", units.get(name)), fontsize=8)
         if j == 0:
             ax.set_title("outputs: measured vs predicted", fontsize=9, loc="left")
             res.set_title("residuals", fontsize=9, loc="left")

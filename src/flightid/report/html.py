@@ -75,7 +75,7 @@ class Figures:
         return [*self.fits, *self.prediction, *extra]
 
 
-def render_figures(run, dpi: int = 80) -> Figures:
+def render_figures(run, dpi: int = 96) -> Figures:
     """Draw the report's figures (time histories with inputs per maneuver and per held-out
     maneuver, residual autocorrelation, cost history) as PNG bytes."""
     from flightid.report.diagnostics import autocorrelation_lags, residual_autocorrelation
