@@ -8,6 +8,7 @@ import copy
 import csv
 import io
 import json
+import shutil
 from pathlib import Path
 
 import jsonschema
@@ -30,15 +31,24 @@ def schema() -> dict:
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
-    """One `flightid run --json --out` of the CSV walk-through case, with profile limits."""
-    out = tmp_path_factory.mktemp("schema") / "run"
+    """One `flightid run --json --out` of the CSV walk-through case (a copy in which M_α has a
+    unit), with profile limits: (result folder, printed document, printed text)."""
+    folder = tmp_path_factory.mktemp("case")
+    shutil.copytree(CSV_CASE.parent, folder, dirs_exist_ok=True)
+    case = folder / CSV_CASE.name
+    text = case.read_text(encoding="utf-8")
+    assert text.count("Ma = -3.0") == 1
+    case.write_text(text.replace("Ma = -3.0", 'Ma = { value = -3.0, unit = "1/s²" }'), "utf-8")
+    out = folder / "run"
     stream = io.StringIO()
     with contextlib.redirect_stdout(stream):
-        code = main(
-            ["run", str(CSV_CASE), "--json", "--out", str(out), "--accuracy", "profile", "--quiet"]
-        )
+        code = main(["run", str(case), "--json", "--out", str(out), "--accuracy", "profile"])
     assert code == 0
-    return out, json.loads(stream.getvalue())
+    printed = json.loads(stream.getvalue())
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream):
+        assert main(["run", str(case), "--accuracy", "none", "--quiet"]) == 0
+    return out, printed, stream.getvalue()
 
 
 def _validator(schema: dict) -> jsonschema.Draft202012Validator:
@@ -46,7 +56,7 @@ def _validator(schema: dict) -> jsonschema.Draft202012Validator:
 
 
 def test_results_json_of_a_run_validates(schema, written):
-    out, printed = written
+    out, printed, _ = written
     document = json.loads((out / "results.json").read_text(encoding="utf-8"))
     _validator(schema).validate(document)
     _validator(schema).validate(printed)  # the --json output is the same document
@@ -76,7 +86,7 @@ def test_the_schema_rejects_what_it_describes_as_wrong(schema, written):
 
 
 def test_time_histories_are_written_beside_results_json(written):
-    out, _ = written
+    out, _, _ = written
     document = json.loads((out / "results.json").read_text(encoding="utf-8"))
     histories = document["time_histories"]
     path = out / histories["file"]
@@ -88,3 +98,16 @@ def test_time_histories_are_written_beside_results_json(written):
     assert len(rows) - 1 == maneuver["samples"]
     units = {c["name"]: c["unit"] for c in histories["columns"]}
     assert units["alpha_measured"] == "rad" and units["de"] == "rad"
+
+
+def test_a_parameter_unit_shows_in_summary_json_csv_and_report(written):
+    out, printed, text = written
+    (entry,) = printed["results"]
+    units = {p["name"]: p["unit"] for p in entry["parameters"]}
+    assert units["Ma"] == "1/s²" and units["Mq"] == ""
+    with (out / "estimates.csv").open(newline="", encoding="utf-8") as stream:
+        rows = {row["name"]: row for row in csv.DictReader(stream)}
+    assert rows["Ma"]["unit"] == "1/s²"
+    line = next(line for line in text.splitlines() if line.startswith("Ma "))
+    assert "1/s²" in line
+    assert "1/s²" in (out / "report.html").read_text(encoding="utf-8")
