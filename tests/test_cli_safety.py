@@ -554,16 +554,19 @@ def test_output_dir_of_the_case_is_the_default_result_folder(small, tmp_path, mo
 
 
 def test_regress_json_is_strict(tmp_path, capsys, monkeypatch):
-    # flightid.cli.regress imports these when the command runs: patch them at their source
-    import flightid.regression.case as cli_regress
+    # `flightid regress` is an alias of `flightid run`, which imports these when the command
+    # runs: patch them at their source
+    from types import SimpleNamespace
 
-    class Fit:
-        def to_dict(self):
-            return {"r2": float("nan"), "pse": 1.0}
+    import flightid.cases
+    import flightid.cases.stages
 
-    monkeypatch.setattr(cli_regress, "load_case", lambda path: object())
-    monkeypatch.setattr(cli_regress, "run_case", lambda case, data_dir: {"Cm": Fit()})
-    assert main(["regress", "any.toml", "--json"]) == 0
+    case = SimpleNamespace(staged=True, stages=(SimpleNamespace(kind="stepwise"),), output={})
+    stages = [{"kind": "stepwise", "coefficients": {"Cm": {"r2": float("nan"), "pse": 1.0}}}]
+    run = SimpleNamespace(to_dict=lambda: {"results": []}, stages_dict=lambda: stages)
+    monkeypatch.setattr(flightid.cases, "load_case", lambda path: case)
+    monkeypatch.setattr(flightid.cases.stages, "run_stages", lambda *args, **kwargs: run)
+    assert main(["regress", "any.toml", "--json", "--quiet"]) == 0
     document = _strict_loads(capsys.readouterr().out)
-    assert document["coefficients"]["Cm"]["r2"] is None
-    assert document["nonfinite"] == {"/coefficients/Cm/r2": "NaN"}
+    assert document["stages"][0]["coefficients"]["Cm"]["r2"] is None
+    assert document["nonfinite"] == {"/stages/0/coefficients/Cm/r2": "NaN"}

@@ -200,10 +200,10 @@ def test_unknown_setting_is_a_named_input_error(bad):
 
 
 @pytest.mark.parametrize(("value", "ok"), [('"zoh"', True), ('"linear"', True), ('"cubic"', False)])
-def test_regress_ml_section_declares_the_setting(tmp_path, value, ok):
+def test_output_error_stage_declares_the_setting(tmp_path, value, ok):
     from pathlib import Path
 
-    from flightid.regression.case import CaseError, load_case
+    from flightid.cases import CaseError, load_case
 
     source = Path(__file__).resolve().parents[1] / "examples/cases/twin_otter_stepwise.toml"
     text = source.read_text()
@@ -213,10 +213,11 @@ def test_regress_ml_section_declares_the_setting(tmp_path, value, ok):
         text.replace('method = "rk4"\n', f'method = "rk4"\ninput_interpolation = {value}\n')
     )
     if ok:
-        assert load_case(case).ml.input_interpolation == value.strip('"')
+        assert load_case(case).estimation["input_interpolation"] == value.strip('"')
     else:
         with pytest.raises(
-            CaseError, match=r"ml\.input_interpolation: expected one of \['linear', 'zoh'\]"
+            CaseError,
+            match=r"stages\[1\]\.input_interpolation: expected one of \['linear', 'zoh'\]",
         ):
             load_case(case)
 

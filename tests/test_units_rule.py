@@ -18,12 +18,10 @@ import pytest
 from flightid.cases import CaseError as RunCaseError
 from flightid.cases import load_case as load_run_case
 from flightid.cases.build import load_maneuvers
+from flightid.cases.stages import case_signals
 from flightid.data.loaders import ChannelError, ChannelSpec, read_table, to_flight_data
 from flightid.data.units import UnitError, channel_conversion, parse_unit, si_label
 from flightid.errors import InputError
-from flightid.regression.case import CaseError as RegressCaseError
-from flightid.regression.case import case_signals
-from flightid.regression.case import load_case as load_regress_case
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "examples/csv_walkthrough"
@@ -210,11 +208,11 @@ def test_run_case_unknown_unit_without_to_is_refused(walk):
         load_run_case(case)
 
 
-# ------------------------------------------------------------------ `flightid regress` files
+# ------------------------------------------------------------------ stepwise stages
 
 
 def _regress_case(tmp_path: Path, signal_line: str, ml_output: str = "") -> Path:
-    """A stepwise case over a small CSV (columns time, a, b)."""
+    """A case with a stepwise stage over a small CSV (columns time, a, b)."""
     t = np.arange(40) * 0.05
     a = np.sin(t) * 5.0
     rows = "\n".join(f"{x},{y},{2 * y}" for x, y in zip(t, a, strict=True))
@@ -222,8 +220,8 @@ def _regress_case(tmp_path: Path, signal_line: str, ml_output: str = "") -> Path
     case = tmp_path / "case.toml"
     case.write_text(
         f'[data]\nfile = "f.csv"\ndata_dir = "."\nformat = "csv"\n'
-        f"[signals]\n{signal_line}\nCm = 3\n"
-        '[coefficients.Cm]\ncandidates = ["alpha"]\n'
+        f"[data.inputs]\n{signal_line}\nCm = 3\n"
+        '[[stages]]\nkind = "stepwise"\n[stages.coefficients.Cm]\ncandidates = ["alpha"]\n'
     )
     return case
 
@@ -231,7 +229,7 @@ def _regress_case(tmp_path: Path, signal_line: str, ml_output: str = "") -> Path
 def test_regress_signal_follows_the_same_rule(tmp_path):
     case = _regress_case(tmp_path, 'alpha = { column = 2, unit = "deg" }')
     a = np.sin(np.arange(40) * 0.05) * 5.0
-    signals = case_signals(load_regress_case(case))
+    signals = case_signals(load_run_case(case))
     np.testing.assert_allclose(signals["alpha"], a * DEG, rtol=1e-12)
     # the run-case channel spec of the same line gives the same values
     spec = ChannelSpec.from_value({"column": 2, "unit": "deg"}, "outputs.alpha")
@@ -247,12 +245,12 @@ def test_regress_signal_to_keeps_degrees_and_other_units_convert(tmp_path):
         'unit = "deg/s", scale = 2.0 }',
     )
     a = np.sin(np.arange(40) * 0.05) * 5.0
-    signals = case_signals(load_regress_case(case))
+    signals = case_signals(load_run_case(case))
     np.testing.assert_allclose(signals["alpha"], a, rtol=1e-12)
     np.testing.assert_allclose(signals["rate"], 2.0 * a * DEG, rtol=1e-12)
 
 
 def test_regress_unknown_unit_is_refused_with_the_known_ones(tmp_path):
     case = _regress_case(tmp_path, 'alpha = { column = 2, unit = "grad" }')
-    with pytest.raises(RegressCaseError, match=r"signals\.alpha\.unit: .*known: \[.*'deg'"):
-        load_regress_case(case)
+    with pytest.raises(RunCaseError, match=r"data\.inputs\.alpha: .*known: \[.*'deg'"):
+        load_run_case(case)

@@ -84,9 +84,17 @@ def load_maneuvers(
 # ------------------------------------------------------------------------------ base model
 
 
-def base_model(case: Case) -> tuple[StateSpaceModel, str]:
-    """The model before case parameters, x0 and biases: (model, description)."""
+def base_model(case: Case, data_dir: Path | None = None) -> tuple[StateSpaceModel, str]:
+    """The model before case parameters, x0 and biases: (model, description).
+
+    ``data_dir`` is needed by an α–q model whose constants name data columns.
+    """
     spec = case.model
+    if spec.get("type") == "alpha_q":
+        from flightid.cases.alpha_q import structure_from_terms, zero_parameters
+
+        structure = structure_from_terms(spec["aero"])
+        return alpha_q_base(case, data_dir, structure, zero_parameters(structure))
     if "module" in spec:
         path = Path(spec["module"])
         path = path if path.is_absolute() else case.directory / path
@@ -104,6 +112,29 @@ def base_model(case: Case) -> tuple[StateSpaceModel, str]:
         )
         return model, f"user module {path.name}"
     return _builtin_model(case), f"built-in {spec['type']} airplane model"
+
+
+def alpha_q_base(
+    case: Case, data_dir: Path | None, structure, parameters: Parameters
+) -> tuple[StateSpaceModel, str]:
+    """The α–q model of ``[model] type = "alpha_q"`` with ``structure`` (a
+    ``LinearAeroStructure``) and start ``parameters``: (model, description)."""
+    from flightid.cases.alpha_q import alpha_q_constants, alpha_q_model
+
+    first = case.maneuvers[0]
+    path = Path(first.file)
+    if not path.is_absolute():
+        path = (data_dir if data_dir is not None else resolve_data_dir(case)) / path
+    constants = alpha_q_constants(
+        case.model.get("constants", {}), path, first.format, variable=first.variable
+    )
+    try:
+        model = alpha_q_model(
+            structure, parameters, name=case.model.get("name", "alpha_q_longitudinal"), **constants
+        )
+    except InputError as exc:
+        raise CaseError(f"model: {exc}") from None
+    return model, "built-in alpha_q model (α, q integrated; other variables measured)"
 
 
 def _builtin_model(case: Case) -> StateSpaceModel:

@@ -30,31 +30,43 @@ the walk-through and every key)::
     [prediction]                            # maneuvers to predict with the estimated model
     [output]                                # figures, report
 
+    [[stages]]                              # optional: an ordered list of stages, e.g.
+    kind = "stepwise"                       # stepwise → output error → prediction
+    [stages.coefficients.Cm]                # (see flightid.cases.stagespec, docs/cases.md)
+    candidates = ["alpha", "qhat", "de"]
+
+A file without ``[[stages]]`` is one output-error estimation ([estimation]) followed by the
+accuracy assessment ([accuracy]) and the prediction check ([prediction]).
+
 This module only parses and checks types and keys; ``flightid.cases.build`` makes the
 objects. Nothing is evaluated: expressions and terms go to their own safe parsers.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import tomllib
-import types
-import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from flightid.cases.checks import (
+    CaseError,
+    _bool,
+    _integer,
+    _known,
+    _names,
+    _number,
+    _optional_string,
+    _settings,
+    _string,
+    _table,
+)
 from flightid.data.loaders import ChannelSpec
 from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence
 
-__all__ = ["CaseError", "Case", "ManeuverSpec", "load_case", "parse_case"]
-
-
-class CaseError(InputError):
-    """A malformed case file; the message starts with the offending key."""
+__all__ = ["CaseError", "Case", "ManeuverSpec", "StageSpec", "load_case", "parse_case"]
 
 
 _TOP = {
@@ -69,6 +81,20 @@ _TOP = {
     "accuracy",
     "prediction",
     "output",
+    "stages",
+}
+# keys of the old `flightid regress` dialect, and where they went in the one language
+_MIGRATED = {
+    "signals": "channels go in [data.inputs] / [data.outputs] (the same channel grammar: "
+    "column, unit, to, scale, expr)",
+    "stepwise": 'stepwise options go in a [[stages]] table with kind = "stepwise" '
+    "(f_enter, f_remove, sigma2_max, select, forced, max_steps)",
+    "coefficients": "[coefficients.NAME] becomes [stages.coefficients.NAME] of a "
+    'kind = "stepwise" stage (response, candidates)',
+    "ml": 'the output-error stage is a [[stages]] table with kind = "output_error" and '
+    'from = "previous" (solver, noise, method, ...); [ml.inputs]/[ml.outputs] go in '
+    "[data.inputs]/[data.outputs], [ml.constants] in [model.constants] with "
+    '[model] type = "alpha_q", ml.prediction in a kind = "prediction" stage (files)',
 }
 _DATA = {
     "data_dir",
@@ -128,7 +154,10 @@ NOISE = ("max", "maxlik", "fixed")
 # (each sample held over its interval)
 INPUT_INTERPOLATIONS = ("linear", "zoh")
 SOLVER_CLASSES = {"mnres": MNRES, "mnr": MNR, "fps": FPS}
-MODEL_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
+AIRCRAFT_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
+# "alpha_q": α and q integrated, the other flight variables measured (flightid.cases.alpha_q)
+MODEL_TYPES = (*AIRCRAFT_TYPES, "alpha_q")
+_ALPHA_Q_MODEL = {"type", "name", "constants", "aero"}
 
 
 @dataclass(frozen=True)
@@ -142,6 +171,29 @@ class ManeuverSpec:
     variable: str | None = None
     format: str = "auto"
     gaps: str = "error"
+
+
+@dataclass(frozen=True)
+class StageSpec:
+    """One checked ``[[stages]]`` entry (see ``flightid.cases.stagespec``).
+
+    Attributes:
+        kind: "stepwise", "regression", "output_error", "accuracy" or "prediction".
+        name: a label (default the kind).
+        index: position in ``[[stages]]`` (0-based), for messages (``stages[index]``).
+        source: "previous" when the stage takes its structure and start values from the
+            stage before (``from = "previous"``), else None.
+        settings: the stage's own keys (options of its kind).
+        coefficients: per coefficient of a regression stage: (name, response channel,
+            terms (candidates of a stepwise stage), per-coefficient options).
+    """
+
+    kind: str
+    name: str
+    index: int
+    source: str | None = None
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    coefficients: tuple[tuple[str, str, tuple[str, ...], Mapping[str, Any]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -163,107 +215,16 @@ class Case:
     prediction_initial_state: Mapping[str, Any]
     output: Mapping[str, Any]
     raw: Mapping[str, Any] = field(repr=False, default_factory=dict)
+    stages: tuple[StageSpec, ...] = ()
+
+    @property
+    def staged(self) -> bool:
+        """True when the file lists ``[[stages]]`` (else: one output-error estimation)."""
+        return bool(self.stages)
 
     @property
     def directory(self) -> Path:
         return self.path.parent
-
-
-# ------------------------------------------------------------------------------ helpers
-
-
-def _table(value: Any, key: str) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        raise CaseError(f"{key}: expected a table ([{key}] or {{...}}), got {type(value).__name__}")
-    return value
-
-
-def _known(table: Mapping[str, Any], allowed: set[str], key: str) -> None:
-    unknown = sorted(set(table) - allowed)
-    if unknown:
-        where = f"[{key}]" if key else "the top level"
-        raise CaseError(
-            f"{key + '.' if key else ''}{unknown[0]}: unknown key in {where}; "
-            f"allowed keys: {sorted(allowed)}"
-        )
-
-
-def _number(value: Any, key: str, *, infinite: bool = False) -> float:
-    """A TOML integer or float; NaN never, ±inf only where ``infinite`` (bounds, limits)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CaseError(f"{key}: expected a number, got {value!r}")
-    number = float(value)
-    if math.isnan(number) or (math.isinf(number) and not infinite):
-        what = "a number (not NaN)" if infinite else "a finite number"
-        raise CaseError(f"{key}: expected {what}, got {value!r}")
-    return number
-
-
-def _integer(value: Any, key: str, smallest: int | None = None) -> int:
-    """A TOML integer (not 2.5, 3.0 or "3"), at least ``smallest``."""
-    what = {None: "an integer", 0: "a non-negative integer", 1: "a positive integer"}.get(
-        smallest, f"an integer ≥ {smallest}"
-    )
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise CaseError(f"{key}: expected {what}, got {value!r}")
-    if smallest is not None and value < smallest:
-        raise CaseError(f"{key}: expected {what}, got {value!r}")
-    return value
-
-
-def _bool(value: Any, key: str) -> bool:
-    """TOML true / false only ("no", 0 and "false" are errors, not truthy values)."""
-    if not isinstance(value, bool):
-        raise CaseError(f"{key}: expected true or false, got {value!r}")
-    return value
-
-
-def _string(value: Any, key: str, choices: tuple[str, ...] | None = None) -> str:
-    if not isinstance(value, str):
-        raise CaseError(f"{key}: expected a string, got {value!r}")
-    if choices is not None and value not in choices:
-        raise CaseError(f"{key}: expected one of {list(choices)}, got {value!r}")
-    return value
-
-
-def _optional_string(value: Any, key: str) -> str | None:
-    return None if value is None else _string(value, key)
-
-
-def _names(value: Any, key: str) -> list[str]:
-    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise CaseError(f"{key}: expected a list of names (strings), got {value!r}")
-    return value
-
-
-def _typed(value: Any, hint: Any, key: str) -> None:
-    """Check ``value`` against a dataclass field's type (bool, int, float, str, X | None)."""
-    arguments = [a for a in typing.get_args(hint) if a is not type(None)]
-    if typing.get_origin(hint) in (typing.Union, types.UnionType) and len(arguments) == 1:
-        hint = arguments[0]  # TOML has no null: X | None means X here
-    if hint is bool:
-        _bool(value, key)
-    elif hint is int:
-        _integer(value, key)
-    elif hint is float:
-        _number(value, key, infinite=True)
-    elif hint is str:
-        _string(value, key)
-
-
-def _settings(table: Mapping[str, Any], cls: type, key: str) -> None:
-    """The keys of ``table`` are fields of the dataclass ``cls``, each of its type."""
-    try:
-        hints = typing.get_type_hints(cls)
-    except Exception:  # an annotation that cannot be resolved: leave the check to cls
-        hints = {}
-    fields = {f.name: hints.get(f.name) for f in dataclasses.fields(cls) if f.init}
-    for name, value in table.items():
-        if name not in fields:
-            raise CaseError(
-                f"{key}.{name}: not a setting of {cls.__name__}; its settings: {sorted(fields)}"
-            )
-        _typed(value, fields[name], f"{key}.{name}")
 
 
 def _initial_state_types(section: Mapping[str, Any], key: str) -> None:
@@ -345,17 +306,26 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
     return result
 
 
-# ------------------------------------------------------------------------------ parsing
+# ------------------------------------------------------------------------------ sections
 
 
-def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
-    """Check the structure of a parsed TOML document and return a ``Case``."""
+def _top_level(raw: Mapping[str, Any]) -> None:
+    """Known top-level keys; the old `flightid regress` keys get a migration message."""
+    for old, new in _MIGRATED.items():
+        if old in raw:
+            raise CaseError(
+                f"{old}: a key of the old `flightid regress` case files; in the one case "
+                f"language (docs/cases.md, 'One case language') {new}"
+            )
     _known(raw, _TOP, "")
-    for required in ("data", "model"):
+    # a file of regression stages alone needs no model
+    for required in ("data",) if "stages" in raw else ("data", "model"):
         if required not in raw:
             raise CaseError(f"{required}: missing section [{required}]")
-    data = _table(raw["data"], "data")
-    _known(data, _DATA, "data")
+
+
+def _channels(data: Mapping[str, Any]) -> None:
+    """``[data.inputs]`` / ``[data.outputs]``: the channel grammar of ``ChannelSpec``."""
     for key in ("inputs", "outputs"):
         for name, value in _table(data.get(key, {}), f"data.{key}").items():
             try:
@@ -365,16 +335,35 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
                 if not message.startswith("data."):
                     message = f"data.{key}.{name}: {message}"
                 raise CaseError(message) from None
-    if "outputs" not in data or not data["outputs"]:
+
+
+def _data_section(raw: Mapping[str, Any], staged: bool) -> tuple[Mapping[str, Any], list]:
+    """``[data]``: (the table, its maneuvers)."""
+    data = _table(raw["data"], "data")
+    _known(data, _DATA, "data")
+    if data.get("format") == "sidpac":
+        raise CaseError(
+            'data.format: "sidpac" was a `flightid regress` name; SIDPAC fdata files are '
+            'MATLAB files: format = "mat" (or leave it out)'
+        )
+    _channels(data)
+    if not staged and not data.get("outputs"):
         raise CaseError("data.outputs: missing; name the measured output channels")
     if "data_dir" in data:
         _string(data["data_dir"], "data.data_dir")
     time = data.get("time", 1)
     if not isinstance(time, str):
         _integer(time, "data.time", 1)
-    maneuvers = _maneuvers(data, "data", data)
+    return data, _maneuvers(data, "data", data)
 
+
+def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``[model]``: a user module, a built-in airplane model or the α–q model."""
+    if "model" not in raw:
+        return {}
     model = _table(raw["model"], "model")
+    if model.get("type") == "alpha_q":
+        return _alpha_q_section(model)
     _known(model, _MODEL, "model")
     if ("module" in model) == ("type" in model):
         raise CaseError(
@@ -397,110 +386,181 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
             if key not in model:
                 raise CaseError(f"model.{key}: missing; a built-in airplane model needs it")
             _table(model[key], f"model.{key}")
+    return model
 
+
+ALPHA_Q_CONSTANTS = ("mass", "S", "cbar", "Iy", "g")
+ALPHA_Q_OPTIONAL = ("Ix", "Iz", "Ixz")
+
+
+def _alpha_q_section(model: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``[model] type = "alpha_q"``: ``constants`` (numbers, column names or {column = N}:
+    the column's mean over the first maneuver) and ``aero`` ({CZ = [terms], Cm = [terms]})."""
+    _known(model, _ALPHA_Q_MODEL, "model")
+    if "name" in model:
+        _string(model["name"], "model.name")
+    constants = _table(model.get("constants", {}), "model.constants")
+    for name, value in constants.items():
+        where = f"model.constants.{name}"
+        if name not in ALPHA_Q_CONSTANTS + ALPHA_Q_OPTIONAL:
+            raise CaseError(
+                f"{where}: unknown constant; expected {list(ALPHA_Q_CONSTANTS + ALPHA_Q_OPTIONAL)}"
+            )
+        if isinstance(value, Mapping):
+            _known(value, {"column"}, where)
+            if "column" not in value:
+                raise CaseError(f"{where}: expected {{column = number or name}}, got {value!r}")
+            column = value["column"]
+            if isinstance(column, bool) or not isinstance(column, (int, str)) or column in ("", 0):
+                raise CaseError(f"{where}.column: expected a column number or name, got {column!r}")
+        elif isinstance(value, str):
+            _string(value, where)
+        else:
+            _number(value, where)
+    missing = [n for n in ALPHA_Q_CONSTANTS if n not in constants]
+    if missing:
+        raise CaseError(
+            f"model.constants: missing {missing}; give them in the data's unit system "
+            "(g: 9.80665 m/s² or 32.174 ft/s²)"
+        )
+    if "aero" in model:
+        aero = _table(model["aero"], "model.aero")
+        _known(aero, {"CZ", "Cm"}, "model.aero")
+        for coefficient in ("CZ", "Cm"):
+            if coefficient not in aero:
+                raise CaseError(f"model.aero.{coefficient}: missing; the α–q model needs CZ and Cm")
+            _names(aero[coefficient], f"model.aero.{coefficient}")
+    return model
+
+
+def _parameters_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``[parameters]``: name = start value, or {value, free, scale, lower, upper, unit}."""
     parameters = _table(raw.get("parameters", {}), "parameters")
     for name, value in parameters.items():
-        if isinstance(value, Mapping):
-            _known(
-                value, {"value", "free", "scale", "lower", "upper", "unit"}, f"parameters.{name}"
-            )
-            if "value" in value:
-                _number(value["value"], f"parameters.{name}.value")
-            if "free" in value:
-                _bool(value["free"], f"parameters.{name}.free")
-            if "scale" in value:
-                _number(value["scale"], f"parameters.{name}.scale")
-            for bound in ("lower", "upper"):
-                if bound in value:
-                    _number(value[bound], f"parameters.{name}.{bound}", infinite=True)
-            if "unit" in value:
-                _string(value["unit"], f"parameters.{name}.unit")
-        else:
-            _number(value, f"parameters.{name}")
+        where = f"parameters.{name}"
+        if not isinstance(value, Mapping):
+            _number(value, where)
+            continue
+        _known(value, {"value", "free", "scale", "lower", "upper", "unit"}, where)
+        for key, check in (("value", _number), ("free", _bool), ("scale", _number)):
+            if key in value:
+                check(value[key], f"{where}.{key}")
+        for bound in ("lower", "upper"):
+            if bound in value:
+                _number(value[bound], f"{where}.{bound}", infinite=True)
+        if "unit" in value:
+            _string(value["unit"], f"{where}.unit")
+    return parameters
 
-    initial_state = _table(raw.get("initial_state", {}), "initial_state")
-    _initial_state_types(initial_state, "initial_state")
+
+def _bias_entry(value: Any, where: str) -> None:
+    if not isinstance(value, Mapping):
+        _number(value, where)
+        return
+    _known(value, {"value", "free", "per_maneuver", "scale"}, where)
+    for key, check in (
+        ("value", _number),
+        ("free", _bool),
+        ("per_maneuver", _bool),
+        ("scale", _number),
+    ):
+        if key in value:
+            check(value[key], f"{where}.{key}")
+
+
+def _biases_section(raw: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """``[biases.states]`` / ``[biases.outputs]``: name = start | {value, free, per_maneuver}."""
     biases = _table(raw.get("biases", {}), "biases")
     _known(biases, {"states", "outputs"}, "biases")
     for kind in ("states", "outputs"):
         for name, value in _table(biases.get(kind, {}), f"biases.{kind}").items():
-            where = f"biases.{kind}.{name}"
-            if isinstance(value, Mapping):
-                _known(value, {"value", "free", "per_maneuver", "scale"}, where)
-                if "value" in value:
-                    _number(value["value"], f"{where}.value")
-                for flag in ("free", "per_maneuver"):
-                    if flag in value:
-                        _bool(value[flag], f"{where}.{flag}")
-                if "scale" in value:
-                    _number(value["scale"], f"{where}.scale")
-            else:
-                _number(value, where)
+            _bias_entry(value, f"biases.{kind}.{name}")
+    return {k: dict(biases.get(k, {})) for k in ("states", "outputs")}
 
-    estimation = _table(raw.get("estimation", {}), "estimation")
-    _known(estimation, _ESTIMATION, "estimation")
-    solver = _string(estimation.get("solver", "mnres"), "estimation.solver", SOLVERS)
-    _string(estimation.get("method", "rk4"), "estimation.method", METHODS)
-    noise = _string(estimation.get("noise", "max"), "estimation.noise", NOISE)
+
+def _noise_variances(estimation: Mapping[str, Any], noise: str, key: str) -> None:
     if "R" in estimation:
         r = estimation["R"]
         if not isinstance(r, list) or not r:
-            raise CaseError("estimation.R: expected a list of variances, one per output")
+            raise CaseError(f"{key}.R: expected a list of variances, one per output")
         for i, v in enumerate(r):
-            if _number(v, f"estimation.R[{i}]") <= 0:
-                raise CaseError(f"estimation.R[{i}]: variances must be positive, got {v}")
+            if _number(v, f"{key}.R[{i}]") <= 0:
+                raise CaseError(f"{key}.R[{i}]: variances must be positive, got {v}")
     elif noise == "fixed":
-        raise CaseError("estimation.R: needed with noise = 'fixed' (one variance per output)")
+        raise CaseError(f"{key}.R: needed with noise = 'fixed' (one variance per output)")
+
+
+def estimation_settings(estimation: Mapping[str, Any], key: str = "estimation") -> None:
+    """The settings of an output-error estimation ([estimation] or an output_error stage)."""
+    _known(estimation, _ESTIMATION, key)
+    solver = _string(estimation.get("solver", "mnres"), f"{key}.solver", SOLVERS)
+    _string(estimation.get("method", "rk4"), f"{key}.method", METHODS)
+    noise = _string(estimation.get("noise", "max"), f"{key}.noise", NOISE)
+    _noise_variances(estimation, noise, key)
     _settings(
-        _table(estimation.get("solver_settings", {}), "estimation.solver_settings"),
+        _table(estimation.get("solver_settings", {}), f"{key}.solver_settings"),
         SOLVER_CLASSES[solver],
-        "estimation.solver_settings",
+        f"{key}.solver_settings",
     )
     _settings(
-        _table(estimation.get("convergence", {}), "estimation.convergence"),
+        _table(estimation.get("convergence", {}), f"{key}.convergence"),
         Convergence,
-        "estimation.convergence",
+        f"{key}.convergence",
     )
-    _bool(estimation.get("compiled", True), "estimation.compiled")
+    _bool(estimation.get("compiled", True), f"{key}.compiled")
     _string(
         estimation.get("input_interpolation", "linear"),
-        "estimation.input_interpolation",
+        f"{key}.input_interpolation",
         INPUT_INTERPOLATIONS,
     )
 
-    accuracy = _table(raw.get("accuracy", {}), "accuracy")
-    _known(accuracy, _ACCURACY, "accuracy")
-    confidence = _number(accuracy.get("confidence", 0.95), "accuracy.confidence")
-    if not 0 < confidence < 1:
-        raise CaseError(f"accuracy.confidence: expected a level between 0 and 1, got {confidence}")
-    if _number(accuracy.get("bound_factor", 1.0), "accuracy.bound_factor") <= 0:
-        raise CaseError("accuracy.bound_factor: expected a positive number")
-    _number(accuracy.get("correlation_warning", 0.9), "accuracy.correlation_warning")
+
+def _accuracy_methods(accuracy: Mapping[str, Any], key: str) -> None:
     methods = accuracy.get("methods", [])
     if isinstance(methods, str):
         methods = [methods]
     if not isinstance(methods, list):
         raise CaseError(
-            f"accuracy.methods: expected a list of names from {list(ACCURACY_METHODS)}, "
+            f"{key}.methods: expected a list of names from {list(ACCURACY_METHODS)}, "
             f"got {methods!r}"
         )
     for i, method in enumerate(methods):
-        _string(method, f"accuracy.methods[{i}]", ACCURACY_METHODS)
-    for key, smallest in (("budget", 1), ("seed", 0)):
-        _integer(accuracy.get(key, smallest), f"accuracy.{key}", smallest)
-    _string(accuracy.get("kind", "individual"), "accuracy.kind", INTERVAL_KINDS)
-    _string(accuracy.get("distribution", "t"), "accuracy.distribution", DISTRIBUTIONS)
+        _string(method, f"{key}.methods[{i}]", ACCURACY_METHODS)
 
-    prediction_raw = _table(raw.get("prediction", {}), "prediction")
-    _known(prediction_raw, _PREDICTION, "prediction")
-    prediction = (
-        _maneuvers(prediction_raw, "prediction", data)
-        if any(k in prediction_raw for k in ("file", "files", "maneuvers"))
+
+def accuracy_settings(accuracy: Mapping[str, Any], key: str = "accuracy") -> None:
+    """The settings of an accuracy assessment ([accuracy] or an accuracy stage)."""
+    _known(accuracy, _ACCURACY, key)
+    confidence = _number(accuracy.get("confidence", 0.95), f"{key}.confidence")
+    if not 0 < confidence < 1:
+        raise CaseError(f"{key}.confidence: expected a level between 0 and 1, got {confidence}")
+    if _number(accuracy.get("bound_factor", 1.0), f"{key}.bound_factor") <= 0:
+        raise CaseError(f"{key}.bound_factor: expected a positive number")
+    _number(accuracy.get("correlation_warning", 0.9), f"{key}.correlation_warning")
+    _accuracy_methods(accuracy, key)
+    for name, smallest in (("budget", 1), ("seed", 0)):
+        _integer(accuracy.get(name, smallest), f"{key}.{name}", smallest)
+    _string(accuracy.get("kind", "individual"), f"{key}.kind", INTERVAL_KINDS)
+    _string(accuracy.get("distribution", "t"), f"{key}.distribution", DISTRIBUTIONS)
+
+
+def prediction_settings(
+    section: Mapping[str, Any], data: Mapping[str, Any], key: str = "prediction"
+) -> tuple[list[ManeuverSpec], Mapping[str, Any]]:
+    """The maneuvers to predict and their initial states ([prediction] or a prediction
+    stage): (maneuvers, initial_state)."""
+    _known(section, _PREDICTION, key)
+    maneuvers = (
+        _maneuvers(section, key, data)
+        if any(k in section for k in ("file", "files", "maneuvers"))
         else []
     )
-    prediction_x0 = _table(prediction_raw.get("initial_state", {}), "prediction.initial_state")
-    _initial_state_types(prediction_x0, "prediction.initial_state")
+    x0 = _table(section.get("initial_state", {}), f"{key}.initial_state")
+    _initial_state_types(x0, f"{key}.initial_state")
+    return maneuvers, x0
 
+
+def _output_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
     output = _table(raw.get("output", {}), "output")
     _known(output, _OUTPUT, "output")
     for key in ("figures", "report"):
@@ -508,7 +568,43 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
             _bool(output[key], f"output.{key}")
     if "dir" in output:
         _string(output["dir"], "output.dir")
+    return output
 
+
+def _single_run(raw: Mapping[str, Any], data: Mapping[str, Any]) -> dict[str, Any]:
+    """A file without ``[[stages]]``: [estimation], [accuracy] and [prediction]."""
+    estimation = _table(raw.get("estimation", {}), "estimation")
+    estimation_settings(estimation)
+    accuracy = _table(raw.get("accuracy", {}), "accuracy")
+    accuracy_settings(accuracy)
+    prediction, x0 = prediction_settings(_table(raw.get("prediction", {}), "prediction"), data)
+    return {
+        "estimation": estimation,
+        "accuracy": accuracy,
+        "prediction": tuple(prediction),
+        "prediction_initial_state": x0,
+    }
+
+
+# ------------------------------------------------------------------------------ parsing
+
+
+def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
+    """Check the structure of a parsed TOML document and return a ``Case``."""
+    from flightid.cases.stagespec import parse_stages
+
+    _top_level(raw)
+    staged = "stages" in raw
+    data, maneuvers = _data_section(raw, staged)
+    model = _model_section(raw)
+    initial_state = _table(raw.get("initial_state", {}), "initial_state")
+    _initial_state_types(initial_state, "initial_state")
+    if staged:
+        stages, run = parse_stages(raw, data, model)
+    else:
+        stages, run = (), _single_run(raw, data)
+    if model.get("type") == "alpha_q" and "aero" not in model and not staged:
+        raise CaseError("model.aero: missing; give the CZ and Cm terms of the α–q model")
     return Case(
         path=path,
         title=_string(raw.get("title", path.stem), "title"),
@@ -516,15 +612,13 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
         data=data,
         maneuvers=tuple(maneuvers),
         model=model,
-        parameters=parameters,
+        parameters=_parameters_section(raw),
         initial_state=initial_state,
-        biases={k: dict(biases.get(k, {})) for k in ("states", "outputs")},
-        estimation=estimation,
-        accuracy=accuracy,
-        prediction=tuple(prediction),
-        prediction_initial_state=prediction_x0,
-        output=output,
+        biases=_biases_section(raw),
+        output=_output_section(raw),
         raw=raw,
+        stages=stages,
+        **run,
     )
 
 

@@ -1,6 +1,8 @@
 """``flightid validate CASE.toml [--data-dir DIR]``: check a case file without estimating.
 
-Reads the case, loads every data file with its channel mapping, builds the model (user module
+Reads the case, loads every data file with its channel mapping, checks every stage of
+``[[stages]]`` (regression terms evaluated on the data; the output-error model after a
+regression stage built with every candidate term), builds the model (user module
 or built-in airplane), initial states, biases, solver and rules, then evaluates the model's
 ``f`` and ``h`` on the data at the start values (``flightid.model.check_model``: indices into
 x, u and θ, number and type of returned values, finite at the start), for the estimation
@@ -54,13 +56,31 @@ def _check(model: StateSpaceModel, maneuvers: Sequence[FlightData], method: str,
     print(f"  {label}{report.summary()}")
 
 
+def _stages(case, data_dir):
+    """Check every ``[[stages]]`` entry (``flightid.cases.stages.validate_stages``); print one
+    line per stage; the prepared output-error stage (or None) for the checks below."""
+    from flightid.cases.stages import validate_stages
+
+    lines, prepared = validate_stages(case, data_dir)
+    print(f"stages of {case.title}:")
+    for k, line in enumerate(lines):
+        print(f"  [{k}] {line}")
+    return prepared
+
+
 def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, prepare_case
     from flightid.cases.build import build_model, unbiased_model
 
     case = load_case(args.case)
-    prepared = prepare_case(case, args.data_dir)
+    if case.staged:
+        prepared = _stages(case, args.data_dir)
+        if prepared is None:
+            print("valid")
+            return 0
+    else:
+        prepared = prepare_case(case, args.data_dir)
     model = prepared.model
     method = case.estimation.get("method", "rk4")
     print(f"case: {case.title}")

@@ -1,0 +1,330 @@
+"""Run (and dry-check) the ``[[stages]]`` of a case: regression → output error → accuracy,
+prediction — the SIDPAC workflow in one file and one ``flightid run``.
+
+A stepwise stage runs ``flightid.regression.stepwise`` per coefficient on the channels of
+the case's maneuvers (all estimation maneuvers, concatenated); a regression stage fits
+least squares with statistics on the given terms. An output-error stage with
+``from = "previous"`` takes the selected terms and their least-squares estimates as the
+structure and start values of the α–q model (``flightid.cases.alpha_q``; each parameter's
+scale max(|θ̂|, σ̂), ``flightid.regression.pipeline.starting_parameters``) and runs the
+ordinary case run (``flightid.cases.run.run_case``: estimation, then the accuracy and
+prediction stages, whose settings ``parse_case`` placed in the Case).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from flightid.cases.build import alpha_q_base, build_model, load_maneuvers, resolve_data_dir
+from flightid.cases.checks import CaseError
+from flightid.cases.run import CaseRun, Prepared, prepare_case, run_case
+from flightid.cases.spec import Case, StageSpec
+from flightid.data.flightdata import FlightData
+from flightid.errors import InputError
+from flightid.model.parameters import Parameters
+from flightid.model.terms import Term, evaluate_terms, parse_term
+from flightid.regression.least_squares import LeastSquaresResult, least_squares
+from flightid.regression.pipeline import (
+    LinearAeroStructure,
+    PipelineResult,
+    starting_parameters,
+)
+from flightid.regression.stepwise import StepwiseResult, stepwise
+
+__all__ = [
+    "StagesRun",
+    "TermsFit",
+    "case_signals",
+    "has_regression_stages",
+    "run_regression_stage",
+    "run_stages",
+    "stage_signals",
+    "validate_stages",
+]
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True, eq=False)
+class TermsFit:
+    """A regression stage's fit of one coefficient on given terms (least squares with
+    statistics); like ``StepwiseResult`` it has ``selected_terms`` and ``fit``."""
+
+    response: str
+    selected: tuple[str, ...]
+    fit: LeastSquaresResult
+
+    @property
+    def selected_terms(self) -> list[Term]:
+        return [parse_term(label) for label in self.selected]
+
+    def summary(self) -> str:
+        return f"Least squares for {self.response}\n\n" + self.fit.summary()
+
+    def to_dict(self) -> dict:
+        """``selected``, ``parameters`` (name, value, std), ``r2``, ``pse``, ``s2``."""
+        return {
+            "selected": list(self.selected),
+            "parameters": self.fit.to_dict()["parameters"],
+            "r2": float(self.fit.r2),
+            "pse": float(self.fit.pse),
+            "s2": float(self.fit.s2),
+        }
+
+
+RegressionResult = StepwiseResult | TermsFit
+
+
+@dataclass(frozen=True, eq=False)
+class StagesRun:
+    """What the stages of a case produced.
+
+    Attributes:
+        case: the case.
+        data_dir: the data directory used.
+        regressions: per regression stage (in order): (stage, {coefficient: result}).
+        output_error: the output-error run (estimate, accuracy, predictions), or None.
+        pipeline: regression → output error (comparison table), when ``from = "previous"``.
+    """
+
+    case: Case
+    data_dir: Path
+    regressions: tuple[tuple[StageSpec, Mapping[str, RegressionResult]], ...]
+    output_error: CaseRun | None = None
+    pipeline: PipelineResult | None = None
+
+    @property
+    def estimate(self):
+        return None if self.output_error is None else self.output_error.estimate
+
+    def stages_dict(self) -> list[dict]:
+        """One entry per stage: ``kind``, ``name`` and, for regression stages,
+        ``coefficients`` ({name: result.to_dict()}); the output-error stage adds ``start``
+        (the values it started from) when it took them from the stage before."""
+        entries = []
+        regressions = {stage.index: results for stage, results in self.regressions}
+        for stage in self.case.stages:
+            entry: dict[str, Any] = {"kind": stage.kind, "name": stage.name}
+            if stage.index in regressions:
+                entry["coefficients"] = {
+                    n: r.to_dict() for n, r in regressions[stage.index].items()
+                }
+            if stage.kind == "output_error" and self.pipeline is not None:
+                entry["start"] = {p.name: float(p.value) for p in self.pipeline.start}
+            entries.append(entry)
+        return entries
+
+    def to_dict(self) -> dict:
+        """``{"results": [ENTRY] (the output-error entry of ``flightid run``; [] without an
+        output-error stage), "stages": [...]}`` (``stages_dict``)."""
+        results = [] if self.output_error is None else [self.output_error.to_dict()]
+        return {"results": results, "stages": self.stages_dict()}
+
+    def summary(self) -> str:
+        """Regression results, the regression-vs-ML table and the estimate summary."""
+        parts = [r.summary() for _, results in self.regressions for r in results.values()]
+        if self.pipeline is not None:
+            parts.append("Regression → output error\n" + self.pipeline.comparison())
+        return "\n\n".join(parts)
+
+
+def has_regression_stages(case: Case) -> bool:
+    """True when the case has stages other than output error, accuracy and prediction."""
+    return any(stage.kind in ("stepwise", "regression") for stage in case.stages)
+
+
+# ------------------------------------------------------------------------------ regression
+
+
+def stage_signals(maneuvers: Sequence[FlightData]) -> dict[str, np.ndarray]:
+    """Every channel (inputs and outputs) of the maneuvers, concatenated in order."""
+    names = list(maneuvers[0].input_names) + list(maneuvers[0].output_names)
+    return {name: np.concatenate([m.channel(name) for m in maneuvers]) for name in names}
+
+
+def case_signals(case: Case, data_dir: str | Path | None = None) -> dict[str, np.ndarray]:
+    """The channels a regression stage of ``case`` sees (``stage_signals`` of its maneuvers,
+    in the units the channel rule delivers)."""
+    return stage_signals(load_maneuvers(case, _data_directory(case, data_dir)))
+
+
+def _stepwise_stage(stage: StageSpec, signals: Mapping[str, np.ndarray]) -> dict:
+    results = {}
+    for name, response, candidates, options in stage.coefficients:
+        try:
+            results[name] = stepwise(
+                signals[response],
+                candidates,
+                signals,
+                response=name,
+                **{**stage.settings, **options},
+            )
+        except InputError as exc:
+            raise CaseError(f"stages[{stage.index}].coefficients.{name}: {exc}") from None
+    return results
+
+
+def _regression_stage(stage: StageSpec, signals: Mapping[str, np.ndarray]) -> dict:
+    results = {}
+    for name, response, terms, _ in stage.coefficients:
+        parsed = [parse_term(t) for t in terms]
+        labels = tuple(t.label for t in parsed)
+        try:
+            fit = least_squares(evaluate_terms(parsed, signals), signals[response], labels)
+        except InputError as exc:
+            raise CaseError(f"stages[{stage.index}].coefficients.{name}: {exc}") from None
+        results[name] = TermsFit(name, labels, fit)
+    return results
+
+
+def run_regression_stage(
+    stage: StageSpec, signals: Mapping[str, np.ndarray], progress: Progress | None = None
+) -> dict[str, RegressionResult]:
+    """Run one stepwise or regression stage on ``signals`` (``case_signals``):
+    {coefficient: ``StepwiseResult`` or ``TermsFit``}."""
+    say = progress or (lambda message: None)
+    run = _stepwise_stage if stage.kind == "stepwise" else _regression_stage
+    results = run(stage, signals)
+    for name, result in results.items():
+        say(f"{stage.kind} {name}: {', '.join(result.selected)} (R² {result.fit.r2:.4f})")
+    return results
+
+
+# ------------------------------------------------------------------------------ all stages
+
+
+def _output_error_stage(case: Case) -> StageSpec | None:
+    return next((s for s in case.stages if s.kind == "output_error"), None)
+
+
+def run_stages(
+    case: Case,
+    data_dir: str | Path | None = None,
+    progress: Progress | None = None,
+    accuracy: str | Sequence[str] | None = None,
+    heartbeat_s: float = 5.0,
+) -> StagesRun:
+    """Run every stage of ``case`` in order (see the module docstring).
+
+    Args:
+        case: a checked case with ``[[stages]]``.
+        data_dir: the data directory (overrides the case's).
+        progress: receives one-line progress messages (None: silent).
+        accuracy: accuracy methods overriding the accuracy stage (as ``run_case``).
+        heartbeat_s: seconds between "still running" messages of the estimation.
+    """
+    say = progress or (lambda message: None)
+    directory = _data_directory(case, data_dir)
+    signals = stage_signals(load_maneuvers(case, directory))
+    regressions: list[tuple[StageSpec, Mapping[str, RegressionResult]]] = []
+    for stage in case.stages:
+        if stage.kind in ("stepwise", "regression"):
+            regressions.append((stage, run_regression_stage(stage, signals, say)))
+    oe_stage = _output_error_stage(case)
+    if oe_stage is None:
+        return StagesRun(case, directory, tuple(regressions))
+    base, structure, start = None, None, None
+    if oe_stage.source == "previous":
+        results = regressions[-1][1]
+        structure = LinearAeroStructure.from_stepwise(results)
+        start = starting_parameters(results)
+        base = alpha_q_base(case, directory, structure, start)
+        say(f"output error from the {regressions[-1][0].kind} stage: {structure.parameter_names}")
+    run = run_case(case, directory, progress, heartbeat_s, accuracy, base=base)
+    pipeline = None
+    if structure is not None:
+        pipeline = PipelineResult(regressions[-1][1], structure, start, base[0], run.estimate)
+    return StagesRun(case, directory, tuple(regressions), run, pipeline)
+
+
+def _data_directory(case: Case, data_dir: str | Path | None) -> Path:
+    directory = resolve_data_dir(case, data_dir)
+    if not directory.is_dir():
+        raise CaseError(
+            f"data.data_dir: the data directory {directory} does not exist (set data.data_dir, "
+            "FLIGHTID_DATA or --data-dir)"
+        )
+    return directory
+
+
+# ------------------------------------------------------------------------------ validation
+
+
+def _check_terms(stage: StageSpec, signals: Mapping[str, np.ndarray]) -> str:
+    """Evaluate every term of a regression stage on the data: finite values."""
+    for name, response, terms, _ in stage.coefficients:
+        values = evaluate_terms([parse_term(t) for t in terms], signals)
+        bad = [t for t, ok in zip(terms, np.isfinite(values).all(axis=0), strict=True) if not ok]
+        if bad or not np.isfinite(signals[response]).all():
+            raise CaseError(
+                f"stages[{stage.index}].coefficients.{name}: non-finite values in "
+                f"{bad or [response]} on the data"
+            )
+    count = sum(len(c[2]) for c in stage.coefficients)
+    return f"{stage.kind} '{stage.name}': {len(stage.coefficients)} coefficient(s), {count} terms"
+
+
+def _dry_structure(stage: StageSpec) -> tuple[LinearAeroStructure, Parameters]:
+    """Every candidate term of a regression stage, at start value 0: the largest structure
+    the output-error stage can receive from it."""
+    from flightid.cases.alpha_q import structure_from_terms, zero_parameters
+
+    aero = {}
+    for name, _, terms, options in stage.coefficients:
+        # a stepwise stage always keeps its forced terms (default the constant "1")
+        forced = options.get("forced", stage.settings.get("forced", ("1",)))
+        every = [*forced, *terms] if stage.kind == "stepwise" else list(terms)
+        labels = {}
+        for text in every:
+            labels.setdefault(parse_term(text).label, text)
+        aero[name] = list(labels.values())
+    structure = structure_from_terms(aero)
+    return structure, zero_parameters(structure)
+
+
+def validate_stages(case: Case, data_dir: str | Path | None = None) -> tuple[list[str], Any]:
+    """Check every stage without estimating: (one line per stage, the ``Prepared`` output-
+    error stage or None). The output-error stage after a regression is built with all the
+    candidate terms (start 0), so ``check_model`` sees every term it may get."""
+    directory = _data_directory(case, data_dir)
+    signals = stage_signals(load_maneuvers(case, directory))
+    lines, prepared = [], None
+    last_regression = None
+    for stage in case.stages:
+        if stage.kind in ("stepwise", "regression"):
+            lines.append(_check_terms(stage, signals))
+            last_regression = stage
+        elif stage.kind == "output_error":
+            base = None
+            if stage.source == "previous":
+                structure, parameters = _dry_structure(last_regression)
+                base = alpha_q_base(case, directory, structure, parameters)
+            prepared = prepare_case(case, directory, base)
+            lines.append(
+                f"output_error '{stage.name}': {prepared.model_description}"
+                + (" with every candidate term" if base is not None else "")
+            )
+        else:
+            lines.append(f"{stage.kind} '{stage.name}'")
+    return lines, prepared
+
+
+def prediction_models(prepared: Prepared) -> list:
+    """(model, maneuvers) for each prediction maneuver of a prepared case (dry check)."""
+    case = prepared.case
+    return [
+        build_model(
+            case,
+            [maneuver],
+            base=prepared.base,
+            initial_state=case.prediction_initial_state,
+            values={},
+            key="prediction.initial_state",
+        )
+        for maneuver in prepared.prediction_maneuvers
+    ]
