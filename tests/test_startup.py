@@ -8,8 +8,11 @@ parser, none of numpy / scipy / numba / matplotlib / pandas nor the estimation s
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+
+import numpy as np
 
 HEAVY = ("numpy", "scipy", "numba", "matplotlib", "pandas")
 HEAVY_FLIGHTID = ("flightid.estimation", "flightid.simulate", "flightid.cases", "flightid.data")
@@ -79,3 +82,112 @@ def test_unknown_top_level_name_is_an_attribute_error():
         assert "no_such_name" in str(exc)
     else:
         raise AssertionError("flightid.no_such_name did not raise AttributeError")
+
+
+# --------------------------------------------------------------------------- kernel disk cache
+
+_MODEL = """
+import numpy as np
+
+GAIN = 1.0
+
+
+def f(t, x, u, theta):
+    dx = np.empty(1)
+    # ẋ = −a x + GAIN·u
+    dx[0] = -theta[0] * x[0] + GAIN * u[0]
+    return dx
+
+
+def h(t, x, u, theta):
+    return x.copy()
+"""
+
+_RUN = """
+import importlib.util, json, sys
+import numpy as np
+spec = importlib.util.spec_from_file_location("startup_model", sys.argv[1])
+module = importlib.util.module_from_spec(spec)
+if sys.argv[2] == "register":  # as flightid.cases.usermodel does
+    sys.modules["startup_model"] = module
+spec.loader.exec_module(module)
+from flightid.simulate import kernels, sensitivity
+kernel, compiled = kernels.make_kernel(module.f, module.h)
+t = np.arange(5) * 0.1
+u = np.ones((5, 1))
+y = np.empty((1, 5, 1))
+flag = np.empty(1, dtype=np.int64)
+kernel(np.array([[2.0]]), np.zeros((1, 1)), t, u, 1, 0, 1, y, flag)
+sens = sensitivity.make_sensitivity_kernel(module.f, module.h)
+g = np.empty((5, 1, 1))
+ys = np.empty((5, 1))
+sens(np.array([2.0]), np.zeros(1), np.zeros((1, 1)), np.array([0]), np.array([1e-6]), 1e-7,
+     t, u, 1, 0, 1, ys, g)
+stats = [kernel.stats, sens.stats]
+print(json.dumps({"hits": [sum(s.cache_hits.values()) for s in stats],
+                  "misses": [sum(s.cache_misses.values()) for s in stats],
+                  "y": y[0, :, 0].tolist()}))
+"""
+
+
+def _run_model(path, cache_dir, register: bool = True) -> dict:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir), "FLIGHTID_KERNEL_CACHE": "1"}
+    done = subprocess.run(
+        [sys.executable, "-c", _RUN, str(path), "register" if register else "anonymous"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_second_process_loads_both_kernels_from_the_disk_cache(tmp_path):
+    model = tmp_path / "model.py"
+    model.write_text(_MODEL)
+    first = _run_model(model, tmp_path / "cache")
+    assert first["misses"] == [1, 1] and first["hits"] == [0, 0]
+    second = _run_model(model, tmp_path / "cache")
+    assert second["hits"] == [1, 1] and second["misses"] == [0, 0]
+    assert second["y"] == first["y"]
+    # the cached kernels name the model's module; where it is not importable any more, they
+    # are compiled again (no failure)
+    anonymous = _run_model(model, tmp_path / "cache", register=False)
+    assert anonymous["misses"] == [1, 1] and anonymous["y"] == first["y"]
+    # ẋ = −2x + u, x(0) = 0: x(0.4) = (1 − e^{−0.8})/2 (closed form; RK4 at Δt = 0.1)
+    assert abs(first["y"][-1] - (1.0 - np.exp(-0.8)) / 2.0) < 1e-5
+    # a changed model gives another digest (test below), hence a fresh compilation
+
+
+def test_digest_follows_closures_globals_and_arrays():
+    from flightid.simulate.cache import kernel_digest
+
+    def make(table):
+        def g(x):
+            return x * table[0] + OFFSET
+
+        return g
+
+    base = kernel_digest(make(np.array([1.0, 2.0])))
+    assert base == kernel_digest(make(np.array([1.0, 2.0])))  # same values, same kernel
+    assert base != kernel_digest(make(np.array([1.0, 2.5])))  # a closed-over table changed
+    global OFFSET
+    OFFSET = 2.0
+    try:
+        assert base != kernel_digest(make(np.array([1.0, 2.0])))  # a global changed
+    finally:
+        OFFSET = 1.0
+
+    class Opaque:
+        pass
+
+    opaque = Opaque()
+
+    def uses_object(x):
+        return x + (opaque is None)
+
+    assert kernel_digest(uses_object) is None  # unknown object: compiled without disk cache
+
+
+OFFSET = 1.0

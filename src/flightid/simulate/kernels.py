@@ -27,8 +27,13 @@ A trajectory whose state or output becomes non-finite stops there; its ``diverge
 gives the sample index (−1 where the whole trajectory is finite) and the remaining outputs are
 left as NaN for the caller to report — they never reach an estimate.
 
+``integration_step`` is the one stepping routine (Euler or RK4, with the input rule above): the
+state kernel here steps x with f, the sensitivity kernel (``flightid.simulate.sensitivity``)
+steps the stacked (x, S) with the sensitivity equations.
+
 The same Python source runs compiled (numba ``njit``) or interpreted; ``make_kernel`` builds
-both from the user's ``f`` and ``h``.
+both from the user's ``f`` and ``h``. The compiled kernel is kept on disk between runs, keyed
+by a digest of the model functions (``flightid.simulate.cache``).
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["make_kernel", "EULER", "RK4", "LINEAR", "ZOH", "INTERPOLATIONS"]
+__all__ = ["make_kernel", "make_step", "EULER", "RK4", "LINEAR", "ZOH", "INTERPOLATIONS"]
 
 EULER = 0
 RK4 = 1
@@ -48,8 +53,45 @@ ZOH = 1
 INTERPOLATIONS = {"linear": LINEAR, "zoh": ZOH}
 
 
-def _kernel_source(f: Callable, h: Callable) -> Callable:
-    """The integration loop over a batch, closed over the model functions."""
+def make_step(rate: Callable) -> Callable:
+    """The integration step for ``rate(t, x, u, p) -> dx/dt`` (``p`` passed through).
+
+    ``step(t, u, k, x, p, method, interpolation)`` returns x at t[k+1] from x at t[k]:
+    Euler, or RK4 with the input between samples by ``interpolation`` (module docstring).
+    """
+
+    def step(t, u, k, x, p, method, interpolation):
+        dt = t[k + 1] - t[k]
+        uk = u[k]
+        if method == EULER:
+            # x_{k+1} = x_k + Δt · f(t_k, x_k, u_k)
+            return x + dt * rate(t[k], x, uk, p)
+        if interpolation == ZOH:
+            # zero-order hold: u(t) = u_k on [t_k, t_{k+1})
+            u_half = uk
+            u_end = uk
+        else:
+            # linear: u_k+½ = (u_k + u_{k+1})/2, u(t_{k+1}) = u_{k+1}
+            u_end = u[k + 1]
+            u_half = 0.5 * (uk + u_end)
+        k1 = rate(t[k], x, uk, p)
+        k2 = rate(t[k] + 0.5 * dt, x + 0.5 * dt * k1, u_half, p)
+        k3 = rate(t[k] + 0.5 * dt, x + 0.5 * dt * k2, u_half, p)
+        k4 = rate(t[k] + dt, x + dt * k3, u_end, p)
+        # x_{k+1} = x_k + Δt/6 · (k1 + 2k2 + 2k3 + k4)
+        return x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+    return step
+
+
+def _identity(function: Callable) -> Callable:
+    return function
+
+
+def _kernel_source(f: Callable, h: Callable, jit: Callable = _identity) -> Callable:
+    """The integration loop over a batch, closed over the model functions (helpers passed
+    through ``jit``: numba.njit or the identity)."""
+    step = jit(make_step(f))
 
     def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
         n_batch = thetas.shape[0]
@@ -59,8 +101,7 @@ def _kernel_source(f: Callable, h: Callable) -> Callable:
             x = x0s[b].copy()
             diverged_at[b] = -1
             for k in range(n_samples):
-                uk = u[k]
-                y = h(t[k], x, uk, theta)
+                y = h(t[k], x, u[k], theta)
                 finite = True
                 for j in range(n_outputs):
                     y_out[b, k, j] = y[j]
@@ -77,23 +118,7 @@ def _kernel_source(f: Callable, h: Callable) -> Callable:
                     break
                 if k == n_samples - 1:
                     break
-                dt = t[k + 1] - t[k]
-                if method == 0:
-                    x = x + dt * f(t[k], x, uk, theta)
-                else:
-                    if interpolation == ZOH:
-                        # zero-order hold: u(t) = u_k on [t_k, t_{k+1})
-                        u_half = uk
-                        u_end = uk
-                    else:
-                        # linear: u_k+½ = (u_k + u_{k+1})/2, u(t_{k+1}) = u_{k+1}
-                        u_end = u[k + 1]
-                        u_half = 0.5 * (uk + u_end)
-                    k1 = f(t[k], x, uk, theta)
-                    k2 = f(t[k] + 0.5 * dt, x + 0.5 * dt * k1, u_half, theta)
-                    k3 = f(t[k] + 0.5 * dt, x + 0.5 * dt * k2, u_half, theta)
-                    k4 = f(t[k] + dt, x + dt * k3, u_end, theta)
-                    x = x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                x = step(t, u, k, x, theta, method, interpolation)
 
     return kernel
 
@@ -103,7 +128,8 @@ def make_kernel(f: Callable, h: Callable, compiled: bool = True) -> tuple[Callab
 
     Returns ``(kernel, is_compiled)``. With ``compiled=True`` the kernel is numba-compiled if
     numba can compile ``f``, ``h`` and the loop (checked lazily by the first call: see
-    ``Simulator``); with ``compiled=False`` it is the same loop in plain Python.
+    ``Simulator``), and its machine code is cached on disk (``flightid.simulate.cache``); with
+    ``compiled=False`` it is the same loop in plain Python.
     """
     py_f = getattr(f, "py_func", f)
     py_h = getattr(h, "py_func", h)
@@ -111,6 +137,8 @@ def make_kernel(f: Callable, h: Callable, compiled: bool = True) -> tuple[Callab
         return _kernel_source(py_f, py_h), False
     import numba
 
-    jit_f = f if hasattr(f, "py_func") else numba.njit(cache=False)(f)
-    jit_h = h if hasattr(h, "py_func") else numba.njit(cache=False)(h)
-    return numba.njit(cache=False)(_kernel_source(jit_f, jit_h)), True
+    from flightid.simulate.cache import cached_njit
+
+    jit_f = f if hasattr(f, "py_func") else numba.njit(f)
+    jit_h = h if hasattr(h, "py_func") else numba.njit(h)
+    return cached_njit(_kernel_source(jit_f, jit_h, numba.njit)), True

@@ -25,13 +25,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from flightid.simulate.kernels import ZOH
+from flightid.simulate.kernels import _identity, make_step
 
 __all__ = ["make_sensitivity_kernel"]
-
-
-def _identity(function: Callable) -> Callable:
-    return function
 
 
 def _jacobian(fun: Callable) -> Callable:
@@ -63,32 +59,51 @@ def _jacobian(fun: Callable) -> Callable:
 
 
 def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
-    """The kernel, with every helper passed through ``jit`` (numba.njit or the identity)."""
+    """The kernel, with every helper passed through ``jit`` (numba.njit or the identity).
+
+    The states and sensitivities are stepped together as one vector z = (x, vec S) (S row by
+    row) by the state kernel's own ``make_step``, so Euler / RK4 and the input rule are those
+    of ``flightid.simulate.kernels``.
+    """
     jac_f = jit(_jacobian(f))
     jac_h = jit(_jacobian(h))
 
-    def rates(t, x, u, theta, free_index, steps, rel, s):
-        """(dx/dt, dS/dt = f_x S + f_θ)."""
+    def rates(t, z, u, p):
+        """dz/dt = (dx/dt, dS/dt = f_x S + f_θ), with p = (θ, free_index, steps, rel)."""
+        theta, free_index, steps, rel = p
+        n_f = free_index.shape[0]
+        n_s = z.shape[0] // (1 + n_f)
+        x = z[:n_s].copy()
         dx = f(t, x, u, theta)
         jx, jt = jac_f(t, x, u, theta, free_index, steps, rel, dx)
-        ds = jt.copy()
-        for i in range(ds.shape[0]):
-            for j in range(ds.shape[1]):
+        dz = np.empty(z.shape[0])
+        for i in range(n_s):
+            dz[i] = dx[i]
+        for i in range(n_s):
+            for j in range(n_f):
                 acc = 0.0
-                for k in range(x.shape[0]):
-                    acc += jx[i, k] * s[k, j]
-                ds[i, j] += acc
-        return dx, ds
+                for k in range(n_s):
+                    acc += jx[i, k] * z[n_s + k * n_f + j]
+                dz[n_s + i * n_f + j] = jt[i, j] + acc
+        return dz
 
-    rates = jit(rates)
+    step = jit(make_step(jit(rates)))
 
     def kernel(
         theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs, y_out, g_out
     ):
-        x = x0.copy()
-        s = s0.copy()
+        n_s = x0.shape[0]
+        n_f = free_index.shape[0]
+        # z = (x, S row by row)
+        z = np.empty(n_s * (1 + n_f))
+        for i in range(n_s):
+            z[i] = x0[i]
+            for j in range(n_f):
+                z[n_s + i * n_f + j] = s0[i, j]
+        p = (theta, free_index, steps, rel)
         n_samples = t.shape[0]
         for k in range(n_samples):
+            x = z[:n_s].copy()
             uk = u[k]
             y = h(t[k], x, uk, theta)
             hx, ht = jac_h(t[k], x, uk, theta, free_index, steps, rel, y)
@@ -97,63 +112,25 @@ def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
                 y_out[k, i] = y[i]
                 if not math.isfinite(y[i]):
                     finite = False
-                for j in range(s.shape[1]):
+                for j in range(n_f):
                     # G = h_x S + h_θ
                     acc = ht[i, j]
-                    for m in range(x.shape[0]):
-                        acc += hx[i, m] * s[m, j]
+                    for m in range(n_s):
+                        acc += hx[i, m] * z[n_s + m * n_f + j]
                     g_out[k, i, j] = acc
             if not finite:
                 return k
             if k == n_samples - 1:
                 break
-            dt = t[k + 1] - t[k]
-            if method == 0:
-                dx, ds = rates(t[k], x, uk, theta, free_index, steps, rel, s)
-                x = x + dt * dx
-                s = s + dt * ds
-            else:
-                if interpolation == ZOH:
-                    # zero-order hold: u(t) = u_k on [t_k, t_{k+1})
-                    u_half = uk
-                    u_end = uk
-                else:
-                    # linear: u_k+½ = (u_k + u_{k+1})/2, u(t_{k+1}) = u_{k+1}
-                    u_end = u[k + 1]
-                    u_half = 0.5 * (uk + u_end)
-                k1x, k1s = rates(t[k], x, uk, theta, free_index, steps, rel, s)
-                k2x, k2s = rates(
-                    t[k] + 0.5 * dt,
-                    x + 0.5 * dt * k1x,
-                    u_half,
-                    theta,
-                    free_index,
-                    steps,
-                    rel,
-                    s + 0.5 * dt * k1s,
-                )
-                k3x, k3s = rates(
-                    t[k] + 0.5 * dt,
-                    x + 0.5 * dt * k2x,
-                    u_half,
-                    theta,
-                    free_index,
-                    steps,
-                    rel,
-                    s + 0.5 * dt * k2s,
-                )
-                k4x, k4s = rates(
-                    t[k] + dt, x + dt * k3x, u_end, theta, free_index, steps, rel, s + dt * k3s
-                )
-                x = x + (dt / 6.0) * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
-                s = s + (dt / 6.0) * (k1s + 2.0 * k2s + 2.0 * k3s + k4s)
+            z = step(t, u, k, z, p, method, interpolation)
         return -1
 
-    return jit(kernel)
+    return kernel
 
 
 def make_sensitivity_kernel(f: Callable, h: Callable, compiled: bool = True) -> Callable:
-    """The sensitivity kernel for ``f`` and ``h``: numba-compiled, or the same loop in Python.
+    """The sensitivity kernel for ``f`` and ``h``: numba-compiled (its machine code cached on
+    disk, ``flightid.simulate.cache``), or the same loop in Python.
 
     ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs,
     y_out, g_out)`` (``method``: 0 Euler, 1 RK4; ``interpolation``: 0 linear, 1 zoh)
@@ -164,6 +141,8 @@ def make_sensitivity_kernel(f: Callable, h: Callable, compiled: bool = True) -> 
         return _build(getattr(f, "py_func", f), getattr(h, "py_func", h), _identity)
     import numba
 
+    from flightid.simulate.cache import cached_njit
+
     jit_f = f if hasattr(f, "py_func") else numba.njit(f)
     jit_h = h if hasattr(h, "py_func") else numba.njit(h)
-    return _build(jit_f, jit_h, numba.njit)
+    return cached_njit(_build(jit_f, jit_h, numba.njit))
