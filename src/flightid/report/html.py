@@ -1,15 +1,22 @@
-"""HTML report of a case run: estimates with bounds, fits, residuals, convergence, correlation.
+"""HTML report of a case run: one self-contained page an engineer can hand on.
 
 ``write_report(run, out_dir)`` writes (all at once, see ``flightid.report.folder``)
 
     out_dir/results.json     {"results": [entry]} (the JSON contract, see flightid.cli.run;
                              strict JSON, see flightid.report.jsonout)
-    out_dir/estimates.csv    name, value, CR bound, interval, start, free (and, with an
+    out_dir/estimates.csv    name, unit, value, CR bound, interval, start, free (and, with an
                              accuracy assessment, the profile and search limits)
-    out_dir/figures/*.png    measured vs predicted and residuals per maneuver, prediction
-                             maneuvers, convergence history, correlation matrix
-    out_dir/report.html      everything above on one page, and the accuracy assessment when
-                             the run has one (CR, profile and search intervals, N_φ)
+    out_dir/figures/*.png    per maneuver inputs, measured vs predicted outputs and residuals;
+                             the same for each held-out maneuver; residual autocorrelation;
+                             cost history
+    out_dir/report.html      everything on one page with the figures embedded (base64 PNG):
+                             provenance (flightid version, UTC time, case file and the SHA-256
+                             of its bytes), estimates with units, CR σ beside the coloured-
+                             residual σ (``flightid.report.diagnostics``) and a plain warning
+                             when the CR bounds are too small, per output R, fit RMS, Theil U
+                             and residual whiteness, det R, the prediction check, the cost
+                             history with the R re-estimations, the correlation matrix, and
+                             the accuracy assessment when the run has one
 
 Intervals: θ̂_j ± k·z_{(1+c)/2}·σ_j with σ_j the Cramér–Rao bound, c the confidence level and
 k the ``bound_factor`` of the case (1 by default; flight-test practice often uses 3–5 because
