@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from flightid.data.units import G0
 from flightid.errors import InputError
 
 __all__ = [
@@ -43,7 +44,7 @@ __all__ = [
     "isa_density",
 ]
 
-G0 = 9.80665  # standard gravity, m/s²
+# G0: standard gravity, m/s² (the one constant of flightid.data.units)
 FT = 0.3048  # m per ft
 FT2 = FT * FT  # m² per ft²
 LBF = 4.4482216152605  # N per lbf

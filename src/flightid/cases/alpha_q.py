@@ -32,6 +32,7 @@ import numpy as np
 
 from flightid.cases.checks import CaseError
 from flightid.data.loaders import read_table
+from flightid.data.units import G0
 from flightid.errors import InputError
 from flightid.model.parameters import Parameter, Parameters
 from flightid.model.statespace import StateSpaceModel
@@ -80,7 +81,7 @@ def alpha_q_model(
     Ix: float = 0.0,
     Iz: float = 0.0,
     Ixz: float = 0.0,
-    g: float = 9.80665,
+    g: float = G0,
     x0: Sequence[float | str] = (0.0, 0.0),
     name: str = "alpha_q_longitudinal",
 ) -> StateSpaceModel:

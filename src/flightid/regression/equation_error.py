@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flightid.data.units import G0
 from flightid.errors import InputError, describe
 from flightid.regression.differentiate import smooth_derivative
 
@@ -46,7 +47,7 @@ __all__ = [
     "G_FT",
 ]
 
-G_SI = 9.80665  # m/s², standard gravity
+G_SI = G0  # m/s², standard gravity (flightid.data.units)
 G_FT = 32.174  # ft/s², standard gravity
 
 
