@@ -204,13 +204,14 @@ def _stage(stage: Any, index: int, data: Mapping[str, Any], channels: set[str]) 
 
 def _order(stages: list[StageSpec]) -> None:
     """One stage per kind; regression before output error; accuracy, prediction after it."""
-    kinds = [s.kind for s in stages]
+    seen: set[str] = set()
     for stage in stages:
-        if kinds.count(stage.kind) > 1:
+        if stage.kind in seen:
             raise CaseError(
                 f"stages[{stage.index}].kind: a second {stage.kind!r} stage; one stage of each "
                 "kind is available so far"
             )
+        seen.add(stage.kind)
     position = {s.kind: s.index for s in stages}
     estimation = position.get("output_error")
     for stage in stages:
