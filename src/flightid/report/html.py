@@ -85,7 +85,6 @@ class Figures:
 def render_figures(run, dpi: int = 96) -> Figures:
     """Draw the report's figures (time histories with inputs per maneuver and per held-out
     maneuver, residual autocorrelation, cost history) as PNG bytes."""
-    from flightid.report.diagnostics import autocorrelation_lags, residual_autocorrelation
     from flightid.report.figures import (
         autocorrelation_figure,
         cost_history_figure,
@@ -125,11 +124,8 @@ def render_figures(run, dpi: int = 96) -> Figures:
             input_steps=steps,
         )
         figures.prediction.append((f"prediction_{_safe(p.name)}.png", png_bytes(figure, dpi)))
-    shortest = min(int(np.sum(est.maneuver_index == k)) for k in range(len(run.maneuvers)))
-    rho, band = residual_autocorrelation(
-        est.residuals, autocorrelation_lags(est.time.shape[0], shortest), est.maneuver_index
-    )
     coloured = _coloured(run)
+    rho, band = _autocorrelation(run, coloured.lag)
     figure = autocorrelation_figure(rho, band, run.maneuvers[0].dt, names, coloured.lag)
     figures.autocorrelation = ("autocorrelation.png", png_bytes(figure, dpi))
     figure = cost_history_figure(
@@ -139,6 +135,18 @@ def render_figures(run, dpi: int = 96) -> Figures:
     )
     figures.convergence = ("convergence.png", png_bytes(figure, dpi))
     return figures
+
+
+def _autocorrelation(run, lag_used: int) -> tuple[np.ndarray, float]:
+    """ρ(k) per output up to the shown lag (a quarter of the shortest maneuver, at most 100
+    samples, and past the coloured-residual correction's lag L when that is longer)."""
+    from flightid.report.diagnostics import autocorrelation_lags, residual_autocorrelation
+
+    est = run.estimate
+    shortest = min(int(np.sum(est.maneuver_index == k)) for k in range(len(run.maneuvers)))
+    lags = autocorrelation_lags(est.time.shape[0], shortest)
+    lags = max(lags, min(lag_used + lag_used // 4 + 1, shortest - 1))
+    return residual_autocorrelation(est.residuals, lags, est.maneuver_index)
 
 
 def _coloured(run):
@@ -536,7 +544,6 @@ def _correlation_section(run) -> str:
 
 def render_html(run, figures: Figures | None, generated_utc: str | None = None) -> str:
     """The whole report page as one self-contained HTML string (figures embedded)."""
-    from flightid.report.diagnostics import autocorrelation_lags, residual_autocorrelation
 
     est = run.estimate
     case = run.case
@@ -547,10 +554,7 @@ def render_html(run, figures: Figures | None, generated_utc: str | None = None) 
         or (getattr(est.model.parameters[n], "unit", "") for n in est.names)
     )
     coloured = _coloured(run)
-    shortest = min(int(np.sum(est.maneuver_index == k)) for k in range(len(run.maneuvers)))
-    rho_band = residual_autocorrelation(
-        est.residuals, autocorrelation_lags(est.time.shape[0], shortest), est.maneuver_index
-    )
+    rho_band = _autocorrelation(run, coloured.lag)
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
         "<meta name='viewport' content='width=device-width, initial-scale=1'>",
