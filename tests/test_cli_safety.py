@@ -195,7 +195,9 @@ def test_overwrite_replaces_the_whole_folder(fake_run, tmp_path, capsys):
     assert main(["run", str(case), "--out", str(target), "--overwrite", "--quiet"]) == 0
     names = sorted(p.relative_to(target).as_posix() for p in target.rglob("*"))
     # figures = false in this case: no figures folder, and nothing of the old run survives
-    assert names == sorted([RUN_MARKER, "estimates.csv", "report.html", "results.json"])
+    assert names == sorted(
+        [RUN_MARKER, "estimates.csv", "report.html", "results.json", "time_histories.csv"]
+    )
     document = _strict_loads((target / "results.json").read_text())
     assert document["results"][0]["parameters"]
     assert _leftovers(tmp_path) == []
