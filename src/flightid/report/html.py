@@ -2,8 +2,12 @@
 
 ``write_report(run, out_dir)`` writes (all at once, see ``flightid.report.folder``)
 
-    out_dir/results.json     {"results": [entry]} (the JSON contract, see flightid.cli.run;
-                             strict JSON, see flightid.report.jsonout)
+    out_dir/results.json     {"schema_version": "1", "results": [entry], "time_histories":
+                             {...}} (the JSON contract, see flightid.cli.run and
+                             docs/schema/results.schema.json; strict JSON, see
+                             flightid.report.jsonout)
+    out_dir/time_histories.csv  every sample: maneuver, role, time, inputs, measured,
+                             predicted, residual (``flightid.report.histories``)
     out_dir/estimates.csv    name, unit, value, CR bound, interval, start, free (and, with an
                              accuracy assessment, the profile and search limits)
     out_dir/figures/*.png    per maneuver inputs, measured vs predicted outputs and residuals;
