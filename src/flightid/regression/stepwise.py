@@ -212,6 +212,28 @@ def stepwise(
         max_steps: limit on entries plus removals.
         response: name of z, for reports.
     """
+    z = _check_settings(z, f_enter, f_remove, select)
+    forced_labels, labels, columns = _term_columns(z, forced, candidates, signals)
+    s2max = _noise_variance(sigma2_max, z, columns, labels)
+    search = _Search(z, columns, labels, forced_labels, s2max)
+    search.run(max_steps, f_enter, f_remove)
+    names, chosen = search.selected(select, f_remove)
+    return StepwiseResult(
+        response=response,
+        candidates=tuple(labels),
+        forced=tuple(forced_labels),
+        selected=tuple(names),
+        fit=chosen,
+        steps=tuple(search.steps),
+        f_enter=float(f_enter),
+        f_remove=float(f_remove),
+        sigma2_max=s2max,
+        select=select,
+    )
+
+
+def _check_settings(z, f_enter: float, f_remove: float, select: str) -> np.ndarray:
+    """z as a float series; the F thresholds and the selection rule checked."""
     z = np.asarray(z, dtype=float)
     if z.ndim != 1:
         raise StepwiseError(f"z: expected a one-dimensional series, got {describe(z)}")
@@ -220,6 +242,16 @@ def stepwise(
             raise StepwiseError(f"{argument}: expected a non-negative number, got {value!r}")
     if select not in ("pse", "final"):
         raise StepwiseError(f"select: expected 'pse' or 'final', got {select!r}")
+    return z
+
+
+def _term_columns(
+    z: np.ndarray,
+    forced: Sequence[str | Term],
+    candidates: Sequence[str | Term],
+    signals: Mapping[str, np.ndarray],
+) -> tuple[list[str], list[str], dict[str, np.ndarray]]:
+    """(forced labels, all labels: forced then candidates, label -> evaluated column (N,))."""
     forced_terms = [_as_term(t, "forced") for t in forced]
     candidate_terms = [_as_term(t, "candidates") for t in candidates]
     forced_labels = [t.label for t in forced_terms]
@@ -242,144 +274,173 @@ def stepwise(
         if not np.all(np.isfinite(column)):
             raise StepwiseError(f"candidates: term {term.label!r} has non-finite values")
         columns[term.label] = column
+    return forced_labels, labels, columns
 
+
+def _noise_variance(
+    sigma2_max: float | str, z: np.ndarray, columns: dict[str, np.ndarray], labels: list[str]
+) -> float:
+    """σ²_max of PSE (z's unit squared): "response", "full" or a number (module docstring)."""
     if isinstance(sigma2_max, str):
         if sigma2_max == "response":
-            s2max = float(np.mean((z - z.mean()) ** 2))
-        elif sigma2_max == "full":
-            s2max = least_squares(np.column_stack([columns[x] for x in labels]), z, labels).s2
-        else:
-            raise StepwiseError(
-                f"sigma2_max: expected 'response', 'full' or a number, got {sigma2_max!r}"
-            )
-    else:
-        s2max = float(sigma2_max)
-        if not (np.isfinite(s2max) and s2max >= 0):
-            raise StepwiseError(f"sigma2_max: expected a non-negative number, got {sigma2_max!r}")
-
-    def fit(terms: Sequence[str]) -> LeastSquaresResult:
-        X = np.column_stack([columns[t] for t in terms])
-        return least_squares(X, z, tuple(terms), sigma2_max=s2max)
-
-    def ordered(terms: set[str]) -> tuple[str, ...]:
-        return tuple(x for x in labels if x in terms)
-
-    def record(number, action, term, partial_f, r_partial, result: LeastSquaresResult) -> Step:
-        return Step(
-            number=number,
-            action=action,
-            term=term,
-            partial_f=float(partial_f),
-            partial_correlation=float(r_partial),
-            terms=result.names,
-            r2=result.r2,
-            s2=result.s2,
-            f_overall=result.f_overall,
-            pse=result.pse,
+            # variance of z about its mean: the constant-only model's mean-square error
+            return float(np.mean((z - z.mean()) ** 2))
+        if sigma2_max == "full":
+            # s² of the fit with every candidate term
+            return least_squares(np.column_stack([columns[x] for x in labels]), z, labels).s2
+        raise StepwiseError(
+            f"sigma2_max: expected 'response', 'full' or a number, got {sigma2_max!r}"
         )
+    s2max = float(sigma2_max)
+    if not (np.isfinite(s2max) and s2max >= 0):
+        raise StepwiseError(f"sigma2_max: expected a non-negative number, got {sigma2_max!r}")
+    return s2max
 
-    in_model: set[str] = set(forced_labels)
-    if in_model:
-        current = fit(ordered(in_model))
-        residual_z = current.residuals
-    else:
-        current = None
-        residual_z = z.copy()
-    steps: list[Step] = []
-    if current is not None:
-        steps.append(record(0, "start", None, np.nan, np.nan, current))
-    visited = {frozenset(in_model)}
-    models: list[tuple[tuple[str, ...], LeastSquaresResult]] = []
-    if current is not None:
-        models.append((current.names, current))
 
-    while len(steps) < max_steps + 1:
-        # ---- entry: largest partial correlation among candidates not in the model
-        outside = [t for t in labels if t not in in_model]
+class _Search:
+    """The entry / re-test path of the modified stepwise regression (module docstring),
+    recording every visited model."""
+
+    def __init__(
+        self,
+        z: np.ndarray,
+        columns: dict[str, np.ndarray],
+        labels: list[str],
+        forced_labels: list[str],
+        s2max: float,
+    ) -> None:
+        self.z = z
+        self.columns = columns
+        self.labels = labels
+        self.forced_labels = forced_labels
+        self.s2max = s2max
+        self.in_model: set[str] = set(forced_labels)
+        self.current: LeastSquaresResult | None = None
+        self.residual_z = z.copy()
+        self.steps: list[Step] = []
+        self.visited = {frozenset(self.in_model)}
+        self.models: list[tuple[tuple[str, ...], LeastSquaresResult]] = []
+        if self.in_model:
+            self._move_to(self.in_model, "start", None, np.nan, np.nan)
+
+    def _fit(self, terms: Sequence[str]) -> LeastSquaresResult:
+        X = np.column_stack([self.columns[t] for t in terms])
+        return least_squares(X, self.z, tuple(terms), sigma2_max=self.s2max)
+
+    def _ordered(self, terms: set[str]) -> tuple[str, ...]:
+        return tuple(x for x in self.labels if x in terms)
+
+    def _move_to(self, terms: set[str], action, term, partial_f, r_partial) -> None:
+        """Fit the model ``terms``, make it the current one and record the step."""
+        self.in_model = terms
+        current = self._fit(self._ordered(terms))
+        self.current = current
+        self.residual_z = current.residuals
+        self.visited.add(frozenset(terms))
+        self.steps.append(
+            Step(
+                number=len(self.steps),
+                action=action,
+                term=term,
+                partial_f=float(partial_f),
+                partial_correlation=float(r_partial),
+                terms=current.names,
+                r2=current.r2,
+                s2=current.s2,
+                f_overall=current.f_overall,
+                pse=current.pse,
+            )
+        )
+        self.models.append((current.names, current))
+
+    def _best_candidate(self) -> tuple[str, float] | None:
+        """(label, r) of the candidate outside the model with the largest |partial
+        correlation| with the response, or None."""
+        outside = [t for t in self.labels if t not in self.in_model]
+        if not outside:
+            return None
+        if self.in_model:
+            M = np.column_stack([self.columns[t] for t in self._ordered(self.in_model)])
+            Q, _ = np.linalg.qr(M)
+        residual_z = self.residual_z
         best = None
-        if outside:
-            if in_model:
-                M = np.column_stack([columns[t] for t in ordered(in_model)])
-                Q, _ = np.linalg.qr(M)
-            for label in outside:
-                x = columns[label]
-                # x̃ = x − Q Qᵀ x : the part of x not explained by the model terms
-                x_adj = x - Q @ (Q.T @ x) if in_model else x
-                denom = np.linalg.norm(x_adj) * np.linalg.norm(residual_z)
-                if denom <= 1e-14 * max(np.linalg.norm(x), 1e-300) * max(
-                    np.linalg.norm(residual_z), 1e-300
-                ):
-                    continue  # collinear with the model, or nothing left to explain
-                r = float(x_adj @ residual_z / denom)
-                if best is None or abs(r) > abs(best[1]):
-                    best = (label, r)
-        entered = None
-        if best is not None:
-            label, r = best
-            dof_after = n - len(in_model) - 1
-            # F to enter = r² (N − n_p − 1)/(1 − r²)
-            f_in = r * r * dof_after / max(1.0 - r * r, 1e-300) if dof_after > 0 else 0.0
-            trial = in_model | {label}
-            if f_in >= f_enter and frozenset(trial) not in visited:
-                in_model = trial
-                current = fit(ordered(in_model))
-                residual_z = current.residuals
-                visited.add(frozenset(in_model))
-                entered = label
-                steps.append(record(len(steps), "enter", label, f_in, r, current))
-                models.append((current.names, current))
-        # ---- re-test: remove the weakest term while its partial F < f_remove
+        for label in outside:
+            x = self.columns[label]
+            # x̃ = x − Q Qᵀ x : the part of x not explained by the model terms
+            x_adj = x - Q @ (Q.T @ x) if self.in_model else x
+            denom = np.linalg.norm(x_adj) * np.linalg.norm(residual_z)
+            if denom <= 1e-14 * max(np.linalg.norm(x), 1e-300) * max(
+                np.linalg.norm(residual_z), 1e-300
+            ):
+                continue  # collinear with the model, or nothing left to explain
+            # r_j = x̃_jᵀ ẑ / (‖x̃_j‖ ‖ẑ‖)
+            r = float(x_adj @ residual_z / denom)
+            if best is None or abs(r) > abs(best[1]):
+                best = (label, r)
+        return best
+
+    def _enter(self, f_enter: float) -> str | None:
+        """Entry step: the best candidate enters if its F to enter is at least ``f_enter``
+        (and the model it makes is new); its label, or None."""
+        best = self._best_candidate()
+        if best is None:
+            return None
+        label, r = best
+        dof_after = self.z.shape[0] - len(self.in_model) - 1
+        # F to enter = r² (N − n_p − 1)/(1 − r²)
+        f_in = r * r * dof_after / max(1.0 - r * r, 1e-300) if dof_after > 0 else 0.0
+        trial = self.in_model | {label}
+        if not f_in >= f_enter or frozenset(trial) in self.visited:
+            return None
+        self._move_to(trial, "enter", label, f_in, r)
+        return label
+
+    def _remove_weak(self, f_remove: float, entered: str | None, max_steps: int) -> bool:
+        """Re-test: remove the weakest term while its partial F < ``f_remove`` (never a forced
+        term, nor the one just entered); True if any left."""
         removed_any = False
-        while current is not None and len(steps) < max_steps + 1:
+        while self.current is not None and len(self.steps) < max_steps + 1:
+            current = self.current
             removable = [
                 (current.partial_f[j], name)
                 for j, name in enumerate(current.names)
-                if name not in forced_labels and name != entered
+                if name not in self.forced_labels and name != entered
             ]
             if not removable:
                 break
             f_out, name = min(removable)
-            trial = in_model - {name}
-            if f_out >= f_remove or frozenset(trial) in visited:
+            trial = self.in_model - {name}
+            if f_out >= f_remove or frozenset(trial) in self.visited:
                 break  # significant, or removing it would revisit a model (a cycle)
-            in_model = trial
-            current = fit(ordered(in_model))
-            residual_z = current.residuals
-            visited.add(frozenset(in_model))
+            self._move_to(trial, "remove", name, f_out, np.nan)
             removed_any = True
-            steps.append(record(len(steps), "remove", name, f_out, np.nan, current))
-            models.append((current.names, current))
-        if entered is None and not removed_any:
-            break
+        return removed_any
 
-    if current is None:
-        raise StepwiseError(
-            "candidates: no term entered the model and no forced term was given; "
-            "lower f_enter or force a term"
-        )
-    if select == "pse":
-        # Minimum PSE among the visited models whose terms all pass F-to-remove.
+    def run(self, max_steps: int, f_enter: float, f_remove: float) -> None:
+        """Alternate entry and re-test until neither changes the model (or ``max_steps``)."""
+        while len(self.steps) < max_steps + 1:
+            entered = self._enter(f_enter)
+            removed_any = self._remove_weak(f_remove, entered, max_steps)
+            if entered is None and not removed_any:
+                break
+        if self.current is None:
+            raise StepwiseError(
+                "candidates: no term entered the model and no forced term was given; "
+                "lower f_enter or force a term"
+            )
+
+    def selected(self, select: str, f_remove: float) -> tuple[tuple[str, ...], LeastSquaresResult]:
+        """(terms, fit) of the selected model: minimum PSE among the visited models whose
+        terms all pass F-to-remove ("pse"), or the model at the stopping point ("final")."""
+        if select != "pse":
+            return self.current.names, self.current
         admissible = [
             item
-            for item in models
+            for item in self.models
             if all(
                 f >= f_remove
                 for name, f in zip(item[1].names, item[1].partial_f, strict=True)
-                if name not in forced_labels
+                if name not in self.forced_labels
             )
         ]
-        names, chosen = min(admissible or models, key=lambda item: item[1].pse)
-    else:
-        names, chosen = current.names, current
-    return StepwiseResult(
-        response=response,
-        candidates=tuple(labels),
-        forced=tuple(forced_labels),
-        selected=tuple(names),
-        fit=chosen,
-        steps=tuple(steps),
-        f_enter=float(f_enter),
-        f_remove=float(f_remove),
-        sigma2_max=s2max,
-        select=select,
-    )
+        return min(admissible or self.models, key=lambda item: item[1].pse)
