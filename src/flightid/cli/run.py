@@ -4,11 +4,11 @@
 Runs the output-error estimation a case file describes. Progress goes to stderr. Standard
 output gets the estimate summary (text), or with ``--json`` the JSON contract of the core::
 
-    {"results": [ENTRY]}
+    {"schema_version": "1", "results": [ENTRY]}
 
-with exactly one ENTRY: ``Estimate.to_dict()`` (method, converged, status, message, cost,
-iterations, equivalent_evaluations, R, outputs, fit_rms, cost_history, parameters with
-name/value/initial/std/free, ...) plus ``case`` (title, file, model), ``maneuvers`` and
+(layout version 1, described by docs/schema/results.schema.json) with exactly one ENTRY:
+``Estimate.to_dict()`` (method, converged, status, message, cost, iterations, equivalent_evaluations, R, outputs, fit_rms, cost_history, parameters with
+name/value/initial/std/free/unit, ...) plus ``case`` (title, file, model), ``maneuvers`` and
 ``prediction`` (per predicted maneuver: outputs, rms_error, r2).
 
 ``--accuracy profile|search|all|cr|none`` (or the case's ``accuracy.methods``) adds the
@@ -71,7 +71,9 @@ def register(subparsers) -> None:
         help="replace the run already in --out (the whole folder is replaced)",
     )
     parser.add_argument(
-        "--json", action="store_true", help='print {"results": [entry]} as JSON on stdout'
+        "--json",
+        action="store_true",
+        help='print {"schema_version": "1", "results": [entry]} as JSON on stdout',
     )
     add_data_dir_argument(parser)
     parser.add_argument(
