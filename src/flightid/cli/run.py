@@ -7,7 +7,8 @@ output gets the estimate summary (text), or with ``--json`` the JSON contract of
     {"schema_version": "1", "results": [ENTRY]}
 
 (layout version 1, described by docs/schema/results.schema.json) with exactly one ENTRY:
-``Estimate.to_dict()`` (method, converged, status, message, cost, iterations, equivalent_evaluations, R, outputs, fit_rms, cost_history, parameters with
+``Estimate.to_dict()`` (method, converged, status, message, cost, iterations,
+equivalent_evaluations, R, outputs, fit_rms, cost_history, parameters with
 name/value/initial/std/free/unit, ...) plus ``case`` (title, file, model), ``maneuvers`` and
 ``prediction`` (per predicted maneuver: outputs, rms_error, r2).
 
