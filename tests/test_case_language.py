@@ -286,3 +286,31 @@ def test_stepwise_then_output_error_recovers_the_simulated_parameters(tmp_path):
     assert run.output_error.accuracy is not None
     assert [s["kind"] for s in run.stages_dict()] == ["stepwise", "output_error", "accuracy"]
     assert run.stages_dict()[1]["start"]["Cm_alpha"] == results["Cm"].fit.parameter("alpha")[0]
+
+
+def test_stages_form_of_a_run_case_gives_the_same_estimate(tmp_path):
+    """The CSV walk-through case with its [estimation] written as an output_error stage and
+    a prediction stage runs the same estimation (the stages are the same run)."""
+    import shutil
+
+    from flightid.cases import run_case
+
+    walk = ROOT / "examples" / "csv_walkthrough"
+    for name in ("my_case.toml", "my_flight.csv", "short_period.py"):
+        shutil.copy(walk / name, tmp_path / name)
+    text = (tmp_path / "my_case.toml").read_text()
+    assert "[estimation]\n" in text
+    staged = tmp_path / "staged.toml"
+    staged.write_text(
+        text.replace("[estimation]\n", '[[stages]]\nkind = "output_error"\n')
+        + '\n[[stages]]\nkind = "prediction"\nfile = "my_flight.csv"\n'
+    )
+    case = load_case(staged)
+    assert [s.kind for s in case.stages] == ["output_error", "prediction"]
+    assert case.estimation == load_case(tmp_path / "my_case.toml").estimation
+    single = run_case(load_case(tmp_path / "my_case.toml"))
+    run = run_case(case)
+    np.testing.assert_array_equal(run.estimate.values, single.estimate.values)
+    # the prediction stage predicted the estimation maneuver itself: the estimate's own fit
+    (prediction,) = run.predictions
+    np.testing.assert_allclose(prediction.predicted, run.estimate.predicted, rtol=1e-12)

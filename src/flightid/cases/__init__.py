@@ -3,11 +3,18 @@
 from flightid.cases import load_case, run_case
 run = run_case(load_case("examples/cases/hfb320_longitudinal.toml"))
 print(run.estimate.summary())
+
+A case with ``[[stages]]`` (stepwise regression → output error → prediction, docs/cases.md):
+
+from flightid.cases import load_case, run_stages
+run = run_stages(load_case("examples/cases/twin_otter_stepwise.toml"))
+print(run.summary())
 """
 
 from flightid.cases.build import resolve_data_dir
 from flightid.cases.run import CaseRun, Prediction, prepare_case, run_case
-from flightid.cases.spec import Case, CaseError, load_case, parse_case
+from flightid.cases.spec import Case, CaseError, StageSpec, load_case, parse_case
+from flightid.cases.stages import StagesRun, run_stages
 from flightid.cases.usermodel import UserModelError, load_user_model
 
 __all__ = [
@@ -15,6 +22,8 @@ __all__ = [
     "CaseError",
     "CaseRun",
     "Prediction",
+    "StageSpec",
+    "StagesRun",
     "UserModelError",
     "load_case",
     "load_user_model",
@@ -22,4 +31,5 @@ __all__ = [
     "prepare_case",
     "resolve_data_dir",
     "run_case",
+    "run_stages",
 ]
