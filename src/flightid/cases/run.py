@@ -174,8 +174,16 @@ class Prepared:
     model_description: str
 
 
-def prepare_case(case: Case, data_dir: str | Path | None = None) -> Prepared:
-    """Load all data and build the model, solver and rules (raises ``CaseError``)."""
+def prepare_case(
+    case: Case,
+    data_dir: str | Path | None = None,
+    base: tuple[StateSpaceModel, str] | None = None,
+) -> Prepared:
+    """Load all data and build the model, solver and rules (raises ``CaseError``).
+
+    ``base`` (model, description) replaces the case's ``[model]`` (an output-error stage
+    whose structure and start values come from the stage before, ``flightid.cases.stages``).
+    """
     directory = resolve_data_dir(case, data_dir)
     if not directory.is_dir():
         raise CaseError(
@@ -183,7 +191,7 @@ def prepare_case(case: Case, data_dir: str | Path | None = None) -> Prepared:
             "FLIGHTID_DATA or --data-dir)"
         )
     maneuvers = load_maneuvers(case, directory)
-    base, description = base_model(case)
+    base, description = base_model(case, directory) if base is None else base
     model, maneuvers = build_model(case, maneuvers, base=base)
     build_solver(case)
     build_convergence(case)
@@ -354,6 +362,7 @@ def run_case(
     progress: Progress | None = None,
     heartbeat_s: float = 5.0,
     accuracy: str | Sequence[str] | None = None,
+    base: tuple[StateSpaceModel, str] | None = None,
 ) -> CaseRun:
     """Prepare, estimate, assess accuracy and predict; ``progress`` receives one-line messages.
 
@@ -365,6 +374,7 @@ def run_case(
         heartbeat_s: seconds between "still running" messages.
         accuracy: accuracy methods (``"cr"``, ``"profile"``, ``"search"``, ``"all"`` or a
             list; ``"none"`` for no assessment); None: the case's ``accuracy.methods``.
+        base: (model, description) in place of the case's ``[model]`` (see ``prepare_case``).
     """
     if isinstance(case, (str, Path)):
         from flightid.cases.spec import load_case
@@ -382,7 +392,7 @@ def run_case(
     # the report names the exact case text that ran: SHA-256 of the file's bytes
     case_sha256 = hashlib.sha256(case_file.read_bytes()).hexdigest() if case_file.is_file() else ""
     say(f"case {case.title!r}: loading data and building the model")
-    prepared = prepare_case(case, data_dir)
+    prepared = prepare_case(case, data_dir, base)
     model = prepared.model
     say(
         f"{len(prepared.maneuvers)} maneuver(s), {sum(m.n_samples for m in prepared.maneuvers)} "

@@ -56,6 +56,12 @@ def register(subparsers) -> None:
             "permissions; run only case files and model modules you trust."
         ),
     )
+    add_run_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+def add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of ``flightid run`` (also those of its alias ``flightid regress``)."""
     parser.add_argument(
         "case", help="case file (TOML); its model.module, if any, is executed as Python code"
     )
@@ -87,7 +93,6 @@ def register(subparsers) -> None:
         "case's accuracy.methods)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
-    parser.set_defaults(func=run)
 
 
 def output_folder(case, given: str | None) -> Path | None:
@@ -118,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, run_case
     from flightid.cases.run import stderr_progress
+    from flightid.cases.stages import has_regression_stages
     from flightid.report.folder import ResultFolder
     from flightid.report.jsonout import dumps
     from flightid.results import results_document
@@ -128,6 +134,8 @@ def run(args: argparse.Namespace) -> int:
     # nothing and a second run into the same folder stops here
     folder = ResultFolder.open(out, overwrite=args.overwrite) if out is not None else None
     try:
+        if case.staged and has_regression_stages(case):
+            return _run_stages(case, args, folder)
         result = run_case(
             case,
             args.data_dir,
@@ -149,4 +157,49 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if folder is not None:
             folder.release()
+    return 0
+
+
+def _run_stages(case, args: argparse.Namespace, folder) -> int:
+    """A case with regression stages (``flightid.cases.stages``): print the stages' results,
+    and write the output-error stage's files plus ``stages.json`` into the result folder."""
+    import json
+
+    from flightid.cases.run import stderr_progress
+    from flightid.cases.stages import run_stages
+    from flightid.report.jsonout import dumps
+    from flightid.results import results_document
+
+    run = run_stages(
+        case,
+        args.data_dir,
+        progress=None if args.quiet else stderr_progress,
+        accuracy=args.accuracy,
+    )
+    document = results_document(run.to_dict()["results"])
+    document["stages"] = run.stages_dict()
+    if args.json:
+        print(dumps(document))
+    else:
+        print(run.summary())
+        if run.output_error is not None:
+            print()
+            print_summary(run.output_error)
+    sys.stdout.flush()
+    if folder is not None:
+
+        def write(directory: Path) -> Path:
+            (directory / "stages.json").write_text(
+                json.dumps(json.loads(dumps({"stages": run.stages_dict()})), indent=2) + "\n",
+                encoding="utf-8",
+            )
+            if run.output_error is None:
+                return directory / "stages.json"
+            from flightid.report.html import write_files
+
+            return write_files(run.output_error, directory)
+
+        path = folder.write(write)
+        if not args.quiet:
+            stderr_progress(f"results written to {folder.target} ({path.name} there)")
     return 0
