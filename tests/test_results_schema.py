@@ -12,6 +12,7 @@ import shutil
 from pathlib import Path
 
 import jsonschema
+import numpy as np
 import pytest
 
 from flightid.cli.main import main
@@ -38,7 +39,9 @@ def written(tmp_path_factory):
     case = folder / CSV_CASE.name
     text = case.read_text(encoding="utf-8")
     assert text.count("Ma = -3.0") == 1
-    case.write_text(text.replace("Ma = -3.0", 'Ma = { value = -3.0, unit = "1/s²" }'), "utf-8")
+    text = text.replace("Ma = -3.0", 'Ma = { value = -3.0, unit = "1/s²" }')
+    # the same flight once more as a held-out prediction maneuver
+    case.write_text(text + '\n[prediction]\nfile = "my_flight.csv"\n', "utf-8")
     out = folder / "run"
     stream = io.StringIO()
     with contextlib.redirect_stdout(stream):
@@ -95,9 +98,22 @@ def test_time_histories_are_written_beside_results_json(written):
         rows = list(csv.reader(stream))
     assert rows[0] == [c["name"] for c in histories["columns"]]
     (maneuver,) = document["results"][0]["maneuvers"]
-    assert len(rows) - 1 == maneuver["samples"]
+    (prediction,) = document["results"][0]["prediction"]
+    n = maneuver["samples"]
+    assert len(rows) - 1 == n + prediction["samples"] == 2 * n
     units = {c["name"]: c["unit"] for c in histories["columns"]}
     assert units["alpha_measured"] == "rad" and units["de"] == "rad"
+    header, estimation, predicted = rows[0], rows[1 : n + 1], rows[n + 1 :]
+    assert {r[1] for r in estimation} == {"estimation"}
+    assert {r[1] for r in predicted} == {"prediction"}
+    # the held-out maneuver is the same flight: same time, input and measurements
+    assert [r[2:5] for r in predicted] == [r[2:5] for r in estimation]
+    # its residuals are measured − predicted of its own simulation, RMS as in results.json
+    q = header.index("q_residual")
+    residual = np.array([float(r[q]) for r in predicted])
+    np.testing.assert_allclose(
+        np.sqrt(np.mean(residual**2)), prediction["rms_error"][1], rtol=1e-12
+    )
 
 
 def test_a_parameter_unit_shows_in_summary_json_csv_and_report(written):
