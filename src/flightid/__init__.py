@@ -33,27 +33,13 @@ _LAZY_EXPORTS: dict[str, str] = {
     "Simulator": "flightid.simulate",
 }
 
-__all__ = [
-    "Convergence",
-    "Estimate",
-    "FPS",
-    "MNR",
-    "MNRES",
-    "estimate",
-    "FlightData",
-    "Parameter",
-    "Parameters",
-    "StateSpaceModel",
-    "Simulator",
-    "simulate",
-    "__version__",
-]
+__all__ = [*_LAZY_EXPORTS, "simulate", "__version__"]
 
-if TYPE_CHECKING:  # static tools see the eager imports
-    from flightid.data import FlightData
-    from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate
-    from flightid.model import Parameter, Parameters, StateSpaceModel
-    from flightid.simulate import Simulator, simulate
+if TYPE_CHECKING:  # static tools see the eager imports (re-exported through __all__)
+    from flightid.data import FlightData  # noqa: F401
+    from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate  # noqa: F401
+    from flightid.model import Parameter, Parameters, StateSpaceModel  # noqa: F401
+    from flightid.simulate import Simulator, simulate  # noqa: F401
 
 
 def __getattr__(name: str) -> Any:

@@ -161,14 +161,16 @@ def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, ou
     def f(t, x, u, theta):
         # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
         X = body_state_from(x, u, src_state, src_input, wind_index)
-        _, F = _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl,
-                      fknot, consts)
+        _, F = _loads(
+            X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts
+        )
         return _select(rigid_body_derivatives(X, F, consts), deriv_index, ones)
 
     def h(t, x, u, theta):
         X = body_state_from(x, u, src_state, src_input, wind_index)
-        sig, F = _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl,
-                        fknot, consts)
+        sig, F = _loads(
+            X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts
+        )
         return _select(body_outputs(X, F, sig, consts), out_index, out_scale)
 
     return f, h
@@ -181,14 +183,28 @@ def _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, con
     fspl, fknot = tables.factor_spline, tables.factor_knot
 
     def f(t, x, u, theta):
-        _, F = _loads(_wind_body_state(x), u, theta, extra_input, thrust_index, tc, tp, fs,
-                      fsig, fpow, fspl, fknot, consts)
+        _, F = _loads(
+            _wind_body_state(x),
+            u,
+            theta,
+            extra_input,
+            thrust_index,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+        )
         return wind_axis_derivatives(x[0], x[1], x[2], x[3], F, consts)
 
     def h(t, x, u, theta):
         X = _wind_body_state(x)
-        sig, F = _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl,
-                        fknot, consts)
+        sig, F = _loads(
+            X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts
+        )
         return _select(body_outputs(X, F, sig, consts), out_index, out_scale)
 
     return f, h
@@ -235,12 +251,59 @@ def _build(
     accelerometer=None,
     measured: Sequence[str] | None = None,
 ) -> StateSpaceModel:
+    """The model of ``kind`` (a key of ``_KINDS``): checked arguments, input and output
+    names, parameters, then the f and h closures over the numeric tables."""
     if not isinstance(airplane, Airplane):
         raise InputTypeError(f"airplane: expected an Airplane, got {describe(airplane)}")
     if not isinstance(aero, AeroModel):
         raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
     states, default_measured, default_outputs = _KINDS[kind]
     measured = _measured_inputs(kind, default_measured, measured)
+    outputs = _output_names(kind, default_outputs, outputs)
+    inputs = _input_names(kind, airplane, aero, states, controls, outputs, measured)
+    parameters = _model_parameters(aero, parameters)
+    f, h = _model_functions(
+        kind, airplane, aero, parameters, states, inputs, outputs, measured, accelerometer
+    )
+    return StateSpaceModel(
+        states=states,
+        inputs=inputs,
+        outputs=outputs,
+        f=f,
+        h=h,
+        parameters=parameters,
+        x0=tuple(x0) if x0 is not None else (),
+        name=name or f"{airplane.name} {kind}",
+    )
+
+
+def _output_names(
+    kind: str, default: tuple[str, ...], outputs: Sequence[str] | None
+) -> tuple[str, ...]:
+    """The chosen output names (default: the kind's), checked against ``OUTPUTS``."""
+    outputs = tuple(default if outputs is None else outputs)
+    unknown = [o for o in outputs if o not in OUTPUTS]
+    if unknown:
+        raise InputError(f"outputs: unknown output names {unknown}; available: {list(OUTPUTS)}")
+    if kind == "wind":
+        bad = [o for o in outputs if o in ("beta", "phi", "ay", "p", "r")]
+        if bad:
+            raise InputError(
+                f"outputs: the wind-axis longitudinal model has no lateral outputs, got {bad}"
+            )
+    return outputs
+
+
+def _input_names(
+    kind: str,
+    airplane: Airplane,
+    aero: AeroModel,
+    states: tuple[str, ...],
+    controls: Sequence[str] | None,
+    outputs: tuple[str, ...],
+    measured: tuple[str, ...],
+) -> tuple[str, ...]:
+    """Inputs: the controls, the thrust (where the model uses it), the measured motion."""
     if controls is None:
         # the aerodynamic model's signals that are not standard signals, in first-use order
         controls = tuple(s for s in aero.signals if s not in SIGNALS and s != airplane.thrust_input)
@@ -253,21 +316,16 @@ def _build(
             f"controls: {clash} are names of standard signals or states; choose other names"
         )
     inputs = controls
-    outputs = tuple(default_outputs if outputs is None else outputs)
     # thrust acts on u, w and a_x, a_z only: the lateral model takes it only for those outputs
     needs_thrust = kind != "lateral" or bool({"ax", "az"} & set(outputs))
     if needs_thrust and airplane.thrust_input is not None and airplane.thrust_input not in inputs:
         inputs = inputs + (airplane.thrust_input,)
-    inputs = inputs + measured
-    unknown = [o for o in outputs if o not in OUTPUTS]
-    if unknown:
-        raise InputError(f"outputs: unknown output names {unknown}; available: {list(OUTPUTS)}")
-    if kind == "wind":
-        bad = [o for o in outputs if o in ("beta", "phi", "ay", "p", "r")]
-        if bad:
-            raise InputError(
-                f"outputs: the wind-axis longitudinal model has no lateral outputs, got {bad}"
-            )
+    return inputs + measured
+
+
+def _model_parameters(aero: AeroModel, parameters) -> Parameters:
+    """The full parameter set (default: the aero model's, all zero), holding every
+    parameter of the aerodynamic model."""
     if parameters is None:
         parameters = aero.parameters()
     elif not isinstance(parameters, Parameters):
@@ -278,6 +336,23 @@ def _build(
             f"parameters: missing the aerodynamic model's parameters {missing}; "
             f"use aero.parameters(values) to build them"
         )
+    return parameters
+
+
+def _model_functions(
+    kind: str,
+    airplane: Airplane,
+    aero: AeroModel,
+    parameters: Parameters,
+    states: tuple[str, ...],
+    inputs: tuple[str, ...],
+    outputs: tuple[str, ...],
+    measured: tuple[str, ...],
+    accelerometer,
+):
+    """f and h of the model: the index maps from names to positions, the aerodynamic
+    tables and the airplane constants, closed over by ``_wind_functions`` /
+    ``_body_functions``."""
     # signal list: the standard signals, then the non-standard inputs (controls, thrust)
     extra = [i for i, n in enumerate(inputs) if n not in SIGNALS]
     signal_names = SIGNALS + tuple(inputs[i] for i in extra)
@@ -292,47 +367,53 @@ def _build(
         [accel[("ax", "ay", "az").index(o)] if o in ("ax", "ay", "az") else 1.0 for o in outputs]
     )
     if kind == "wind":
-        f, h = _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts)
-    else:
-        src_state = np.array(
-            [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
-        )
-        src_input = np.array(
-            [inputs.index(s) if s in measured else -1 for s in BODY_STATES], dtype=np.int64
-        )
-        # input indices of V and α when they replace u and w (lateral model), else −1
-        wind_index = np.array(
-            [inputs.index("V"), inputs.index("alpha")] if "V" in measured else [-1, -1],
-            dtype=np.int64,
-        )
-        deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
-        f, h = _body_functions(
-            src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
-            thrust_index, tables, consts,
-        )  # fmt: skip
-    return StateSpaceModel(
-        states=states,
-        inputs=inputs,
-        outputs=outputs,
-        f=f,
-        h=h,
-        parameters=parameters,
-        x0=tuple(x0) if x0 is not None else (),
-        name=name or f"{airplane.name} {kind}",
+        return _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts)
+    src_state = np.array(
+        [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
     )
+    src_input = np.array(
+        [inputs.index(s) if s in measured else -1 for s in BODY_STATES], dtype=np.int64
+    )
+    # input indices of V and α when they replace u and w (lateral model), else −1
+    wind_index = np.array(
+        [inputs.index("V"), inputs.index("alpha")] if "V" in measured else [-1, -1],
+        dtype=np.int64,
+    )
+    deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
+    return _body_functions(
+        src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
+        thrust_index, tables, consts,
+    )  # fmt: skip
 
 
-def six_dof_model(
-    airplane: Airplane,
-    aero: AeroModel,
-    parameters: Parameters | None = None,
-    *,
-    controls: Sequence[str] | None = None,
-    outputs: Sequence[str] | None = None,
-    x0=None,
-    name: str | None = None,
-    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
-) -> StateSpaceModel:
+def _model_builder(kind: str, name: str, doc: str):
+    """A public builder of the ``kind`` model: ``(airplane, aero, parameters=None, *,
+    controls, outputs, x0, name, accelerometer, measured) -> StateSpaceModel``."""
+
+    def build(
+        airplane: Airplane,
+        aero: AeroModel,
+        parameters: Parameters | None = None,
+        *,
+        controls: Sequence[str] | None = None,
+        outputs: Sequence[str] | None = None,
+        x0=None,
+        name: str | None = None,
+        accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
+        measured: Sequence[str] | None = None,
+    ) -> StateSpaceModel:
+        return _build(
+            kind, airplane, aero, parameters, controls, outputs, x0, name, accelerometer, measured
+        )
+
+    build.__name__ = build.__qualname__ = name
+    build.__doc__ = doc
+    return build
+
+
+six_dof_model = _model_builder(
+    "6dof",
+    "six_dof_model",
     """Body-axis 6-DOF model, states (u, v, w, p, q, r, l_xz, l_yz, l_zz) [2.5–2.13].
 
     Args:
@@ -346,63 +427,33 @@ def six_dof_model(
             ``Accelerometer``, a mapping of its fields (``{"az": "up", "unit": "m/s^2"}``), a
             preset (``"body"``, ``"load_factor"``) or None (body axes, g units, a_z ≈ −1 g in
             level flight).
-    """
-    return _build("6dof", airplane, aero, parameters, controls, outputs, x0, name, accelerometer)
+        measured: the other axis's measured motion taken as inputs; only the lateral model
+            offers a choice (the 6-DOF model has none: None or ``()``).
+    """,
+)
 
-
-def longitudinal_model(
-    airplane: Airplane,
-    aero: AeroModel,
-    parameters: Parameters | None = None,
-    *,
-    controls: Sequence[str] | None = None,
-    outputs: Sequence[str] | None = None,
-    x0=None,
-    name: str | None = None,
-    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
-) -> StateSpaceModel:
+longitudinal_model = _model_builder(
+    "longitudinal",
+    "longitudinal_model",
     """Decoupled longitudinal model: states (u, w, q, l_xz, l_yz, l_zz); the measured lateral
     motion v (m/s), p, r (rad/s) enters as inputs [2.27–2.29]. Default outputs V, alpha, q,
-    theta, ax, az. Arguments as for ``six_dof_model``."""
-    return _build(
-        "longitudinal", airplane, aero, parameters, controls, outputs, x0, name, accelerometer
-    )
+    theta, ax, az. Arguments as for ``six_dof_model``.""",
+)
 
-
-def lateral_model(
-    airplane: Airplane,
-    aero: AeroModel,
-    parameters: Parameters | None = None,
-    *,
-    controls: Sequence[str] | None = None,
-    outputs: Sequence[str] | None = None,
-    x0=None,
-    name: str | None = None,
-    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
-    measured: Sequence[str] | None = None,
-) -> StateSpaceModel:
+lateral_model = _model_builder(
+    "lateral",
+    "lateral_model",
     """Decoupled lateral model: states (v, p, r, l_xz, l_yz, l_zz); the measured longitudinal
     motion enters as inputs [2.30–2.32]: u, w (m/s) and q (rad/s) by default, or with
     ``measured=("V", "alpha", "q")`` the airspeed V (m/s), angle of attack α (rad) and q, from
     which u = V cos α cos β and w = V sin α cos β with sin β = v/V. Default outputs beta, p,
-    r, phi, ay. Other arguments as for ``six_dof_model``."""
-    return _build(
-        "lateral", airplane, aero, parameters, controls, outputs, x0, name, accelerometer, measured
-    )
+    r, phi, ay. Other arguments as for ``six_dof_model``.""",
+)
 
-
-def wind_axis_longitudinal_model(
-    airplane: Airplane,
-    aero: AeroModel,
-    parameters: Parameters | None = None,
-    *,
-    controls: Sequence[str] | None = None,
-    outputs: Sequence[str] | None = None,
-    x0=None,
-    name: str | None = None,
-    accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
-) -> StateSpaceModel:
+wind_axis_longitudinal_model = _model_builder(
+    "wind",
+    "wind_axis_longitudinal_model",
     """Wind-axis longitudinal model: states (V, alpha, theta, q) (m/s, rad, rad, rad/s) of
     symmetric flight. Default outputs V, alpha, theta, q, ax, az. Arguments as for
-    ``six_dof_model``."""
-    return _build("wind", airplane, aero, parameters, controls, outputs, x0, name, accelerometer)
+    ``six_dof_model``.""",
+)
