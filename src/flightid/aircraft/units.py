@@ -54,34 +54,39 @@ SLUG_PER_FT3 = SLUG / FT**3  # kg/m³ per slug/ft³
 DEG = math.pi / 180.0  # rad per degree
 
 
+def _scaled(value, factor: float):
+    """value · factor: a float for a scalar, a float array for an array."""
+    return np.asarray(value, dtype=float) * factor if np.ndim(value) else float(value) * factor
+
+
 def ft(value):
     """Feet → metres."""
-    return np.asarray(value, dtype=float) * FT if np.ndim(value) else float(value) * FT
+    return _scaled(value, FT)
 
 
 def ft2(value):
     """Square feet → square metres."""
-    return np.asarray(value, dtype=float) * FT2 if np.ndim(value) else float(value) * FT2
+    return _scaled(value, FT2)
 
 
 def slug(value):
     """Slugs → kilograms."""
-    return np.asarray(value, dtype=float) * SLUG if np.ndim(value) else float(value) * SLUG
+    return _scaled(value, SLUG)
 
 
 def lbf(value):
     """Pounds force → newtons."""
-    return np.asarray(value, dtype=float) * LBF if np.ndim(value) else float(value) * LBF
+    return _scaled(value, LBF)
 
 
 def slug_ft2(value):
     """Moments of inertia, slug·ft² → kg·m²."""
-    return np.asarray(value, dtype=float) * SLUG_FT2 if np.ndim(value) else float(value) * SLUG_FT2
+    return _scaled(value, SLUG_FT2)
 
 
 def deg(value):
     """Degrees → radians."""
-    return np.asarray(value, dtype=float) * DEG if np.ndim(value) else float(value) * DEG
+    return _scaled(value, DEG)
 
 
 def lb_weight_to_kg(weight_lb: float) -> float:
