@@ -314,3 +314,29 @@ def test_stages_form_of_a_run_case_gives_the_same_estimate(tmp_path):
     # the prediction stage predicted the estimation maneuver itself: the estimate's own fit
     (prediction,) = run.predictions
     np.testing.assert_allclose(prediction.predicted, run.estimate.predicted, rtol=1e-12)
+
+
+def test_regression_stages_see_every_maneuver(linear):
+    """Two maneuvers (the file's halves) give the regression of the whole file: the stage's
+    signals are the maneuvers' channels end to end."""
+    lines = (linear / "f.csv").read_text().splitlines()
+    (linear / "f1.csv").write_text("\n".join(lines[:101]) + "\n")
+    (linear / "f2.csv").write_text("\n".join([lines[0], *lines[101:]]) + "\n")
+    text = '[[stages]]\nkind = "regression"\n[stages.coefficients.z]\nterms = ["1", "a", "b"]\n'
+    whole = load_case(_case(linear, text))
+    halves = load_case(
+        _case(linear, text.replace("[[stages]]", '[[stages]]\nname = "halves"'), "halves.toml")
+    )
+    assert halves.stages[0].name == "halves"
+    raw = (
+        (linear / "halves.toml")
+        .read_text()
+        .replace('file = "f.csv"', 'files = ["f1.csv", "f2.csv"]')
+    )
+    (linear / "halves.toml").write_text(raw)
+    halves = load_case(linear / "halves.toml")
+    assert [m.name for m in halves.maneuvers] == ["f1", "f2"]
+    one = run_regression_stage(whole.stages[0], case_signals(whole))["z"]
+    two = run_regression_stage(halves.stages[0], case_signals(halves))["z"]
+    assert two.fit.residuals.shape == (200,)
+    np.testing.assert_allclose(two.fit.estimates, one.fit.estimates, rtol=1e-12)
