@@ -340,3 +340,21 @@ def test_regression_stages_see_every_maneuver(linear):
     two = run_regression_stage(halves.stages[0], case_signals(halves))["z"]
     assert two.fit.residuals.shape == (200,)
     np.testing.assert_allclose(two.fit.estimates, one.fit.estimates, rtol=1e-12)
+
+
+def test_regression_knows_nothing_about_cases_or_simulation():
+    """DESIGN.md: `regression` fits regressions; case files are `cases`' business. Neither a
+    source line of flightid/regression nor importing it brings in cases or simulate."""
+    import subprocess
+    import sys
+
+    for path in sorted((ROOT / "src" / "flightid" / "regression").glob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        assert "flightid.cases" not in text and "flightid.simulate" not in text, path.name
+    code = (
+        "import sys, flightid.regression, flightid.regression.pipeline; "
+        "print(sorted(m for m in sys.modules if m.startswith(('flightid.cases', "
+        "'flightid.simulate'))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
