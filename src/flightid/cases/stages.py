@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from flightid.cases.build import alpha_q_base, build_model, load_maneuvers, resolve_data_dir
+from flightid.cases.build import alpha_q_base, load_maneuvers, resolve_data_dir
 from flightid.cases.checks import CaseError
 from flightid.cases.run import CaseRun, Prepared, prepare_case, run_case
 from flightid.cases.spec import Case, StageSpec
@@ -287,7 +287,9 @@ def _dry_structure(stage: StageSpec) -> tuple[LinearAeroStructure, Parameters]:
     return structure, zero_parameters(structure)
 
 
-def validate_stages(case: Case, data_dir: str | Path | None = None) -> tuple[list[str], Any]:
+def validate_stages(
+    case: Case, data_dir: str | Path | None = None
+) -> tuple[list[str], Prepared | None]:
     """Check every stage without estimating: (one line per stage, the ``Prepared`` output-
     error stage or None). The output-error stage after a regression is built with all the
     candidate terms (start 0), so ``check_model`` sees every term it may get."""
@@ -312,19 +314,3 @@ def validate_stages(case: Case, data_dir: str | Path | None = None) -> tuple[lis
         else:
             lines.append(f"{stage.kind} '{stage.name}'")
     return lines, prepared
-
-
-def prediction_models(prepared: Prepared) -> list:
-    """(model, maneuvers) for each prediction maneuver of a prepared case (dry check)."""
-    case = prepared.case
-    return [
-        build_model(
-            case,
-            [maneuver],
-            base=prepared.base,
-            initial_state=case.prediction_initial_state,
-            values={},
-            key="prediction.initial_state",
-        )
-        for maneuver in prepared.prediction_maneuvers
-    ]
