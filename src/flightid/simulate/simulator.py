@@ -41,8 +41,9 @@ def check_input_interpolation(value: object) -> str:
     return value
 
 
-# Compiled kernels are cached per (f, h) pair so that repeated estimations reuse them.
-_KERNEL_CACHE: dict[tuple[int, int, bool], tuple] = {}
+# Kernels are kept per (f, h) pair so that repeated estimations in a process reuse them
+# (across processes the compiled code is kept on disk: flightid.simulate.cache).
+_KERNEL_CACHE: dict[tuple, tuple] = {}
 
 
 @dataclass(frozen=True)
@@ -131,17 +132,23 @@ class Simulator:
         self.evaluations = 0
 
     # --------------------------------------------------------------------- kernels
+    def _memo(self, kind: tuple, build):
+        """The kernel ``kind`` of this model's (f, h): built once per process by ``build()``,
+        then reused by every simulator of the same functions."""
+        key = (id(self.model.f), id(self.model.h), *kind)
+        entry = _KERNEL_CACHE.get(key)
+        # the ids of collected functions can be reused: the entry keeps the functions
+        if entry is None or entry[0] is not self.model.f or entry[1] is not self.model.h:
+            entry = (self.model.f, self.model.h, build())
+            _KERNEL_CACHE[key] = entry
+        return entry[2]
+
     def _get_kernel(self, compiled: bool):
-        key = (id(self.model.f), id(self.model.h), compiled)
-        if key in _KERNEL_CACHE:
-            entry = _KERNEL_CACHE[key]
-            if entry[0] is self.model.f and entry[1] is self.model.h:
-                return entry[2], entry[3]
-        kernel, is_compiled = make_kernel(self.model.f, self.model.h, compiled)
-        if is_compiled:
-            kernel, is_compiled = self._try_compile(kernel)
-        _KERNEL_CACHE[key] = (self.model.f, self.model.h, kernel, is_compiled)
-        return kernel, is_compiled
+        def build():
+            kernel, is_compiled = make_kernel(self.model.f, self.model.h, compiled)
+            return self._try_compile(kernel) if is_compiled else (kernel, is_compiled)
+
+        return self._memo(("state", compiled), build)
 
     def _try_compile(self, kernel):
         """Run the compiled kernel once on the first samples; fall back to Python on failure."""
@@ -243,17 +250,10 @@ class Simulator:
         """
         from flightid.simulate.sensitivity import make_sensitivity_kernel
 
-        key = (id(self.model.f), id(self.model.h), "sensitivity", self.compiled)
-        entry = _KERNEL_CACHE.get(key)
-        if entry is None or entry[0] is not self.model.f or entry[1] is not self.model.h:
-            entry = (
-                self.model.f,
-                self.model.h,
-                make_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
-                None,
-            )
-            _KERNEL_CACHE[key] = entry
-        kernel = entry[2]
+        kernel = self._memo(
+            ("sensitivity", self.compiled),
+            lambda: make_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
+        )
         theta = np.ascontiguousarray(theta, dtype=float)
         free_index = np.ascontiguousarray(free_index, dtype=np.int64)
         n_out = len(self.model.outputs)
