@@ -58,15 +58,8 @@ def _jacobian(fun: Callable) -> Callable:
     return jacobians
 
 
-def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
-    """The kernel, with every helper passed through ``jit`` (numba.njit or the identity).
-
-    The states and sensitivities are stepped together as one vector z = (x, vec S) (S row by
-    row) by the state kernel's own ``make_step``, so Euler / RK4 and the input rule are those
-    of ``flightid.simulate.kernels``.
-    """
-    jac_f = jit(_jacobian(f))
-    jac_h = jit(_jacobian(h))
+def _rates(f: Callable, jac_f: Callable) -> Callable:
+    """The right-hand side of the stacked state and sensitivity equations."""
 
     def rates(t, z, u, p):
         """dz/dt = (dx/dt, dS/dt = f_x S + f_θ), with p = (θ, free_index, steps, rel)."""
@@ -84,10 +77,23 @@ def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
                 acc = 0.0
                 for k in range(n_s):
                     acc += jx[i, k] * z[n_s + k * n_f + j]
+                # (dS/dt)_ij = (f_θ)_ij + Σ_k (f_x)_ik S_kj
                 dz[n_s + i * n_f + j] = jt[i, j] + acc
         return dz
 
-    step = jit(make_step(jit(rates)))
+    return rates
+
+
+def _build(f: Callable, h: Callable, jit: Callable) -> Callable:
+    """The kernel, with every helper passed through ``jit`` (numba.njit or the identity).
+
+    The states and sensitivities are stepped together as one vector z = (x, vec S) (S row by
+    row) by the state kernel's own ``make_step``, so Euler / RK4 and the input rule are those
+    of ``flightid.simulate.kernels``.
+    """
+    jac_h = jit(_jacobian(h))
+    rates = jit(_rates(f, jit(_jacobian(f))))
+    step = jit(make_step(rates))
 
     def kernel(
         theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs, y_out, g_out
