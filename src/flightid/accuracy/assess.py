@@ -104,6 +104,29 @@ def problem_for(
     return problem
 
 
+def _profile_subset(parameters: Sequence[str] | None, names: tuple[str, ...]) -> list[int] | None:
+    """Indices (among the free parameters) of the ``parameters`` to profile; None for all."""
+    if parameters is None:
+        return None
+    unknown = [p for p in parameters if p not in names]
+    if unknown:
+        raise InputError(f"parameters: {unknown} are not free parameters; free: {list(names)}")
+    return [names.index(p) for p in parameters]
+
+
+def _profile_messages(profile, names: tuple[str, ...]) -> list[str]:
+    """One message per profile limit that did not end on the contour."""
+    messages = []
+    for j, (lower, upper) in enumerate(profile.statuses):
+        for side, status in (("lower", lower), ("upper", upper)):
+            if status in ("open", "max_iterations", "failed"):
+                messages.append(
+                    f"profile {side} limit of {names[j]}: {status}"
+                    + (" (the region does not close on this side)" if status == "open" else "")
+                )
+    return messages
+
+
 def assess(
     estimate: Estimate,
     data: FlightData | Sequence[FlightData] | OutputErrorProblem,
@@ -162,8 +185,9 @@ def assess(
         raise InputError(f"distribution: expected one of {DISTRIBUTIONS}, got {distribution!r}")
     if int(budget) < 1:
         raise InputError(f"budget: expected a positive number of evaluations, got {budget!r}")
-    problem = problem_for(estimate, data, compiled=compiled)
     names = tuple(estimate.free_names)
+    subset = _profile_subset(parameters, names)
+    problem = problem_for(estimate, data, compiled=compiled)
     n_free = len(names)
     n_data = int(estimate.n_data)
     r_diag = np.asarray(estimate.r_diag, dtype=float)
@@ -225,24 +249,9 @@ def assess(
     profile = search = None
     if "profile" in chosen:
         before = contour.evaluations
-        if parameters is None:
-            subset = None
-        else:
-            unknown = [p for p in parameters if p not in names]
-            if unknown:
-                raise InputError(
-                    f"parameters: {unknown} are not free parameters; free: {list(names)}"
-                )
-            subset = [names.index(p) for p in parameters]
         profile = profile_limits(contour, covariance, parameters=subset)
         evaluations["profile"] = contour.evaluations - before
-        for j, (lower, upper) in enumerate(profile.statuses):
-            for side, status in (("lower", lower), ("upper", upper)):
-                if status in ("open", "max_iterations", "failed"):
-                    messages.append(
-                        f"profile {side} limit of {names[j]}: {status}"
-                        + (" (the region does not close on this side)" if status == "open" else "")
-                    )
+        messages += _profile_messages(profile, names)
     if "search" in chosen:
         before = contour.evaluations
         search = random_search(
