@@ -252,7 +252,7 @@ def test_a_file_of_regression_stages_alone_needs_no_model(tmp_path, capsys):
     stages = constants[constants.index("# stage 1") :]
     bare = tmp_path / "bare.toml"
     bare.write_text(
-        head.replace('data_dir = "../../../shared/data"', f'data_dir = "{DATA}"') + stages
+        head.replace("[data]\n", f'[data]\ndata_dir = "{DATA}"\n', 1) + stages
     )
     case = load_case(bare)
     assert case.model == {} and [s.kind for s in case.stages] == ["stepwise"]
@@ -285,7 +285,7 @@ def test_signals_by_column_number_equal_by_name(tmp_path):
         assert name in text
         text = text.replace(name, number)
     numbered = tmp_path / "numbered.toml"
-    numbered.write_text(text.replace('data_dir = "../../../shared/data"', f'data_dir = "{DATA}"'))
+    numbered.write_text(text.replace("[data]\n", f'[data]\ndata_dir = "{DATA}"\n', 1))
     by_number = case_signals(load_case(numbered))
     by_name = case_signals(load_case(CASE), DATA)
     for signal in ("alpha", "qhat", "de", "CZ", "Cm"):

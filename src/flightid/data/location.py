@@ -1,8 +1,11 @@
 """Where a case file's data files live.
 
-Order: the command line (``--data-dir``), the environment variable ``FLIGHTID_DATA``, the
-case's own ``data_dir`` (relative to the case file), else ``../../../shared/data`` relative to
-the case file — the shared data beside a checkout, for the cases under ``examples/cases/``.
+Order, most specific first: the command line (``--data-dir``), the case's own ``data_dir``
+(relative to the case file), the environment variable ``FLIGHTID_DATA``, else
+``../../../shared/data`` relative to the case file — the shared data beside a checkout, for
+the cases under ``examples/cases/``, which give no ``data_dir`` so that ``FLIGHTID_DATA``
+can point them elsewhere. A case that keeps its data beside itself (``data_dir = "."``) is
+not redirected by ``FLIGHTID_DATA``.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ def data_directory(
     """The data directory of a case in ``case_directory`` (see the module docstring)."""
     if override is not None:
         return Path(override)
-    if os.environ.get("FLIGHTID_DATA"):
+    if given is None and os.environ.get("FLIGHTID_DATA"):
         return Path(os.environ["FLIGHTID_DATA"])
     path = Path(DEFAULT_DATA_DIR if given is None else given)
     return path if path.is_absolute() else (case_directory / path).resolve()

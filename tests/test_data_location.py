@@ -1,0 +1,39 @@
+"""The data directory of a case: --data-dir, the case's data_dir, FLIGHTID_DATA, the default.
+
+The rule is written in flightid.data.location; these tests pin its order, the most specific
+setting first.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from flightid.data.location import DEFAULT_DATA_DIR, data_directory
+
+
+def test_the_command_line_wins(tmp_path, monkeypatch):
+    monkeypatch.setenv("FLIGHTID_DATA", str(tmp_path / "env"))
+    assert data_directory(tmp_path, ".", override=tmp_path / "cli") == tmp_path / "cli"
+
+
+def test_a_case_keeping_its_data_beside_it_is_not_redirected(tmp_path, monkeypatch):
+    # the CSV walk-through: data_dir = "." must find my_flight.csv whatever FLIGHTID_DATA says
+    monkeypatch.setenv("FLIGHTID_DATA", str(tmp_path / "env"))
+    assert data_directory(tmp_path / "case", ".") == (tmp_path / "case").resolve()
+
+
+def test_a_case_without_data_dir_reads_the_environment(tmp_path, monkeypatch):
+    monkeypatch.setenv("FLIGHTID_DATA", str(tmp_path / "env"))
+    assert data_directory(tmp_path, None) == tmp_path / "env"
+
+
+def test_the_default_is_beside_the_checkout(tmp_path, monkeypatch):
+    monkeypatch.delenv("FLIGHTID_DATA", raising=False)
+    assert data_directory(tmp_path, None) == (tmp_path / Path(DEFAULT_DATA_DIR)).resolve()
+
+
+def test_the_shipped_cases_give_no_data_dir():
+    # so that FLIGHTID_DATA can point them at the data wherever they are
+    cases = Path(__file__).resolve().parents[1] / "examples" / "cases"
+    for case in sorted(cases.glob("*.toml")):
+        assert "data_dir" not in case.read_text(), case.name
