@@ -127,3 +127,28 @@ def test_a_parameter_unit_shows_in_summary_json_csv_and_report(written):
     line = next(line for line in text.splitlines() if line.startswith("Ma "))
     assert "1/s²" in line
     assert "1/s²" in (out / "report.html").read_text(encoding="utf-8")
+
+
+def test_a_staged_run_validates(schema, tmp_path):
+    """A case with [[stages]] (regression stage, then output error from it) validates, its
+    "stages" entries included; the data are the walk-through's, its coefficient a channel."""
+    shutil.copytree(CSV_CASE.parent, tmp_path, dirs_exist_ok=True)
+    case = tmp_path / CSV_CASE.name
+    text = case.read_text(encoding="utf-8")
+    # a regression stage on the measured q (as a stand-in coefficient), then output error
+    head, _, _ = text.partition("[estimation]")
+    staged = head + (
+        '\n[[stages]]\nkind = "regression"\n'
+        '[stages.coefficients.qfit]\nresponse = "q"\nterms = ["alpha", "de"]\n'
+        '\n[[stages]]\nkind = "output_error"\nsolver = "mnr"\ninput_interpolation = "zoh"\n'
+    )
+    case.write_text(staged, "utf-8")
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream):
+        assert main(["run", str(case), "--json", "--quiet", "--accuracy", "none"]) == 0
+    document = json.loads(stream.getvalue())
+    assert [s["kind"] for s in document["stages"]] == ["regression", "output_error"]
+    _validator(schema).validate(document)
+    wrong = copy.deepcopy(document)
+    wrong["stages"][0]["kind"] = "bootstrap"
+    assert not _validator(schema).is_valid(wrong)
