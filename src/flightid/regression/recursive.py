@@ -73,6 +73,18 @@ def _batch(X: np.ndarray, Y: np.ndarray, argument: str) -> tuple[np.ndarray, np.
     return S, X.T @ X
 
 
+def _matching_rows(a, y, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of ``a`` and ``y`` checked against an estimator of ``shape`` (regressors,
+    responses)."""
+    A_rows, Y_rows, _ = _rows(a, y, "a, y")
+    if A_rows.shape[1] != shape[0] or Y_rows.shape[1] != shape[1]:
+        raise InputError(
+            f"a, y: expected rows of {shape[0]} regressors and "
+            f"{shape[1]} responses, got {A_rows.shape} and {Y_rows.shape}"
+        )
+    return A_rows, Y_rows
+
+
 class RecursiveLeastSquares:
     """Growing-window recursive least squares.
 
@@ -101,12 +113,7 @@ class RecursiveLeastSquares:
 
     def update(self, a: np.ndarray, y: np.ndarray | float) -> np.ndarray:
         """Add one row (or several, one after the other) and return the new estimate."""
-        A_rows, Y_rows, _ = _rows(a, y, "a, y")
-        if A_rows.shape[1] != self._S.shape[0] or Y_rows.shape[1] != self._S.shape[1]:
-            raise InputError(
-                f"a, y: expected rows of {self._S.shape[0]} regressors and "
-                f"{self._S.shape[1]} responses, got {A_rows.shape} and {Y_rows.shape}"
-            )
+        A_rows, Y_rows = _matching_rows(a, y, self._S.shape)
         for row, resp in zip(A_rows, Y_rows, strict=True):
             Pa = self._P @ row
             # k = P aᵀ / (1 + a P aᵀ)
@@ -158,12 +165,7 @@ class SlidingWindowLeastSquares:
 
     def update(self, a: np.ndarray, y: np.ndarray | float) -> np.ndarray:
         """Add row ``a`` with response ``y``, drop the oldest row; return the new estimate."""
-        A_rows, Y_rows, _ = _rows(a, y, "a, y")
-        if A_rows.shape[1] != self._S.shape[0] or Y_rows.shape[1] != self._S.shape[1]:
-            raise InputError(
-                f"a, y: expected rows of {self._S.shape[0]} regressors and "
-                f"{self._S.shape[1]} responses, got {A_rows.shape} and {Y_rows.shape}"
-            )
+        A_rows, Y_rows = _matching_rows(a, y, self._S.shape)
         for row, resp in zip(A_rows, Y_rows, strict=True):
             old_row, old_resp = self._window.popleft()
             # aᵀa − a°ᵀa°

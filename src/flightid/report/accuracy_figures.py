@@ -18,18 +18,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from flightid.report.figures import _save
+
 __all__ = ["plot_profile", "plot_region_slice"]
-
-
-def _save(figure: Figure, path: str | Path, dpi: int) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(figure)
-    figure.savefig(path, dpi=dpi)
-    return path
 
 
 def _ellipse(matrix: np.ndarray, level: float, n: int = 200) -> np.ndarray:
