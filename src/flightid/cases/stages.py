@@ -34,7 +34,7 @@ from flightid.regression.pipeline import (
     PipelineResult,
     starting_parameters,
 )
-from flightid.regression.stepwise import StepwiseResult, stepwise
+from flightid.regression.stepwise import StepwiseResult, selected_fit_dict, stepwise
 
 __all__ = [
     "StagesRun",
@@ -68,13 +68,7 @@ class TermsFit:
 
     def to_dict(self) -> dict:
         """``selected``, ``parameters`` (name, value, std), ``r2``, ``pse``, ``s2``."""
-        return {
-            "selected": list(self.selected),
-            "parameters": self.fit.to_dict()["parameters"],
-            "r2": float(self.fit.r2),
-            "pse": float(self.fit.pse),
-            "s2": float(self.fit.s2),
-        }
+        return selected_fit_dict(self.selected, self.fit)
 
 
 RegressionResult = StepwiseResult | TermsFit

@@ -56,6 +56,18 @@ class StepwiseError(InputError):
     """A malformed stepwise-regression set-up."""
 
 
+def selected_fit_dict(selected: Sequence[str], fit: LeastSquaresResult) -> dict:
+    """``selected``, ``parameters`` (name, value, std), ``r2``, ``pse``, ``s2`` of a fit on
+    the ``selected`` terms (the part of the JSON every regression result shares)."""
+    return {
+        "selected": list(selected),
+        "parameters": fit.to_dict()["parameters"],
+        "r2": float(fit.r2),
+        "pse": float(fit.pse),
+        "s2": float(fit.s2),
+    }
+
+
 @dataclass(frozen=True)
 class Step:
     """One step of the search: what happened and the model it left.
@@ -153,11 +165,7 @@ class StepwiseResult(ResultSurface):
     def to_dict(self) -> dict:
         """The JSON contract: selected, parameters (name, value, std), r2, pse, steps."""
         return {
-            "selected": list(self.selected),
-            "parameters": self.fit.to_dict()["parameters"],
-            "r2": float(self.fit.r2),
-            "pse": float(self.fit.pse),
-            "s2": float(self.fit.s2),
+            **selected_fit_dict(self.selected, self.fit),
             "f_overall": _finite_or_none(self.fit.f_overall),
             "sigma2_max": float(self.sigma2_max),
             "steps": [s.to_dict() for s in self.steps],
