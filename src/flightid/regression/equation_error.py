@@ -48,7 +48,7 @@ __all__ = [
 ]
 
 G_SI = G0  # m/s², standard gravity (flightid.data.units)
-G_FT = 32.174  # ft/s², standard gravity
+G_FT = G0 / 0.3048  # ft/s²: the same standard gravity in international feet (32.174 ft/s²)
 
 
 @dataclass(frozen=True)
