@@ -41,6 +41,18 @@ equations with u = V cos α, w = V sin α:
     dΘ/dt = q
     dq/dt = M / I_y
 
+α–q longitudinal form (states α, q; V, q̄, Θ, Φ, a_x (g), p, r measured inputs; body axes,
+β ≈ 0, thrust carried by the measured a_x, METHOD §3). With u = V cos α, w = V sin α, the α̇
+line is (u ẇ − w u̇)/V² with u̇, ẇ from [2.5], [2.7], in which X/m = g a_x and
+Z = q̄ S C_Z:
+
+    dα/dt = q + (q̄ S/(m V)) C_Z cos α − (g a_x/V) sin α + (g/V)(cos Φ cos Θ cos α + sin Θ sin α)
+    dq/dt = (q̄ S c̄ C_m + (I_z − I_x) p r + I_xz (r² − p²))/I_y                     [2.9]
+    a_z = q̄ S C_Z/(m g)                                                          [2.26]
+
+(q̄ is the measured dynamic pressure, not ½ρV², so ρ is not used; the terms of C_Z and C_m
+see the signals α, q̂ = q c̄/(2V) and the inputs, ``alpha_q_signals``).
+
 Every function here is decorated with ``register_jitable``: called from Python it is plain
 Python, called from a numba-compiled model function it is compiled inline.
 """
@@ -63,6 +75,11 @@ __all__ = [
     "rigid_body_derivatives",
     "body_outputs",
     "wind_axis_derivatives",
+    "ALPHA_Q_INPUTS",
+    "ALPHA_Q_OUTPUTS",
+    "alpha_q_signals",
+    "alpha_q_derivatives",
+    "alpha_q_outputs",
 ]
 
 # Body state X, in order.
@@ -74,6 +91,9 @@ SIGNALS = (
 N_STANDARD_SIGNALS = len(SIGNALS)
 # Full output vector, in order; models pick a subset.
 OUTPUTS = ("V", "alpha", "beta", "theta", "phi", "ax", "ay", "az", "p", "q", "r")
+# Measured inputs of the α–q form, first in its input vector (controls follow), and its outputs.
+ALPHA_Q_INPUTS = ("V", "qbar", "theta", "phi", "ax", "p", "r")
+ALPHA_Q_OUTPUTS = ("alpha", "q", "az")
 # Constant vector layout (closed over by the model functions).
 CONSTANTS = ("mass", "Ix", "Iy", "Iz", "Ixz", "S", "b", "cbar", "rho", "g", "alpha_T")
 
@@ -236,3 +256,66 @@ def wind_axis_derivatives(V, alpha, theta_pitch, q, F, consts):
     # dq/dt = M/I_y
     D[3] = F[4] / consts[2]
     return D
+
+
+@register_jitable
+def alpha_q_signals(x, U, cbar):
+    """Signal vector of the α–q form: (α, q̂, U…) with x = (α, q) and U the inputs
+    (V, q̄, Θ, Φ, a_x, p, r, controls…)."""
+    sig = np.empty(2 + U.shape[0])
+    sig[0] = x[0]
+    # q̂ = q c̄/(2V)
+    sig[1] = x[1] * cbar / (2.0 * U[0])
+    for k in range(U.shape[0]):
+        sig[2 + k] = U[k]
+    return sig
+
+
+@register_jitable
+def alpha_q_derivatives(x, U, C, consts):
+    """d(α, q)/dt of the α–q form (module docstring); C the coefficient vector
+    (``aero_coefficients``: C_Z = C[2], C_m = C[6])."""
+    m = consts[0]
+    Ix = consts[1]
+    Iy = consts[2]
+    Iz = consts[3]
+    Ixz = consts[4]
+    S = consts[5]
+    cbar = consts[7]
+    g = consts[9]
+    alpha = x[0]
+    q = x[1]
+    V = U[0]
+    qbar = U[1]
+    theta_pitch = U[2]
+    phi = U[3]
+    ax = U[4]
+    p = U[5]
+    r = U[6]
+    D = np.empty(2)
+    # dα/dt = q + (q̄S/(mV)) C_Z cos α − (g a_x/V) sin α + (g/V)(cos Φ cos Θ cos α + sin Θ sin α)
+    D[0] = (
+        q
+        + qbar * S / (m * V) * C[2] * math.cos(alpha)
+        - g * ax / V * math.sin(alpha)
+        + g
+        / V
+        * (
+            math.cos(phi) * math.cos(theta_pitch) * math.cos(alpha)
+            + math.sin(theta_pitch) * math.sin(alpha)
+        )
+    )
+    # dq/dt = (q̄ S c̄ C_m + (I_z − I_x) p r + I_xz (r² − p²))/I_y                 [2.9]
+    D[1] = (qbar * S * cbar * C[6] + (Iz - Ix) * p * r + Ixz * (r * r - p * p)) / Iy
+    return D
+
+
+@register_jitable
+def alpha_q_outputs(x, U, C, consts):
+    """Full output vector of the α–q form (α, q, a_z): a_z = q̄ S C_Z/(m g) in g [2.26]."""
+    out = np.empty(3)
+    out[0] = x[0]
+    out[1] = x[1]
+    # a_z = q̄ S C_Z/(m g)                                             [2.26]
+    out[2] = U[1] * consts[5] * C[2] / (consts[0] * consts[9])
+    return out

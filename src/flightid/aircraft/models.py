@@ -12,6 +12,9 @@ Models (RP-1153 §2.A, METHOD.md §3):
 * ``lateral_model``: states v p r l_xz l_yz l_zz; the measured longitudinal motion u, w, q
   (or V, α, q) enters as inputs [2.30–2.32].
 * ``wind_axis_longitudinal_model``: states V alpha theta q.
+* ``alpha_q_longitudinal_model``: states alpha q; V, q̄, θ, φ, a_x (g), p, r are measured
+  inputs (thrust carried by a_x), C_Z and C_m only, outputs alpha, q, az (the SIDPAC-style
+  output-error model of a stepwise case).
 
 Units: m/s, rad, rad/s; the thrust input (if the airplane names one) in N; controls in the
 units the aerodynamic model's derivatives assume (rad for the paper's examples).
@@ -32,10 +35,15 @@ from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import AeroModel
 from flightid.aircraft.airplane import Airplane
 from flightid.aircraft.equations import (
+    ALPHA_Q_INPUTS,
+    ALPHA_Q_OUTPUTS,
     BODY_STATES,
     OUTPUTS,
     SIGNALS,
     aero_coefficients,
+    alpha_q_derivatives,
+    alpha_q_outputs,
+    alpha_q_signals,
     body_outputs,
     forces_and_moments,
     rigid_body_derivatives,
@@ -51,6 +59,7 @@ __all__ = [
     "longitudinal_model",
     "lateral_model",
     "wind_axis_longitudinal_model",
+    "alpha_q_longitudinal_model",
     "DEFAULT_OUTPUTS",
     "LATERAL_MEASURED",
 ]
@@ -69,6 +78,7 @@ _KINDS = {
         ("beta", "p", "r", "phi", "ay"),
     ),
     "wind": (("V", "alpha", "theta", "q"), (), ("V", "alpha", "theta", "q", "ax", "az")),
+    "alpha_q": (("alpha", "q"), ALPHA_Q_INPUTS, ALPHA_Q_OUTPUTS),
 }
 DEFAULT_OUTPUTS = {kind: spec[2] for kind, spec in _KINDS.items()}
 
@@ -210,6 +220,28 @@ def _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, con
     return f, h
 
 
+def _alpha_q_functions(out_index, out_scale, tables, consts):
+    """f and h closures of the α–q model (states α, q; inputs V, q̄, Θ, Φ, a_x, p, r,
+    controls…; equations.alpha_q_derivatives)."""
+    tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
+    fsig, fpow = tables.factor_signal, tables.factor_power
+    fspl, fknot = tables.factor_spline, tables.factor_knot
+    cbar = consts[7]
+
+    def f(t, x, u, theta):
+        # signals (α, q̂, inputs…), then C_Z, C_m from the aero tables [2.16]
+        sig = alpha_q_signals(x, u, cbar)
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
+        return alpha_q_derivatives(x, u, C, consts)
+
+    def h(t, x, u, theta):
+        sig = alpha_q_signals(x, u, cbar)
+        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
+        return _select(alpha_q_outputs(x, u, C, consts), out_index, out_scale)
+
+    return f, h
+
+
 # The lateral model's two ways of taking the measured longitudinal motion.
 LATERAL_MEASURED = (("u", "w", "q"), ("V", "alpha", "q"))
 
@@ -257,6 +289,8 @@ def _build(
         raise InputTypeError(f"airplane: expected an Airplane, got {describe(airplane)}")
     if not isinstance(aero, AeroModel):
         raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
+    if kind == "alpha_q":
+        _check_alpha_q(airplane, aero)
     states, default_measured, default_outputs = _KINDS[kind]
     measured = _measured_inputs(kind, default_measured, measured)
     outputs = _output_names(kind, default_outputs, outputs)
@@ -277,6 +311,20 @@ def _build(
     )
 
 
+def _check_alpha_q(airplane: Airplane, aero: AeroModel) -> None:
+    """The α–q model takes C_Z and C_m only, and thrust through the measured a_x."""
+    if sorted(aero.coefficients) != ["CZ", "Cm"]:
+        raise InputError(
+            f"aero: the α–q model takes the coefficients CZ and Cm (both, no others), got "
+            f"{list(aero.coefficients)}"
+        )
+    if airplane.thrust_input is not None:
+        raise InputError(
+            f"airplane.thrust_input: the α–q model carries thrust in the measured a_x; expected "
+            f"None, got {airplane.thrust_input!r}"
+        )
+
+
 def _output_names(
     kind: str, default: tuple[str, ...], outputs: Sequence[str] | None
 ) -> tuple[str, ...]:
@@ -285,6 +333,12 @@ def _output_names(
     unknown = [o for o in outputs if o not in OUTPUTS]
     if unknown:
         raise InputError(f"outputs: unknown output names {unknown}; available: {list(OUTPUTS)}")
+    if kind == "alpha_q":
+        bad = [o for o in outputs if o not in ALPHA_Q_OUTPUTS]
+        if bad:
+            raise InputError(
+                f"outputs: the α–q model has the outputs {list(ALPHA_Q_OUTPUTS)}, got {bad}"
+            )
     if kind == "wind":
         bad = [o for o in outputs if o in ("beta", "phi", "ay", "p", "r")]
         if bad:
@@ -303,7 +357,10 @@ def _input_names(
     outputs: tuple[str, ...],
     measured: tuple[str, ...],
 ) -> tuple[str, ...]:
-    """Inputs: the controls, the thrust (where the model uses it), the measured motion."""
+    """Inputs: the controls, the thrust (where the model uses it), the measured motion
+    (α–q model: the measured variables first, then the controls)."""
+    if kind == "alpha_q":
+        return _alpha_q_input_names(aero, states, controls, measured)
     if controls is None:
         # the aerodynamic model's signals that are not standard signals, in first-use order
         controls = tuple(s for s in aero.signals if s not in SIGNALS and s != airplane.thrust_input)
@@ -321,6 +378,28 @@ def _input_names(
     if needs_thrust and airplane.thrust_input is not None and airplane.thrust_input not in inputs:
         inputs = inputs + (airplane.thrust_input,)
     return inputs + measured
+
+
+def _alpha_q_input_names(
+    aero: AeroModel,
+    states: tuple[str, ...],
+    controls: Sequence[str] | None,
+    measured: tuple[str, ...],
+) -> tuple[str, ...]:
+    """Inputs of the α–q model: V, q̄, Θ, Φ, a_x, p, r, then the controls (default: the aero
+    model's signals other than alpha, qhat and the measured ones, in first-use order)."""
+    if controls is None:
+        controls = tuple(s for s in aero.signals if s not in ("alpha", "qhat", *measured))
+    if isinstance(controls, str):
+        raise InputTypeError(f"controls: expected a list of names, got the string {controls!r}")
+    controls = tuple(controls)
+    clash = sorted(set(controls) & {"alpha", "qhat", *states, *measured})
+    if clash:
+        raise InputError(
+            f"controls: {clash} are names of the α–q model's signals, states or measured "
+            "inputs; choose other names"
+        )
+    return measured + controls
 
 
 def _model_parameters(aero: AeroModel, parameters) -> Parameters:
@@ -353,6 +432,14 @@ def _model_functions(
     """f and h of the model: the index maps from names to positions, the aerodynamic
     tables and the airplane constants, closed over by ``_wind_functions`` /
     ``_body_functions``."""
+    if kind == "alpha_q":
+        # signal list: α, q̂, then every input (V, q̄, Θ, Φ, a_x, p, r, controls…)
+        tables = aero.tables(("alpha", "qhat", *inputs), parameters)
+        az_scale = Accelerometer.from_value(accelerometer).factors(airplane.g)[2]
+        out_index = np.array([ALPHA_Q_OUTPUTS.index(o) for o in outputs], dtype=np.int64)
+        # per output: s_z·k for az (Accelerometer.factors), 1 for alpha and q
+        out_scale = np.array([az_scale if o == "az" else 1.0 for o in outputs])
+        return _alpha_q_functions(out_index, out_scale, tables, _constants(airplane))
     # signal list: the standard signals, then the non-standard inputs (controls, thrust)
     extra = [i for i, n in enumerate(inputs) if n not in SIGNALS]
     signal_names = SIGNALS + tuple(inputs[i] for i in extra)
@@ -456,4 +543,23 @@ wind_axis_longitudinal_model = _model_builder(
     """Wind-axis longitudinal model: states (V, alpha, theta, q) (m/s, rad, rad, rad/s) of
     symmetric flight. Default outputs V, alpha, theta, q, ax, az. Arguments as for
     ``six_dof_model``.""",
+)
+
+alpha_q_longitudinal_model = _model_builder(
+    "alpha_q",
+    "alpha_q_longitudinal_model",
+    """α–q longitudinal model: states (alpha, q) (rad, rad/s); the measured V, q̄, Θ, Φ, a_x
+    (g), p, r enter as inputs, in that order, followed by the controls (body axes, β ≈ 0,
+    thrust carried by the measured a_x; equations in ``flightid.aircraft.equations``):
+
+        dα/dt = q + (q̄S/(mV)) C_Z cos α − (g a_x/V) sin α + (g/V)(cos Φ cos Θ cos α + sin Θ sin α)
+        dq/dt = (q̄ S c̄ C_m + (I_z − I_x) p r + I_xz (r² − p²))/I_y
+        outputs alpha, q, az = q̄ S C_Z/(m g) (g units; ``accelerometer`` may change sign/unit)
+
+    ``aero`` gives exactly the coefficients CZ and Cm, with terms in alpha, qhat = q c̄/(2V)
+    and any input channel (measured variables or controls, e.g. ``de`` in rad). The airplane's
+    mass, S, c̄, I_x, I_y, I_z, I_xz and g are used, in any one consistent unit system (q̄ is
+    measured, so ρ is not used, nor b); ``thrust_input`` must be None. Outputs: any of alpha,
+    q, az. Other arguments as for ``six_dof_model`` (``measured`` is fixed: None or the list
+    above).""",
 )

@@ -23,12 +23,22 @@ digest, hence a fresh compilation, never a stale kernel. A cached kernel that ca
 loaded (numba re-imports the module whose globals the model functions use: a model module
 that is no longer importable) is compiled again. ``FLIGHTID_KERNEL_CACHE=0`` turns the disk
 cache off; numba's ``NUMBA_CACHE_DIR`` moves it.
+
+numba names every compiled function ``qualname$uid`` with ``uid`` from a per-process counter,
+and a kernel loaded from disk brings the names of the process that compiled it. Two models
+built by the same code (two α–q models with other constants, say) compiled by two processes
+doing the same work got the same names, and a third process loading both linked the second
+to the first one's machine code: a wrong model, silently. The counter therefore starts at a
+random 48-bit offset in each process (``_distinct_function_ids``), and entries written
+before that are not reused (the index key's tag).
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
+import secrets
 import types
 from collections.abc import Callable
 from typing import Any
@@ -40,6 +50,22 @@ __all__ = ["cached_njit", "kernel_digest"]
 # modules whose classes may appear in a closure or as a global (their behaviour is versioned
 # with the library, which numba's cache index records)
 _TRUSTED_CLASS_MODULES = ("builtins", "math", "numpy", "numba")
+
+
+# tag of the index key; entries from before _distinct_function_ids carry another one
+_KEY_TAG = "flightid-kernel-digest-2"
+
+
+def _distinct_function_ids() -> None:
+    """Start numba's per-process function id counter at a random 48-bit offset, so that the
+    names of functions compiled here (``qualname$uid``) differ from those in kernels other
+    processes cached (module docstring)."""
+    from numba.core.bytecode import FunctionIdentity
+
+    FunctionIdentity._unique_ids = itertools.count(secrets.randbits(48))
+
+
+_distinct_function_ids()
 
 
 class _Undescribable(Exception):
@@ -147,7 +173,7 @@ def cached_njit(py_func: Callable) -> Callable:
         """numba's function cache with the index key replaced by the digest."""
 
         def _index_key(self, sig, codegen):
-            return (sig, codegen.magic_tuple(), ("flightid-kernel-digest", digest))
+            return (sig, codegen.magic_tuple(), (_KEY_TAG, digest))
 
         def _load_overload(self, sig, target_context):
             # a cached kernel that cannot be rebuilt (e.g. its model module is no longer
