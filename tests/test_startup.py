@@ -191,3 +191,30 @@ def test_digest_follows_closures_globals_and_arrays():
 
 
 OFFSET = 1.0
+
+
+def test_a_kernel_calling_a_function_compiled_before_the_cache_is_not_cached():
+    # numba names functions qualname$uid with uid counted from 1 in every process; one
+    # compiled before flightid's offset could share its name with another process's
+    # function, and a cached kernel linking it would run the wrong code: no digest, no cache
+    script = """
+import numba
+@numba.njit
+def early(x):
+    return x + 1.0
+early(1.0)
+from flightid.simulate.cache import kernel_digest
+@numba.njit
+def late(x):
+    return x + 2.0
+late(1.0)
+def calls_early(x):
+    return early(x)
+def calls_late(x):
+    return late(x)
+print(kernel_digest(calls_early) is None, kernel_digest(calls_late) is not None)
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert done.stdout.split() == ["True", "True"]

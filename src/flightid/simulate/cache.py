@@ -29,8 +29,10 @@ and a kernel loaded from disk brings the names of the process that compiled it. 
 built by the same code (two α–q models with other constants, say) compiled by two processes
 doing the same work got the same names, and a third process loading both linked the second
 to the first one's machine code: a wrong model, silently. The counter therefore starts at a
-random 48-bit offset in each process (``_distinct_function_ids``), and entries written
-before that are not reused (the index key's tag).
+random offset in [2^47, 2^48) in each process (``_distinct_function_ids``), entries written
+before that are not reused (the index key's tag), and a kernel that calls a numba function
+compiled before this module was imported (an id from numba's own counter) is not cached at
+all: it is compiled afresh.
 """
 
 from __future__ import annotations
@@ -56,13 +58,29 @@ _TRUSTED_CLASS_MODULES = ("builtins", "math", "numpy", "numba")
 _KEY_TAG = "flightid-kernel-digest-2"
 
 
+# ids at or above this come from the random offset; below it, from numba's own counter
+_FIRST_DISTINCT_ID = 2**47
+
+
 def _distinct_function_ids() -> None:
-    """Start numba's per-process function id counter at a random 48-bit offset, so that the
-    names of functions compiled here (``qualname$uid``) differ from those in kernels other
-    processes cached (module docstring)."""
+    """Start numba's per-process function id counter at a random offset in [2^47, 2^48), so
+    that the names of functions compiled here (``qualname$uid``) differ from those in kernels
+    other processes cached (module docstring)."""
     from numba.core.bytecode import FunctionIdentity
 
-    FunctionIdentity._unique_ids = itertools.count(secrets.randbits(48))
+    FunctionIdentity._unique_ids = itertools.count(_FIRST_DISTINCT_ID + secrets.randbits(46))
+
+
+def _compiled_before_the_offset(dispatcher: Any) -> bool:
+    """A dispatcher already compiled with an id from numba's own counter (before this module
+    was imported): its names may equal those of another process's functions, so a kernel
+    that calls it is not cached (compiled afresh instead)."""
+    for result in getattr(dispatcher, "overloads", {}).values():
+        name = getattr(getattr(result, "fndesc", None), "unique_name", "")
+        _, _, uid = name.rpartition("$")
+        if uid.isdigit() and int(uid) < _FIRST_DISTINCT_ID:
+            return True
+    return False
 
 
 _distinct_function_ids()
@@ -109,6 +127,8 @@ def _update(hasher: Any, obj: Any, seen: set[int]) -> None:
         _update_function(hasher, obj, seen)
     elif hasattr(obj, "py_func") and type(obj).__module__.startswith("numba"):
         # a numba dispatcher: its options and the Python function it compiles
+        if _compiled_before_the_offset(obj):
+            raise _Undescribable("a numba function compiled before flightid's kernel cache")
         options = getattr(obj, "targetoptions", {})
         hasher.update(f"dispatcher:{sorted(options.items())!r}:".encode())
         _update_function(hasher, obj.py_func, seen)
