@@ -205,14 +205,19 @@ def test_measured_initial_body_states_are_derived_from_flight_variables():
 
     V, alpha, beta, theta, phi = 53.6, 0.06, 0.02, 0.05, -0.3
     t = np.arange(3) * 0.05
-    data = FlightData(t, outputs={n: np.full(3, v) for n, v in
-                                  (("V", V), ("alpha", alpha), ("beta", beta),
-                                   ("theta", theta), ("phi", phi))})
+    data = FlightData(
+        t,
+        outputs={
+            n: np.full(3, v)
+            for n, v in (("V", V), ("alpha", alpha), ("beta", beta), ("theta", theta), ("phi", phi))
+        },
+    )
     # body_state: (u, v, w, p, q, r, l_xz, l_yz, l_zz) from V, α, β, Θ, Φ [2.19–2.24]
     expected = body_state(V, alpha, beta, theta, phi)
     for state, index in (("u", 0), ("v", 1), ("w", 2), ("l_xz", 6), ("l_yz", 7), ("l_zz", 8)):
         assert _first_measured(data, state, f"initial_state.{state}") == pytest.approx(
-            expected[index], rel=1e-12, abs=1e-15)
+            expected[index], rel=1e-12, abs=1e-15
+        )
     no_theta = FlightData(t, outputs={"phi": np.full(3, phi)})
     with pytest.raises(CaseError, match=r"initial_state.l_zz: .*missing \['theta'\]"):
         _first_measured(no_theta, "l_zz", "initial_state.l_zz")

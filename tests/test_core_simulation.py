@@ -152,8 +152,9 @@ def test_sensitivity_of_an_estimated_initial_state_is_the_closed_form():
         return x.copy()
 
     t = np.arange(0.0, 2.0 + 1e-9, 0.01)
-    model = StateSpaceModel(("x",), (), ("x",), f, h, Parameters({"a": 1.5, "x_start": 2.0}),
-                            x0=("x_start",))
+    model = StateSpaceModel(
+        ("x",), (), ("x",), f, h, Parameters({"a": 1.5, "x_start": 2.0}), x0=("x_start",)
+    )
     data = FlightData(t, outputs={"x": np.exp(-t)})
     g, y = OutputErrorProblem(model, data).sensitivities_from_equations(np.array([1.5, 2.0]))
     # y = x0·e^{−a t}: ∂y/∂a = −t·x0·e^{−a t}, ∂y/∂x0 = e^{−a t}

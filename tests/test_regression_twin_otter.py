@@ -251,9 +251,7 @@ def test_a_file_of_regression_stages_alone_needs_no_model(tmp_path, capsys):
     head, constants = text.split("[model]")
     stages = constants[constants.index("# stage 1") :]
     bare = tmp_path / "bare.toml"
-    bare.write_text(
-        head.replace("[data]\n", f'[data]\ndata_dir = "{DATA}"\n', 1) + stages
-    )
+    bare.write_text(head.replace("[data]\n", f'[data]\ndata_dir = "{DATA}"\n', 1) + stages)
     case = load_case(bare)
     assert case.model == {} and [s.kind for s in case.stages] == ["stepwise"]
     assert main(["run", str(bare), "--json", "--quiet"]) == 0
