@@ -23,12 +23,17 @@ Two steps, each checked:
    (deg → rad, deg/s → rad/s, ft/s → m/s, g → m/s², ...); an unknown unit is refused.
 
 Expressions are arithmetic (+ − × ÷, parentheses, numbers) over column references ``$N``
-(1-based column number) and column names; they are parsed here, never passed to ``eval``.
+(1-based column number) and column names, with the functions sin, cos, tan, asin, acos, atan,
+atan2(y, x), sqrt, exp, log (natural), abs, the constant ``pi`` and the time variable ``t``
+(the time channel in s, as read); they are parsed here, never passed to ``eval``. A value
+outside a function's domain (sqrt of a negative, log of 0, asin of 1.5, ...) is a
+``ChannelError`` naming the channel and the first row where it happens.
 """
 
 from __future__ import annotations
 
 import csv
+import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -379,7 +384,7 @@ def read_table(
 
 _EXPR_TOKEN = re.compile(
     r"\s*(?:(?P<number>\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)"
-    r"|(?P<column>\$\d+)|(?P<name>[A-Za-z_][A-Za-z0-9_.]*)|(?P<op>[-+*/()]))"
+    r"|(?P<column>\$\d+)|(?P<name>[A-Za-z_][A-Za-z0-9_.]*)|(?P<op>[-+*/(),]))"
 )
 
 
@@ -405,9 +410,42 @@ def _tokens(text: str) -> list[tuple[str, str, int]]:
 MAX_EXPRESSION_DEPTH = 100
 
 
+@dataclass(frozen=True)
+class _Function:
+    """A whitelisted function: argument count, the numpy function, and its domain (the mask
+    of arguments it refuses, with the words for the error), or None where every finite
+    argument is allowed (overflow to ±inf is caught after evaluation)."""
+
+    n_args: int
+    apply: Any
+    refuses: Any = None
+    domain: str = ""
+
+
+_FUNCTIONS = {
+    "sin": _Function(1, np.sin),
+    "cos": _Function(1, np.cos),
+    "tan": _Function(1, np.tan),
+    # asin, acos: defined on −1 ≤ x ≤ 1
+    "asin": _Function(1, np.arcsin, lambda x: np.abs(x) > 1, "−1 ≤ x ≤ 1"),
+    "acos": _Function(1, np.arccos, lambda x: np.abs(x) > 1, "−1 ≤ x ≤ 1"),
+    "atan": _Function(1, np.arctan),
+    # atan2(y, x): the angle of (x, y) in (−π, π]; atan2(0, 0) = 0 as in numpy
+    "atan2": _Function(2, np.arctan2),
+    # sqrt: x ≥ 0
+    "sqrt": _Function(1, np.sqrt, lambda x: x < 0, "x ≥ 0"),
+    "exp": _Function(1, np.exp),
+    # log (natural): x > 0
+    "log": _Function(1, np.log, lambda x: x <= 0, "x > 0"),
+    "abs": _Function(1, np.abs),
+}
+
+
 class _Parser:
     """Recursive-descent parser: expr := term (±term)*, term := unary (×÷ unary)*,
-    unary := −unary | atom, atom := NUMBER | $N | NAME | ( expr ). Builds a tree of tuples."""
+    unary := −unary | atom, atom := NUMBER | $N | NAME | NAME ( expr {, expr} ) | ( expr ).
+    Builds a tree of tuples; NAME ( ... ) must be a whitelisted function with its argument
+    count, ``pi`` is the constant and ``t`` the time variable."""
 
     def __init__(self, text: str) -> None:
         self.text = text
@@ -488,7 +526,13 @@ class _Parser:
             self.take()
             return ("col", int(value[1:]))
         if kind == "name":
-            self.take()
+            position = self.take()[2]
+            if self.peek()[1] == "(":
+                return self.call(value, position)
+            if value == "pi":
+                return ("num", math.pi)
+            if value == "t":
+                return ("time",)
             return ("col", value)
         if value == "(":
             self.take()
@@ -499,6 +543,31 @@ class _Parser:
             return tree
         self.fail("a number, a column ($N or a name) or '('")
 
+    def call(self, name: str, position: int):
+        """NAME ( expr {, expr} ): a whitelisted function with its number of arguments."""
+        function = _FUNCTIONS.get(name)
+        if function is None:
+            raise ChannelError(
+                f"expression {self.text!r}: unknown function {name!r} at position {position}; "
+                f"known: {', '.join(sorted(_FUNCTIONS))}"
+            )
+        self.take()  # '('
+        args = []
+        if self.peek()[1] != ")":
+            args.append(self.nest(self.expr))
+            while self.peek()[1] == ",":
+                self.take()
+                args.append(self.nest(self.expr))
+        if self.peek()[1] != ")":
+            self.fail("',' or ')'")
+        self.take()
+        if len(args) != function.n_args:
+            raise ChannelError(
+                f"expression {self.text!r}: {name}() takes {function.n_args} argument(s), "
+                f"got {len(args)} (at position {position})"
+            )
+        return ("call", name, *args)
+
 
 def _depth(tree: tuple) -> int:
     """Depth of an expression tree (iterative: the tree may be deep)."""
@@ -506,7 +575,9 @@ def _depth(tree: tuple) -> int:
     while stack:
         node, depth = stack.pop()
         deepest = max(deepest, depth)
-        if node[0] not in ("num", "col"):
+        if node[0] == "call":
+            stack.extend((child, depth + 1) for child in node[2:])
+        elif node[0] not in ("num", "col", "time"):
             stack.extend((child, depth + 1) for child in node[1:])
     return deepest
 
@@ -518,16 +589,37 @@ def parse_expression(text: str) -> tuple:
     return _Parser(text).parse()
 
 
-def _evaluate(tree: tuple, table: Table, where: str) -> np.ndarray | float:
+def _evaluate(
+    tree: tuple,
+    table: Table,
+    where: str,
+    time: np.ndarray | None = None,
+    problems: list | None = None,
+) -> np.ndarray | float:
+    """Values of an expression tree over the table's rows. ``time``: the values of ``t`` (s)
+    (None: ``t`` is the column named t, as inside the time channel itself). Arguments
+    outside a function's domain are recorded in ``problems`` as (words, mask, argument)
+    and give NaN there; the caller reports the first such row it keeps."""
     kind = tree[0]
     if kind == "num":
         return tree[1]
     if kind == "col":
         return table.column(tree[1], where)
+    if kind == "time":
+        return table.column("t", where) if time is None else time
     if kind == "neg":
-        return -_evaluate(tree[1], table, where)
-    left = _evaluate(tree[1], table, where)
-    right = _evaluate(tree[2], table, where)
+        return -_evaluate(tree[1], table, where, time, problems)
+    if kind == "call":
+        function = _FUNCTIONS[tree[1]]
+        args = [_evaluate(sub, table, where, time, problems) for sub in tree[2:]]
+        if function.refuses is not None:
+            refused = function.refuses(np.asarray(args[0], dtype=float))
+            if np.any(refused) and problems is not None:
+                problems.append((f"{tree[1]}() needs {function.domain}", refused, args[0]))
+        with np.errstate(all="ignore"):
+            return function.apply(*args)
+    left = _evaluate(tree[1], table, where, time, problems)
+    right = _evaluate(tree[2], table, where, time, problems)
     if kind == "+":
         return left + right
     if kind == "-":
@@ -542,9 +634,10 @@ def expression_columns(tree: tuple) -> list:
     """Column references used by an expression tree."""
     if tree[0] == "col":
         return [tree[1]]
-    if tree[0] == "num":
+    if tree[0] in ("num", "time"):
         return []
-    return [c for sub in tree[1:] for c in expression_columns(sub)]
+    children = tree[2:] if tree[0] == "call" else tree[1:]
+    return [c for sub in children for c in expression_columns(sub)]
 
 
 # =====================================================================================
@@ -560,7 +653,8 @@ class ChannelSpec:
 
     Attributes:
         column: 1-based column number or column name (or use ``expr``).
-        expr: arithmetic expression over ``$N`` / column names.
+        expr: arithmetic expression over ``$N`` / column names, with functions, ``pi`` and
+            the time variable ``t`` (see the module docstring).
         scale, offset: value = source · scale + offset (in the source unit), then
             converted by the unit rule.
         unit: the source unit (e.g. ``"deg"``). Without ``to`` the values are delivered in
@@ -636,15 +730,34 @@ class ChannelSpec:
         """The unit the values are delivered in ("" where no unit is declared)."""
         return self.conversion()[1]
 
-    def evaluate(self, table: Table, where: str, keep: np.ndarray | None = None) -> np.ndarray:
-        """The channel's values in the target unit, on the rows ``keep`` (default all)."""
+    def evaluate(
+        self,
+        table: Table,
+        where: str,
+        keep: np.ndarray | None = None,
+        time: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """The channel's values in the target unit, on the rows ``keep`` (default all).
+        ``time``: the values of the expression variable ``t`` on all rows (s); None inside the
+        time channel itself, where ``t`` is the column named t."""
         if self.expr is not None:
             try:
                 tree = parse_expression(self.expr)
             except ChannelError as exc:
                 raise ChannelError(f"{where}: {exc}") from None
-            values = _evaluate(tree, table, where)
+            problems: list = []
+            values = _evaluate(tree, table, where, time, problems)
             values = np.broadcast_to(np.asarray(values, dtype=float), (table.n_rows,)).copy()
+            rows = np.ones(table.n_rows, dtype=bool) if keep is None else keep
+            for words, refused, argument in problems:
+                refused = np.broadcast_to(refused, (table.n_rows,)) & rows
+                if refused.any():
+                    k = int(np.argmax(refused))
+                    bad = np.broadcast_to(np.asarray(argument, dtype=float), (table.n_rows,))[k]
+                    raise ChannelError(
+                        f"{where}: {words}, got {bad:.6g} at row {k + 1} of "
+                        f"{table.source or 'the table'} ({int(refused.sum())} row(s) in all)"
+                    )
         else:
             values = table.column(self.column, where).copy()
         factor, _ = self.conversion(where)
@@ -726,8 +839,8 @@ def to_flight_data(
             f"start/stop: [{start}, {stop}] keeps fewer than 2 samples of "
             f"{table.source} (time runs {t[0]:g}..{t[-1]:g} s)"
         )
-    channels_in = {k: s.evaluate(table, f"inputs.{k}", keep) for k, s in in_specs.items()}
-    channels_out = {k: s.evaluate(table, f"outputs.{k}", keep) for k, s in out_specs.items()}
+    channels_in = {k: s.evaluate(table, f"inputs.{k}", keep, t) for k, s in in_specs.items()}
+    channels_out = {k: s.evaluate(table, f"outputs.{k}", keep, t) for k, s in out_specs.items()}
     t = t[keep]
     dt = np.diff(t)
     if gaps not in ("error", "join"):
