@@ -203,6 +203,10 @@ def read_ascii(path: str | Path) -> Table:
     return _finish_table(np.array(rows), names, units, str(path))
 
 
+# a header "name [unit]" or "name (unit)": group 1 the name, group 2 the unit
+_CSV_UNIT = re.compile(r"(.*?)\s*[\[(]([^\])]*)[\])]\s*")
+
+
 def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
     """CSV with one header row of column names (units in brackets are split off:
     ``alpha [deg]`` or ``alpha (deg)``). The delimiter is sniffed unless given."""
@@ -222,7 +226,7 @@ def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
         raise DataFileError(f"{path}: the first row must be the header of column names")
     names, units = [], []
     for h in header:
-        m = re.fullmatch(r"(.*?)\s*[\[(]([^\])]*)[\])]\s*", h)
+        m = _CSV_UNIT.fullmatch(h)
         names.append(m.group(1) if m else h)
         units.append(m.group(2) if m else "")
     rows = []
@@ -259,6 +263,10 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
     path = Path(path)
     if not path.is_file():
         raise DataFileError(f"{path}: no such file")
+    from flightid.data.formats import is_mat73, read_mat73
+
+    if is_mat73(path):
+        return read_mat73(path, variable)
     try:
         contents = loadmat(str(path))
     except Exception as exc:  # scipy raises several types for bad files
@@ -268,6 +276,14 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
         for k, v in contents.items()
         if not k.startswith("__") and isinstance(v, np.ndarray) and v.dtype.kind in "fiub"
     }
+    return _mat_table(path, arrays, contents.get("varlab"), variable)
+
+
+def _mat_table(
+    path: Path, arrays: Mapping[str, np.ndarray], varlab: Any, variable: str | None
+) -> Table:
+    """The ``Table`` of ``read_mat`` from the file's numeric arrays (MATLAB shapes, at least
+    2-D) and its ``varlab`` labels (array of strings, or None)."""
     constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
     source = str(path)
     if variable is not None:
@@ -276,15 +292,15 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
                 f"{path}: no numeric variable {variable!r}; variables: {sorted(arrays)}"
             )
         names = None
-        if variable == "fdata" and "varlab" in contents:
-            names, units = _varlab(contents["varlab"], arrays[variable].shape[1])
+        if variable == "fdata" and varlab is not None:
+            names, units = _varlab(varlab, arrays[variable].shape[1])
             return _finish_table(arrays[variable], names, units, source, constants)
         return _finish_table(arrays[variable], names, None, source, constants)
     if "fdata" in arrays:
         matrix = arrays["fdata"]
         names, units = (None, None)
-        if "varlab" in contents:
-            names, units = _varlab(contents["varlab"], matrix.shape[1])
+        if varlab is not None:
+            names, units = _varlab(varlab, matrix.shape[1])
         return _finish_table(matrix, names, units, source, constants)
     matrices = {k: v for k, v in arrays.items() if v.ndim == 2 and min(v.shape) > 1}
     if len(matrices) == 1:
@@ -349,7 +365,10 @@ def table_from_dataframe(frame: Any, source: str = "DataFrame") -> Table:
 # dispatch
 # =====================================================================================
 
-FORMATS = ("auto", "csv", "ascii", "mat")
+FORMATS = ("auto", "csv", "ascii", "mat", "parquet")
+
+# file extension → format for format = "auto" (anything else: whitespace ASCII)
+_SUFFIX_FORMATS = {".csv": "csv", ".mat": "mat", ".parquet": "parquet", ".pq": "parquet"}
 
 
 def read_table(
@@ -360,7 +379,8 @@ def read_table(
     delimiter: str | None = None,
 ) -> Table:
     """Read a data file into a ``Table``; ``format`` "auto" picks by extension
-    (.csv → csv, .mat → mat, anything else → whitespace ASCII)."""
+    (.csv → csv, .mat → mat (v5, or v7.3 with the ``hdf5`` extra), .parquet/.pq → parquet
+    (the ``parquet`` extra), anything else → whitespace ASCII)."""
     if format not in FORMATS:
         raise InputError(f"format: expected one of {list(FORMATS)}, got {format!r}")
     path = Path(path)
@@ -370,7 +390,11 @@ def read_table(
         raise DataFileError(f"{path}: is a directory, expected a data file")
     if format == "auto":
         suffix = path.suffix.lower()
-        format = {".csv": "csv", ".mat": "mat"}.get(suffix, "ascii")
+        format = _SUFFIX_FORMATS.get(suffix, "ascii")
+    if format == "parquet":
+        from flightid.data.formats import read_parquet
+
+        return read_parquet(path)
     if format == "csv":
         return read_csv(path, delimiter)
     if format == "mat":

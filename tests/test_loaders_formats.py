@@ -1,0 +1,234 @@
+"""Loaders for formats behind optional extras: Parquet (pyarrow), MATLAB v7.3 (h5py).
+
+Each test writes a small file with the package itself, reads it with ``read_table`` and maps
+channels (units, expressions) with ``to_flight_data`` exactly as for CSV files.
+"""
+
+from __future__ import annotations
+
+import builtins
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flightid.data.loaders import DataFileError, read_table, to_flight_data
+from flightid.errors import FlightIdError
+from flightid.results import MissingDependencyError
+
+RNG = np.random.default_rng(20261123)
+N = 40
+T = np.arange(N) * 0.02
+ALPHA_DEG = RNG.normal(size=N)
+Q_DEGS = RNG.normal(size=N)
+DE_L = RNG.normal(size=N)
+DE_R = RNG.normal(size=N)
+
+
+def _hide(monkeypatch, package: str) -> None:
+    """Make ``import package`` (and its submodules) fail as if it were not installed."""
+    real = builtins.__import__
+
+    def fake(name, *args, **kwargs):
+        if name == package or name.startswith(package + "."):
+            raise ImportError(f"No module named {name!r}")
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", fake)
+    import sys
+
+    for key in [k for k in sys.modules if k == package or k.startswith(package + ".")]:
+        monkeypatch.delitem(sys.modules, key)
+
+
+def _check_mapping(table) -> None:
+    """Units and expressions flow through the channel mapping as for CSV."""
+    fd = to_flight_data(
+        table,
+        time="t",
+        inputs={"de": {"expr": "(de_r - de_l) / 2", "unit": "deg"}},
+        outputs={
+            "alpha": {"column": "alpha", "unit": "deg"},
+            "q": {"column": "q", "unit": "deg/s"},
+        },
+    )
+    # units are declared in the mapping, as for CSV: 1 deg = π/180 rad (definition)
+    assert np.allclose(fd.output("alpha"), ALPHA_DEG * math.pi / 180)
+    assert np.allclose(fd.output("q"), Q_DEGS * math.pi / 180)
+    assert np.allclose(fd.input("de"), (DE_R - DE_L) / 2 * math.pi / 180)
+    assert np.allclose(fd.time, T)
+
+
+# ---------------------------------------------------------------- Parquet
+
+
+def _write_parquet(path: Path) -> Path:
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    schema = pa.schema(
+        [
+            pa.field("t", pa.float64(), metadata={"unit": "s"}),
+            pa.field("alpha", pa.float64(), metadata={"unit": "deg"}),
+            pa.field("q [deg/s]", pa.float32()),
+            pa.field("de_l", pa.float64()),
+            pa.field("de_r", pa.float64()),
+            pa.field("label", pa.string()),
+            pa.field("n", pa.int32()),
+        ]
+    )
+    table = pa.table(
+        [
+            T,
+            ALPHA_DEG,
+            Q_DEGS.astype(np.float32),
+            DE_L,
+            DE_R,
+            [f"row{i}" for i in range(N)],
+            np.arange(N, dtype=np.int32),
+        ],
+        schema=schema,
+    )
+    pq.write_table(table, path)
+    return path
+
+
+def test_parquet_columns_units_and_mapping(tmp_path):
+    path = _write_parquet(tmp_path / "flight.parquet")
+    table = read_table(path)
+    # the string column is left out; units from field metadata or "name [unit]"
+    assert table.names == ("t", "alpha", "q", "de_l", "de_r", "n")
+    assert table.units == ("s", "deg", "deg/s", "", "", "")
+    assert np.array_equal(table.column("n"), np.arange(N))
+    # float32 column: equal to the float32-rounded values
+    assert np.array_equal(table.column("q"), Q_DEGS.astype(np.float32).astype(float))
+    _check_mapping(
+        read_table(path, "parquet")  # explicit format, same result
+    )
+
+
+def test_parquet_nulls_are_nan_and_bad_files(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    path = tmp_path / "gaps.pq"
+    pq.write_table(pa.table({"t": [0.0, 1.0, 2.0], "x": [1.0, None, 3.0]}), path)
+    x = read_table(path).column("x")
+    assert x[0] == 1.0 and math.isnan(x[1]) and x[2] == 3.0
+
+    only_text = tmp_path / "text.parquet"
+    pq.write_table(pa.table({"s": ["a", "b", "c"]}), only_text)
+    with pytest.raises(DataFileError, match="no numeric columns"):
+        read_table(only_text)
+    garbage = tmp_path / "garbage.parquet"
+    garbage.write_bytes(b"not parquet at all")
+    with pytest.raises(DataFileError, match="not a readable Parquet file"):
+        read_table(garbage)
+
+
+def test_parquet_missing_extra_is_named_error(tmp_path, monkeypatch):
+    path = tmp_path / "x.parquet"
+    path.write_bytes(b"PAR1")
+    _hide(monkeypatch, "pyarrow")
+    with pytest.raises(MissingDependencyError, match=r"flightid\[parquet\]") as info:
+        read_table(path)
+    assert isinstance(info.value, ImportError) and isinstance(info.value, FlightIdError)
+
+
+# ---------------------------------------------------------------- MATLAB v7.3
+
+
+def _write_mat73(path: Path, variables: dict) -> Path:
+    """A MATLAB-v7.3-like file: HDF5 with a 512-byte user block holding MATLAB's text header;
+    numeric arrays stored transposed (column-major) with a ``MATLAB_class`` attribute; char
+    arrays as uint16 codes; cell arrays as object references under ``#refs#``."""
+    h5py = pytest.importorskip("h5py")
+    with h5py.File(path, "w", userblock_size=512) as f:
+        refs = f.create_group("#refs#")
+        for name, value in variables.items():
+            if isinstance(value, list):  # cell array of strings (1 × k)
+                ref_list = []
+                for i, text in enumerate(value):
+                    # a MATLAB 1 × L char row is stored as L × 1
+                    codes = np.array([ord(c) for c in text], dtype=np.uint16)[:, None]
+                    ds = refs.create_dataset(f"{name}{i}", data=codes)
+                    ds.attrs["MATLAB_class"] = np.bytes_("char")
+                    ref_list.append(ds.ref)
+                ds = f.create_dataset(name, data=np.array(ref_list, dtype=h5py.ref_dtype)[:, None])
+                ds.attrs["MATLAB_class"] = np.bytes_("cell")
+            elif isinstance(value, str):  # char row
+                ds = f.create_dataset(
+                    name, data=np.array([ord(c) for c in value], dtype=np.uint16)[:, None]
+                )
+                ds.attrs["MATLAB_class"] = np.bytes_("char")
+            elif isinstance(value, tuple):  # char matrix: rows of equal length
+                rows = np.array([[ord(c) for c in row] for row in value], dtype=np.uint16)
+                ds = f.create_dataset(name, data=rows.T)
+                ds.attrs["MATLAB_class"] = np.bytes_("char")
+            else:
+                matrix = np.atleast_2d(np.asarray(value, dtype=float))
+                ds = f.create_dataset(name, data=matrix.T)
+                ds.attrs["MATLAB_class"] = np.bytes_("double")
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Nov 23 08:00:00 2026 HDF5"
+    with open(path, "r+b") as f:
+        f.write(header.ljust(116) + b"\x00" * 8 + b"\x00\x02IM")
+    return path
+
+
+def test_mat73_sidpac_fdata_varlab_transposed(tmp_path):
+    fdata = np.column_stack([T, ALPHA_DEG, Q_DEGS, DE_L, DE_R])
+    assert fdata.shape == (N, 5)
+    # SIDPAC varlab: a char matrix, one padded row per column
+    varlab = tuple(
+        s.ljust(16)
+        for s in ("time (sec)", "alpha (deg)", "* q (deg/s)", "de_l (deg)", "de_r (deg)")
+    )
+    path = _write_mat73(tmp_path / "f18.mat", {"fdata": fdata, "varlab": varlab, "sarea": 400.0})
+    table = read_table(path)
+    assert table.names == ("time", "alpha", "q", "de_l", "de_r")
+    assert table.units == ("sec", "deg", "deg/s", "deg", "deg")
+    assert np.array_equal(table.data, fdata)  # not transposed: rows are samples
+    assert table.constants["sarea"] == 400.0
+    fd = to_flight_data(
+        table,
+        time="time",
+        inputs={"de": {"expr": "(de_r - de_l) / 2", "unit": "deg", "to": "deg"}},
+        outputs={
+            "alpha": {"column": "alpha", "unit": "deg"},
+            "q": {"column": "q", "unit": "deg/s"},
+        },
+    )
+    assert np.allclose(fd.input("de"), (DE_R - DE_L) / 2)
+    # declared units: deg → rad, deg/s → rad/s; 1 deg = π/180 rad (definition)
+    assert np.allclose(fd.output("alpha"), ALPHA_DEG * math.pi / 180)
+    assert np.allclose(fd.output("q"), Q_DEGS * math.pi / 180)
+
+
+def test_mat73_cell_varlab_named_vectors_and_variable(tmp_path):
+    fdata = np.column_stack([T, ALPHA_DEG, Q_DEGS, DE_L, DE_R])
+    labels = ["t (s)", "alpha (deg)", "q (deg/s)", "de_l (deg)", "de_r (deg)"]
+    table = read_table(_write_mat73(tmp_path / "cell.mat", {"fdata": fdata, "varlab": labels}))
+    assert table.names == ("t", "alpha", "q", "de_l", "de_r")
+    _check_mapping(table)
+
+    # named column vectors (N × 1 in MATLAB) of one length, a title string, a scalar
+    vectors = {"t": T[:, None], "alpha": ALPHA_DEG[:, None], "q": Q_DEGS[:, None]}
+    path = _write_mat73(tmp_path / "vec.mat", {**vectors, "title": "run 3", "mass": 1.5})
+    table = read_table(path)
+    assert set(table.names) == {"t", "alpha", "q"}
+    assert np.array_equal(table.column("alpha"), ALPHA_DEG)
+    assert table.constants == {"mass": 1.5}
+
+    # two matrices: name one; an N × 3 matrix stays N × 3
+    m1 = np.column_stack([T, ALPHA_DEG, Q_DEGS])
+    path = _write_mat73(tmp_path / "two.mat", {"a": m1, "b": m1[:, :2]})
+    with pytest.raises(DataFileError, match="several matrices"):
+        read_table(path)
+    assert np.array_equal(read_table(path, variable="a").data, m1)
+
+
+def test_mat73_missing_extra_is_named_error(tmp_path, monkeypatch):
+    pytest.importorskip("h5py")
+    path = _write_mat73(tmp_path / "x.mat", {"x": np.eye(3)})
+    _hide(monkeypatch, "h5py")
+    with pytest.raises(MissingDependencyError, match=r"flightid\[hdf5\]"):
+        read_table(path)
