@@ -6,8 +6,9 @@ channels (units, expressions) with ``to_flight_data`` exactly as for CSV files.
 
 from __future__ import annotations
 
-import builtins
 import math
+import struct
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -27,19 +28,12 @@ DE_R = RNG.normal(size=N)
 
 
 def _hide(monkeypatch, package: str) -> None:
-    """Make ``import package`` (and its submodules) fail as if it were not installed."""
-    real = builtins.__import__
-
-    def fake(name, *args, **kwargs):
-        if name == package or name.startswith(package + "."):
-            raise ImportError(f"No module named {name!r}")
-        return real(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", fake)
-    import sys
-
+    """Make ``import package`` (and its submodules) fail as if it were not installed: a
+    ``None`` entry in ``sys.modules`` makes every import of that name raise ImportError."""
     for key in [k for k in sys.modules if k == package or k.startswith(package + ".")]:
         monkeypatch.delitem(sys.modules, key)
+    for key in (package, f"{package}.parquet"):
+        monkeypatch.setitem(sys.modules, key, None)
 
 
 def _check_mapping(table) -> None:
@@ -231,4 +225,111 @@ def test_mat73_missing_extra_is_named_error(tmp_path, monkeypatch):
     path = _write_mat73(tmp_path / "x.mat", {"x": np.eye(3)})
     _hide(monkeypatch, "h5py")
     with pytest.raises(MissingDependencyError, match=r"flightid\[hdf5\]"):
+        read_table(path)
+
+
+# ---------------------------------------------------------------- PX4 ULog
+
+
+def _ulog_message(kind: str, payload: bytes) -> bytes:
+    # ULog message header: uint16 msg_size (payload bytes), uint8 msg_type (ULog spec, PX4 docs)
+    return struct.pack("<HB", len(payload), ord(kind)) + payload
+
+
+def _write_ulog(path: Path, topics: dict, parameters: dict[str, float]) -> Path:
+    """A ULog file written by hand from the format specification (docs.px4.io, "ULog File
+    Format"): 16-byte header (magic, version 1, start time µs), flag bits 'B', formats 'F',
+    parameters 'P', then subscriptions 'A' and data 'D' (timestamp µs first)."""
+    out = bytearray(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", 0))
+    out += _ulog_message("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
+    for name, (fields, _, _) in topics.items():
+        text = f"{name}:uint64_t timestamp;" + "".join(f"{t} {f};" for t, f in fields)
+        out += _ulog_message("F", text.encode())
+    for name, value in parameters.items():
+        key = f"float {name}".encode()
+        out += _ulog_message("P", bytes([len(key)]) + key + struct.pack("<f", value))
+    for msg_id, name in enumerate(topics):
+        out += _ulog_message("A", struct.pack("<BH", 0, msg_id) + name.encode())
+    for msg_id, (fields, time_us, rows) in enumerate(topics.values()):
+        codes = "".join(
+            "f" * int(t[6:-1]) if t.startswith("float[") else {"float": "f", "double": "d"}[t]
+            for t, _ in fields
+        )
+        for stamp, row in zip(time_us, rows, strict=True):
+            payload = struct.pack("<HQ" + codes, msg_id, int(stamp), *row)
+            out += _ulog_message("D", payload)
+    path.write_bytes(bytes(out))
+    return path
+
+
+def _ulog_topics():
+    t_att = np.arange(30) * 20_000  # µs: 50 Hz from 0
+    att = np.column_stack([RNG.normal(size=30), RNG.normal(size=30)])
+    t_imu = 30_000 + np.arange(50) * 10_000  # µs: 100 Hz from 0.03 s to 0.52 s
+    s = t_imu * 1e-6
+    # linear in time, so linear interpolation reproduces the line exactly
+    imu = np.column_stack([2 + 0.5 * s, -1 + 3 * s, 4 - s, 7 * s])
+    return {
+        "vehicle_attitude": ([("float", "roll"), ("double", "pitch")], t_att, att),
+        "sensor_combined": ([("float[3]", "gyro_rad"), ("float", "acc")], t_imu, imu),
+    }, (t_att, att)
+
+
+def test_ulog_topics_time_base_interpolation_and_mapping(tmp_path):
+    pytest.importorskip("pyulog")
+    topics, (t_att, att) = _ulog_topics()
+    path = _write_ulog(tmp_path / "flight.ulg", topics, {"TEST_P": 1.5})
+    table = read_table(path, variable="vehicle_attitude,sensor_combined")
+    assert table.names == (
+        "t",
+        "vehicle_attitude.roll",
+        "vehicle_attitude.pitch",
+        "sensor_combined.gyro_rad_0",
+        "sensor_combined.gyro_rad_1",
+        "sensor_combined.gyro_rad_2",
+        "sensor_combined.acc",
+    )
+    assert table.units[0] == "s" and table.constants == {"TEST_P": 1.5}
+    # the attitude rows inside the IMU span 0.03..0.52 s: t = 0.04, 0.06, ..., 0.52 s
+    keep = (t_att >= 30_000) & (t_att <= 520_000)
+    s = t_att[keep] * 1e-6
+    assert np.allclose(table.column("t"), s)
+    assert np.allclose(table.column("vehicle_attitude.roll"), att[keep, 0].astype(np.float32))
+    assert np.array_equal(table.column("vehicle_attitude.pitch"), att[keep, 1])
+    assert np.allclose(table.column("sensor_combined.gyro_rad_1"), -1 + 3 * s, atol=1e-6)
+    fd = to_flight_data(
+        table,
+        time="t",
+        inputs={"r": {"expr": "sensor_combined.gyro_rad_0 - 2", "unit": "rad/s"}},
+        outputs={"theta": {"column": "vehicle_attitude.pitch", "unit": "rad", "to": "deg"}},
+    )
+    # 1 rad = 180/π deg (definition)
+    assert np.allclose(fd.output("theta"), att[keep, 1] * 180 / math.pi)
+    assert np.allclose(fd.input("r"), 0.5 * s, atol=1e-6)
+
+    # one topic: plain field names, its own time base
+    single = read_table(path, "ulog", variable="sensor_combined")
+    assert single.names == ("t", "gyro_rad_0", "gyro_rad_1", "gyro_rad_2", "acc")
+    assert single.n_rows == 50
+
+
+def test_ulog_errors(tmp_path):
+    pytest.importorskip("pyulog")
+    topics, _ = _ulog_topics()
+    path = _write_ulog(tmp_path / "flight.ulg", topics, {})
+    with pytest.raises(DataFileError, match="several message streams.*sensor_combined"):
+        read_table(path)
+    with pytest.raises(DataFileError, match="no stream.*vehicle_gps"):
+        read_table(path, variable="vehicle_attitude,vehicle_gps")
+    bad = tmp_path / "bad.ulg"
+    bad.write_bytes(b"not a ulog file at all")
+    with pytest.raises(DataFileError, match="not a readable PX4 ULog"):
+        read_table(bad)
+
+
+def test_ulog_missing_extra_is_named_error(tmp_path, monkeypatch):
+    path = tmp_path / "x.ulg"
+    path.write_bytes(b"ULog")
+    _hide(monkeypatch, "pyulog")
+    with pytest.raises(MissingDependencyError, match=r"flightid\[px4\]"):
         read_table(path)

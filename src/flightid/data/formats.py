@@ -10,6 +10,7 @@ format                 package           install
 =====================  ================  =========================================
 Parquet                pyarrow           ``pip install 'flightid[parquet]'``
 MATLAB v7.3 ``.mat``   h5py              ``pip install 'flightid[hdf5]'``
+PX4 ULog ``.ulg``      pyulog            ``pip install 'flightid[px4]'``
 =====================  ================  =========================================
 """
 
@@ -156,3 +157,109 @@ def read_mat73(path: str | Path, variable: str | None = None) -> Table:
     varlab = values.get("varlab")
     labels = np.array(varlab, dtype=object) if isinstance(varlab, list) else None
     return _mat_table(path, arrays, labels, variable)
+
+
+# =====================================================================================
+# Flight logs: several message streams, each at its own rate → one time base
+# =====================================================================================
+
+
+def _topics(variable: str | None, available: list[str], path: Path, kind: str) -> list[str]:
+    """The streams named in ``variable`` ("A" or "A,B,..."), checked against the file's."""
+    if variable is None:
+        if len(available) == 1:
+            return available
+        raise DataFileError(
+            f"{path}: a {kind} holds several message streams, each with its own time base; "
+            f'name the ones to read with variable = "first,second" (the first sets the time '
+            f"base); streams in the file: {sorted(available)}"
+        )
+    wanted = [v.strip() for v in variable.split(",") if v.strip()]
+    missing = [v for v in wanted if v not in available]
+    if not wanted or missing:
+        raise DataFileError(
+            f"{path}: variable {variable!r}: no stream {missing or [variable]} in the {kind}; "
+            f"streams in the file: {sorted(available)}"
+        )
+    return wanted
+
+
+def _column_name(stream: str, field: str, prefix: bool) -> str:
+    """``stream.field`` (or ``field`` for a single stream), array indices ``x[0]`` → ``x_0``
+    so that the name can be used in channel expressions."""
+    field = field.replace("[", "_").replace("]", "")
+    return f"{stream}.{field}" if prefix else field
+
+
+def _streams_table(
+    path: Path,
+    streams: list[tuple[str, np.ndarray, dict[str, np.ndarray], dict[str, str]]],
+    constants: dict[str, float] | None = None,
+) -> Table:
+    """One ``Table`` from message streams ``(name, time in s, {field: values}, {field: unit})``.
+
+    The first stream sets the time base (column ``t``, s); each further stream is linearly
+    interpolated at those times,
+        x(t) = x_j + (x_{j+1} − x_j) · (t − t_j) / (t_{j+1} − t_j),   t_j ≤ t ≤ t_{j+1},
+    and only rows of the first stream inside the span all streams cover are kept (no
+    extrapolation). With one stream, columns are named by field; with several, ``stream.field``.
+    """
+    base_time = streams[0][1]
+    lo = max(float(s[1][0]) for s in streams)
+    hi = min(float(s[1][-1]) for s in streams)
+    keep = (base_time >= lo) & (base_time <= hi)
+    if keep.sum() < 2:
+        raise DataFileError(
+            f"{path}: the streams {[s[0] for s in streams]} overlap in fewer than 2 samples "
+            f"of {streams[0][0]!r} (common span {lo:.6g}..{hi:.6g} s)"
+        )
+    t = base_time[keep]
+    prefix = len(streams) > 1
+    columns, names, units = [t], ["t"], ["s"]
+    for k, (stream, time, fields, field_units) in enumerate(streams):
+        if k > 0 and np.any(np.diff(time) <= 0):
+            raise DataFileError(
+                f"{path}: stream {stream!r}: time stamps not increasing; cannot interpolate"
+            )
+        for field, values in fields.items():
+            values = np.asarray(values, dtype=float)
+            columns.append(values[keep] if k == 0 else np.interp(t, time, values))
+            names.append(_column_name(stream, field, prefix))
+            units.append(field_units.get(field, ""))
+    return _finish_table(np.column_stack(columns), names, units, str(path), constants)
+
+
+def read_ulog(path: str | Path, variable: str | None = None) -> Table:
+    """PX4 ULog (``.ulg``; needs pyulog: the ``px4`` extra) → ``Table``.
+
+    ``variable`` names the uORB topics to read, ``"vehicle_attitude,sensor_combined"``;
+    ``"topic:1"`` picks multi-instance 1 (default 0). Time ``t`` (s) is the first topic's
+    ``timestamp`` (µs since boot) × 10⁻⁶; see ``_streams_table`` for the time base.
+    Columns: ``topic.field`` (one topic: ``field``), array fields ``q[0]`` → ``q_0``.
+    ULog stores no units (PX4 topics are in SI, angles in rad); declare them in the mapping.
+    Numeric parameters of the log are kept as ``Table.constants``.
+    """
+    path = Path(path)
+    pyulog = _require("pyulog", "px4", f"the PX4 ULog file {path}")
+    try:
+        ulog = pyulog.ULog(str(path))
+    except Exception as exc:  # pyulog raises ULogException, struct.error, ...
+        raise DataFileError(f"{path}: not a readable PX4 ULog file ({exc})") from None
+    datasets = {}
+    for d in ulog.data_list:
+        datasets[f"{d.name}:{d.multi_id}"] = d
+        if d.multi_id == 0:
+            datasets[d.name] = d
+    available = sorted(
+        {d.name if d.multi_id == 0 else f"{d.name}:{d.multi_id}" for d in ulog.data_list}
+    )
+    streams = []
+    for name in _topics(variable, available, path, "ULog file"):
+        d = datasets[name]
+        fields = {k: v for k, v in d.data.items() if k != "timestamp"}
+        time = np.asarray(d.data["timestamp"], dtype=float) * 1e-6  # µs → s
+        streams.append((name.replace(":", "_"), time, fields, {}))
+    constants = {
+        k: float(v) for k, v in ulog.initial_parameters.items() if isinstance(v, (int, float))
+    }
+    return _streams_table(path, streams, constants)

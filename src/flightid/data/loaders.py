@@ -365,10 +365,16 @@ def table_from_dataframe(frame: Any, source: str = "DataFrame") -> Table:
 # dispatch
 # =====================================================================================
 
-FORMATS = ("auto", "csv", "ascii", "mat", "parquet")
+FORMATS = ("auto", "csv", "ascii", "mat", "parquet", "ulog")
 
 # file extension → format for format = "auto" (anything else: whitespace ASCII)
-_SUFFIX_FORMATS = {".csv": "csv", ".mat": "mat", ".parquet": "parquet", ".pq": "parquet"}
+_SUFFIX_FORMATS = {
+    ".csv": "csv",
+    ".mat": "mat",
+    ".parquet": "parquet",
+    ".pq": "parquet",
+    ".ulg": "ulog",
+}
 
 
 def read_table(
@@ -380,7 +386,8 @@ def read_table(
 ) -> Table:
     """Read a data file into a ``Table``; ``format`` "auto" picks by extension
     (.csv → csv, .mat → mat (v5, or v7.3 with the ``hdf5`` extra), .parquet/.pq → parquet
-    (the ``parquet`` extra), anything else → whitespace ASCII)."""
+    (the ``parquet`` extra), .ulg → ulog (PX4; the ``px4`` extra), anything else → whitespace
+    ASCII). ``variable`` picks a MATLAB variable, or the message streams of a flight log."""
     if format not in FORMATS:
         raise InputError(f"format: expected one of {list(FORMATS)}, got {format!r}")
     path = Path(path)
@@ -395,6 +402,10 @@ def read_table(
         from flightid.data.formats import read_parquet
 
         return read_parquet(path)
+    if format == "ulog":
+        from flightid.data.formats import read_ulog
+
+        return read_ulog(path, variable)
     if format == "csv":
         return read_csv(path, delimiter)
     if format == "mat":
