@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from flightid.data.flightdata import FlightData
+from flightid.data.preprocess import apply_steps, parse_derivative, parse_smooth, segment_slices
 from flightid.data.units import channel_conversion, parse_unit
 from flightid.errors import InputError, InputTypeError, describe
 
@@ -679,7 +680,17 @@ def expression_columns(tree: tuple) -> list:
 # channel specifications
 # =====================================================================================
 
-_SPEC_KEYS = {"column", "expr", "scale", "offset", "unit", "to", "subtract"}
+_SPEC_KEYS = {
+    "column",
+    "expr",
+    "scale",
+    "offset",
+    "unit",
+    "to",
+    "subtract",
+    "smooth",
+    "derivative",
+}
 
 
 @dataclass(frozen=True)
@@ -698,6 +709,13 @@ class ChannelSpec:
         to: the delivered unit (e.g. ``"deg"`` to keep degrees, ``"g"`` to keep g); the
             channel's unit in reports.
         subtract: ``"first"`` or ``"mean"``: remove that reference value (perturbations).
+        smooth: ``"smoothMulTS"``, ``{"savgol": [window, order]}`` or
+            ``{"butter": [order, cutoff_hz]}`` (``flightid.data.preprocess``), stored as a
+            tuple; applied per maneuver and segment after ``subtract``.
+        derivative: ``"ndiff8"`` or ``{"savgol": [window, order]}``: deliver the rate of
+            the (smoothed) channel, unit ``…/s``; applied after ``smooth``.
+
+    Order: source → scale/offset → unit conversion → subtract → smooth → derivative.
     """
 
     column: int | str | None = None
@@ -707,6 +725,8 @@ class ChannelSpec:
     unit: str = ""
     to: str = ""
     subtract: str | None = None
+    smooth: tuple | None = None
+    derivative: tuple | None = None
 
     @classmethod
     def from_value(cls, value: Any, where: str) -> ChannelSpec:
@@ -746,7 +766,10 @@ class ChannelSpec:
             )
         if "to" in value and "unit" not in value:
             raise ChannelError(f"{where}.to: give the source unit too ('unit')")
-        spec = cls(**{k: value[k] for k in value})
+        fields = {k: value[k] for k in value}
+        fields["smooth"] = parse_smooth(value.get("smooth"), f"{where}.smooth")
+        fields["derivative"] = parse_derivative(value.get("derivative"), f"{where}.derivative")
+        spec = cls(**fields)
         if spec.expr is not None:
             parse_expression(spec.expr)  # fail early
         if spec.unit or spec.to:
@@ -762,8 +785,12 @@ class ChannelSpec:
 
     @property
     def target_unit(self) -> str:
-        """The unit the values are delivered in ("" where no unit is declared)."""
-        return self.conversion()[1]
+        """The unit the values are delivered in ("" where no unit is declared; with a
+        ``derivative``, that unit per s)."""
+        unit = self.conversion()[1]
+        if self.derivative is not None:
+            return f"{unit}/s" if unit else "1/s"
+        return unit
 
     def evaluate(
         self,
@@ -877,6 +904,7 @@ def to_flight_data(
     channels_in = {k: s.evaluate(table, f"inputs.{k}", keep, t) for k, s in in_specs.items()}
     channels_out = {k: s.evaluate(table, f"outputs.{k}", keep, t) for k, s in out_specs.items()}
     t = t[keep]
+    stored = t
     dt = np.diff(t)
     if gaps not in ("error", "join"):
         raise InputError(f"gaps: expected 'error' or 'join', got {gaps!r}")
@@ -897,6 +925,19 @@ def to_flight_data(
                 f"t = {t[k]:.6g} s, median {np.median(dt):.6g} s); use start/stop to pick one "
                 "segment, or gaps = 'join' to treat the rows as consecutive samples"
             )
+    # smoothing and differentiation restart at every segment (gaps in the stored time of
+    # joined rows) and, as each maneuver is built here on its own, at every maneuver
+    segments = segment_slices(stored, gaps == "join")
+    step = float((t[-1] - t[0]) / (t.shape[0] - 1))  # s, the uniform interval
+    for group, specs, channels in (
+        ("inputs", in_specs, channels_in),
+        ("outputs", out_specs, channels_out),
+    ):
+        for k, spec in specs.items():
+            if spec.smooth is not None or spec.derivative is not None:
+                channels[k] = apply_steps(
+                    channels[k], step, segments, spec.smooth, spec.derivative, f"{group}.{k}"
+                )
     return FlightData(
         t,
         channels_in,
