@@ -333,3 +333,132 @@ def test_ulog_missing_extra_is_named_error(tmp_path, monkeypatch):
     _hide(monkeypatch, "pyulog")
     with pytest.raises(MissingDependencyError, match=r"flightid\[px4\]"):
         read_table(path)
+
+
+# ---------------------------------------------------------------- ArduPilot DataFlash
+
+
+def _df_message(msg_type: int, payload: bytes) -> bytes:
+    # DataFlash message: 0xA3 0x95, the type byte, the payload (ArduPilot LogStructure.h)
+    return bytes([0xA3, 0x95, msg_type]) + payload
+
+
+def _df_fmt(msg_type: int, name: str, fmt: str, columns: str) -> bytes:
+    # FMT (type 128, "BBnNZ"): type, full message length, name[4], format[16], columns[64];
+    # sizes per format character: Q 8, B/b 1, c 2, f 4, d 8, n 4, N 16, Z 64
+    sizes = {"Q": 8, "B": 1, "b": 1, "c": 2, "f": 4, "d": 8, "n": 4, "N": 16, "Z": 64}
+    length = 3 + sum(sizes[c] for c in fmt)
+    payload = struct.pack(
+        "<BB4s16s64s", msg_type, length, name.encode(), fmt.encode(), columns.encode()
+    )
+    return _df_message(0x80, payload)
+
+
+def _write_dataflash(path: Path):
+    out = bytearray()
+    out += _df_fmt(0x80, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
+    out += _df_fmt(0x81, "UNIT", "QbZ", "TimeUS,Id,Label")
+    out += _df_fmt(0x82, "MULT", "Qbd", "TimeUS,Id,Mult")
+    out += _df_fmt(0x83, "FMTU", "QBNN", "TimeUS,FmtType,UnitIds,MultIds")
+    out += _df_fmt(10, "ATT", "Qccf", "TimeUS,Roll,Pitch,Yaw")
+    out += _df_fmt(11, "IMU", "QBff", "TimeUS,I,GyrX,AccZ")
+    for ident, label in (
+        ("s", "s"),
+        ("d", "deg"),
+        ("E", "rad/s"),
+        ("o", "m/s/s"),
+        ("#", "instance"),
+    ):
+        out += _df_message(0x81, struct.pack("<Qb64s", 0, ord(ident), label.encode()))
+    for ident, mult in (("-", 0.0), ("F", 1e-6)):
+        out += _df_message(0x82, struct.pack("<Qbd", 0, ord(ident), mult))
+    # '#' marks IMU.I as the instance field
+    out += _df_message(0x83, struct.pack("<QB16s16s", 0, 10, b"sddd", b"F---"))
+    out += _df_message(0x83, struct.pack("<QB16s16s", 0, 11, b"s#Eo", b"F---"))
+    t_att = 1_000_000 + np.arange(25) * 20_000  # µs: 50 Hz from 1 s
+    roll_cdeg = RNG.integers(-3000, 3000, size=25)  # centidegrees ('c': int16 × 0.01)
+    yaw = RNG.normal(size=25)
+    t_imu = 1_005_000 + np.arange(45) * 10_000  # µs: 100 Hz, 1.005 .. 1.445 s
+    records = [
+        (t, 10, ("<Qhhf", t, r, -r, y)) for t, r, y in zip(t_att, roll_cdeg, yaw, strict=True)
+    ]
+    for instance in (0, 1):
+        for t in t_imu:
+            s = t * 1e-6
+            # linear in time, so linear interpolation reproduces the line exactly
+            values = (0.5 * s + instance, 9.0 - s)
+            records.append((t, 11, ("<QBff", t, instance, *values)))
+    for _, msg_type, (code, *values) in sorted(records, key=lambda r: r[0]):
+        out += _df_message(msg_type, struct.pack(code, *values))
+    path.write_bytes(bytes(out))
+    return t_att, roll_cdeg, yaw
+
+
+def test_dataflash_types_instances_scales_units(tmp_path):
+    pytest.importorskip("pymavlink")
+    path = tmp_path / "00000042.BIN"
+    t_att, roll_cdeg, yaw = _write_dataflash(path)
+    table = read_table(path, variable="ATT,IMU[1]")
+    assert table.names == ("t", "ATT.Roll", "ATT.Pitch", "ATT.Yaw", "IMU_1.GyrX", "IMU_1.AccZ")
+    # units from the log's FMTU/UNIT messages
+    assert table.units == ("s", "deg", "deg", "deg", "rad/s", "m/s/s")
+    # ATT rows inside the IMU span 1.005 .. 1.445 s: t = 1.02, 1.04, ..., 1.44 s
+    keep = (t_att >= 1_005_000) & (t_att <= 1_445_000)
+    s = t_att[keep] * 1e-6
+    assert np.allclose(table.column("t"), s)
+    # 'c' fields are int16 centidegrees: value = integer × 0.01 (ArduPilot format table)
+    assert np.allclose(table.column("ATT.Roll"), roll_cdeg[keep] * 0.01)
+    assert np.allclose(table.column("ATT.Pitch"), -roll_cdeg[keep] * 0.01)
+    assert np.allclose(table.column("IMU_1.GyrX"), 0.5 * s + 1, atol=1e-6)
+    fd = to_flight_data(
+        table,
+        time="t",
+        inputs={"p": {"expr": "IMU_1.GyrX - 1", "unit": "rad/s"}},
+        outputs={"phi": {"column": "ATT.Roll", "unit": "deg"}},
+    )
+    # 1 deg = π/180 rad (definition)
+    assert np.allclose(fd.output("phi"), roll_cdeg[keep] * 0.01 * math.pi / 180)
+    assert np.allclose(fd.input("p"), 0.5 * s, atol=1e-6)
+
+    imu0 = read_table(path, "dataflash", variable="IMU[0]")
+    assert imu0.names == ("t", "GyrX", "AccZ") and imu0.n_rows == 45
+    assert np.allclose(imu0.column("GyrX"), 0.5 * imu0.column("t"), atol=1e-6)
+
+
+def test_dataflash_errors(tmp_path):
+    pytest.importorskip("pymavlink")
+    path = tmp_path / "log.bin"
+    _write_dataflash(path)
+    with pytest.raises(DataFileError, match=r"several message streams.*IMU\[1\]"):
+        read_table(path)
+    with pytest.raises(DataFileError, match=r"no stream.*IMU.*IMU\[0\]"):
+        read_table(path, variable="ATT,IMU")
+    bad = tmp_path / "bad.bin"
+    bad.write_bytes(b"\x00\x01 not a log")
+    with pytest.raises(DataFileError, match="not an ArduPilot DataFlash log"):
+        read_table(bad)
+
+
+def test_dataflash_missing_extra_is_named_error(tmp_path, monkeypatch):
+    path = tmp_path / "x.bin"
+    path.write_bytes(b"\xa3\x95\x80")
+    _hide(monkeypatch, "pymavlink")
+    with pytest.raises(MissingDependencyError, match=r"flightid\[ardupilot\]"):
+        read_table(path)
+
+
+def test_dataflash_text_log(tmp_path):
+    pytest.importorskip("pymavlink")
+    # the text form of a DataFlash log (as written by mavlogdump / Mission Planner): values
+    # already scaled, one message per line
+    path = tmp_path / "flight.log"
+    path.write_text(
+        "FMT, 128, 89, FMT, BBnNZ, Type,Length,Name,Format,Columns\n"
+        "FMT, 10, 19, ATT, Qcf, TimeUS,Roll,Yaw\n"
+        "ATT, 1000000, 12.5, 0.1\n"
+        "ATT, 1020000, 13.5, 0.2\n"
+        "ATT, 1040000, 14.5, 0.3\n"
+    )
+    table = read_table(path, "dataflash")  # .log is not picked by extension: name the format
+    assert table.names == ("t", "Roll", "Yaw")
+    assert np.allclose(table.data, [[1.0, 12.5, 0.1], [1.02, 13.5, 0.2], [1.04, 14.5, 0.3]])

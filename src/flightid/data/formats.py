@@ -11,6 +11,7 @@ format                 package           install
 Parquet                pyarrow           ``pip install 'flightid[parquet]'``
 MATLAB v7.3 ``.mat``   h5py              ``pip install 'flightid[hdf5]'``
 PX4 ULog ``.ulg``      pyulog            ``pip install 'flightid[px4]'``
+ArduPilot DataFlash    pymavlink         ``pip install 'flightid[ardupilot]'``
 =====================  ================  =========================================
 """
 
@@ -30,7 +31,7 @@ from flightid.data.loaders import (
 )
 from flightid.results import MissingDependencyError
 
-__all__ = ["read_parquet", "read_mat73", "is_mat73"]
+__all__ = ["read_parquet", "read_mat73", "is_mat73", "read_ulog", "read_dataflash"]
 
 
 def _require(module: str, extra: str, what: str) -> Any:
@@ -263,3 +264,76 @@ def read_ulog(path: str | Path, variable: str | None = None) -> Table:
         k: float(v) for k, v in ulog.initial_parameters.items() if isinstance(v, (int, float))
     }
     return _streams_table(path, streams, constants)
+
+
+def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
+    """ArduPilot DataFlash log (binary ``.bin``, or the text ``.log`` form; needs pymavlink:
+    the ``ardupilot`` extra) → ``Table``.
+
+    ``variable`` names the message types to read, ``"ATT,IMU"``; a type logged for several
+    instances (an instance field such as ``IMU.I``) is named with the instance, ``"IMU[1]"``.
+    Time ``t`` (s) is the first type's ``TimeUS`` (µs since boot) × 10⁻⁶; see
+    ``_streams_table`` for the time base. Columns: ``TYPE.Field`` (one type: ``Field``);
+    text fields are left out. Values carry the scale of their format character (``c``:
+    int16 × 0.01, ``L``: int32 × 10⁻⁷, ...), and units come from the log's FMTU/UNIT
+    messages where it has them (informational; declare them in the mapping as for CSV).
+    """
+    path = Path(path)
+    dfreader = _require("pymavlink.DFReader", "ardupilot", f"the ArduPilot DataFlash log {path}")
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(4)
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    # binary logs start with the message header bytes 0xA3 0x95; text logs with "FMT,"
+    if head[:2] == b"\xa3\x95":
+        reader = dfreader.DFReader_binary
+    elif head == b"FMT,":
+        reader = dfreader.DFReader_text
+    else:
+        raise DataFileError(
+            f"{path}: not an ArduPilot DataFlash log (expected the bytes A3 95 of a binary "
+            f"log or 'FMT,' of a text log at the start, got {head!r})"
+        )
+    try:
+        log = reader(str(path), zero_time_base=True)
+    except Exception as exc:  # pymavlink raises several types for bad files
+        raise DataFileError(f"{path}: not a readable DataFlash log ({exc})") from None
+    # message type (with instance) → {field: values}, times, units
+    records: dict[str, dict[str, list]] = {}
+    formats: dict[str, Any] = {}
+    try:
+        while (message := log.recv_msg()) is not None:
+            fmt = message.fmt
+            if fmt.name in ("FMT", "FMTU", "UNIT", "MULT") or "TimeUS" not in fmt.colhash:
+                continue
+            name = fmt.name
+            if fmt.instance_field is not None:
+                name = f"{name}[{getattr(message, fmt.instance_field)}]"
+            formats[name] = fmt
+            row = records.setdefault(name, {})
+            for column in fmt.columns:
+                value = getattr(message, column)
+                if isinstance(value, (int, float)) and column != fmt.instance_field:
+                    row.setdefault(column, []).append(value)
+    finally:
+        handle = getattr(log, "filehandle", None)
+        if handle is not None:
+            handle.close()
+    # a type logged for a single instance may also be named without it: "IMU" for "IMU[0]"
+    aliases = {}
+    for name in records:
+        base = name.split("[")[0]
+        if base != name and sum(n.split("[")[0] == base for n in records) == 1:
+            aliases[base] = name
+    streams = []
+    for wanted in _topics(variable, sorted(set(records) | set(aliases)), path, "DataFlash log"):
+        name = aliases.get(wanted, wanted)
+        count = len(records[name]["TimeUS"])
+        fields = {
+            k: np.asarray(v, dtype=float) for k, v in records[name].items() if len(v) == count
+        }
+        time = fields.pop("TimeUS") * 1e-6  # µs → s
+        units = {k: formats[name].get_unit(k) for k in fields}
+        streams.append((name.replace("[", "_").replace("]", ""), time, fields, units))
+    return _streams_table(path, streams)

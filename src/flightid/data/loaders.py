@@ -366,7 +366,7 @@ def table_from_dataframe(frame: Any, source: str = "DataFrame") -> Table:
 # dispatch
 # =====================================================================================
 
-FORMATS = ("auto", "csv", "ascii", "mat", "parquet", "ulog")
+FORMATS = ("auto", "csv", "ascii", "mat", "parquet", "ulog", "dataflash")
 
 # file extension → format for format = "auto" (anything else: whitespace ASCII)
 _SUFFIX_FORMATS = {
@@ -375,6 +375,7 @@ _SUFFIX_FORMATS = {
     ".parquet": "parquet",
     ".pq": "parquet",
     ".ulg": "ulog",
+    ".bin": "dataflash",
 }
 
 
@@ -387,8 +388,9 @@ def read_table(
 ) -> Table:
     """Read a data file into a ``Table``; ``format`` "auto" picks by extension
     (.csv → csv, .mat → mat (v5, or v7.3 with the ``hdf5`` extra), .parquet/.pq → parquet
-    (the ``parquet`` extra), .ulg → ulog (PX4; the ``px4`` extra), anything else → whitespace
-    ASCII). ``variable`` picks a MATLAB variable, or the message streams of a flight log."""
+    (the ``parquet`` extra), .ulg → ulog (PX4; the ``px4`` extra), .bin → dataflash
+    (ArduPilot; the ``ardupilot`` extra), anything else → whitespace ASCII). ``variable``
+    picks a MATLAB variable, or the message streams of a flight log."""
     if format not in FORMATS:
         raise InputError(f"format: expected one of {list(FORMATS)}, got {format!r}")
     path = Path(path)
@@ -407,6 +409,10 @@ def read_table(
         from flightid.data.formats import read_ulog
 
         return read_ulog(path, variable)
+    if format == "dataflash":
+        from flightid.data.formats import read_dataflash
+
+        return read_dataflash(path, variable)
     if format == "csv":
         return read_csv(path, delimiter)
     if format == "mat":
