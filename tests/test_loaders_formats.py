@@ -433,6 +433,9 @@ def test_dataflash_errors(tmp_path):
         read_table(path)
     with pytest.raises(DataFileError, match=r"no stream.*IMU.*IMU\[0\]"):
         read_table(path, variable="ATT,IMU")
+    # a type not in the log: the message lists every stream the log holds
+    with pytest.raises(DataFileError, match=r"no stream.*GPS.*\['ATT', 'IMU\[0\]', 'IMU\[1\]'\]"):
+        read_table(path, variable="ATT,GPS")
     bad = tmp_path / "bad.bin"
     bad.write_bytes(b"\x00\x01 not a log")
     with pytest.raises(DataFileError, match="not an ArduPilot DataFlash log"):

@@ -295,31 +295,14 @@ def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
             f"{path}: not an ArduPilot DataFlash log (expected the bytes A3 95 of a binary "
             f"log or 'FMT,' of a text log at the start, got {head!r})"
         )
-    try:
-        log = reader(str(path), zero_time_base=True)
-    except Exception as exc:  # pymavlink raises several types for bad files
-        raise DataFileError(f"{path}: not a readable DataFlash log ({exc})") from None
-    # message type (with instance) → {field: values}, times, units
-    records: dict[str, dict[str, list]] = {}
-    formats: dict[str, Any] = {}
-    try:
-        while (message := log.recv_msg()) is not None:
-            fmt = message.fmt
-            if fmt.name in ("FMT", "FMTU", "UNIT", "MULT") or "TimeUS" not in fmt.colhash:
-                continue
-            name = fmt.name
-            if fmt.instance_field is not None:
-                name = f"{name}[{getattr(message, fmt.instance_field)}]"
-            formats[name] = fmt
-            row = records.setdefault(name, {})
-            for column in fmt.columns:
-                value = getattr(message, column)
-                if isinstance(value, (int, float)) and column != fmt.instance_field:
-                    row.setdefault(column, []).append(value)
-    finally:
-        handle = getattr(log, "filehandle", None)
-        if handle is not None:
-            handle.close()
+    # read only the named types (pymavlink's index skips the others); all of them when
+    # none is named, or to list what the file holds when a named one is missing
+    types = None
+    if variable is not None:
+        types = {v.strip().split("[")[0] for v in variable.split(",") if v.strip()}
+    records, formats = _dataflash_records(reader, path, types)
+    if types is not None and not types <= {n.split("[")[0] for n in records}:
+        records, formats = _dataflash_records(reader, path, None)
     # a type logged for a single instance may also be named without it: "IMU" for "IMU[0]"
     aliases = {}
     for name in records:
@@ -337,3 +320,41 @@ def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
         units = {k: formats[name].get_unit(k) for k in fields}
         streams.append((name.replace("[", "_").replace("]", ""), time, fields, units))
     return _streams_table(path, streams)
+
+
+def _dataflash_records(
+    reader: Any, path: Path, types: set[str] | None
+) -> tuple[dict[str, dict[str, list]], dict[str, Any]]:
+    """Numeric fields per message type (``"IMU[1]"`` for an instance) and the types'
+    formats, from one pass over the log; only ``types`` when given."""
+    try:
+        log = reader(str(path), zero_time_base=True)
+    except Exception as exc:  # pymavlink raises several types for bad files
+        raise DataFileError(f"{path}: not a readable DataFlash log ({exc})") from None
+    records: dict[str, dict[str, list]] = {}
+    formats: dict[str, Any] = {}
+    try:
+        while True:
+            if types is None:
+                message = log.recv_msg()
+            else:
+                message = log.recv_match(type=types, strict=True)
+            if message is None:
+                break
+            fmt = message.fmt
+            if fmt.name in ("FMT", "FMTU", "UNIT", "MULT") or "TimeUS" not in fmt.colhash:
+                continue
+            name = fmt.name
+            if fmt.instance_field is not None:
+                name = f"{name}[{getattr(message, fmt.instance_field)}]"
+            formats[name] = fmt
+            row = records.setdefault(name, {})
+            for column in fmt.columns:
+                value = getattr(message, column)
+                if isinstance(value, (int, float)) and column != fmt.instance_field:
+                    row.setdefault(column, []).append(value)
+    finally:
+        handle = getattr(log, "filehandle", None)
+        if handle is not None:
+            handle.close()
+    return records, formats
