@@ -239,17 +239,20 @@ def _ulog_message(kind: str, payload: bytes) -> bytes:
 def _write_ulog(path: Path, topics: dict, parameters: dict[str, float]) -> Path:
     """A ULog file written by hand from the format specification (docs.px4.io, "ULog File
     Format"): 16-byte header (magic, version 1, start time µs), flag bits 'B', formats 'F',
-    parameters 'P', then subscriptions 'A' and data 'D' (timestamp µs first)."""
+    parameters 'P', then subscriptions 'A' and data 'D' (timestamp µs first). A key
+    ``"name:k"`` subscribes multi-instance k of topic ``name``."""
     out = bytearray(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", 0))
     out += _ulog_message("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
-    for name, (fields, _, _) in topics.items():
+    formats = {key.split(":")[0]: fields for key, (fields, _, _) in topics.items()}
+    for name, fields in formats.items():
         text = f"{name}:uint64_t timestamp;" + "".join(f"{t} {f};" for t, f in fields)
         out += _ulog_message("F", text.encode())
     for name, value in parameters.items():
         key = f"float {name}".encode()
         out += _ulog_message("P", bytes([len(key)]) + key + struct.pack("<f", value))
-    for msg_id, name in enumerate(topics):
-        out += _ulog_message("A", struct.pack("<BH", 0, msg_id) + name.encode())
+    for msg_id, key in enumerate(topics):
+        name, _, multi_id = key.partition(":")
+        out += _ulog_message("A", struct.pack("<BH", int(multi_id or 0), msg_id) + name.encode())
     for msg_id, (fields, time_us, rows) in enumerate(topics.values()):
         codes = "".join(
             "f" * int(t[6:-1]) if t.startswith("float[") else {"float": "f", "double": "d"}[t]
@@ -465,3 +468,33 @@ def test_dataflash_text_log(tmp_path):
     table = read_table(path, "dataflash")  # .log is not picked by extension: name the format
     assert table.names == ("t", "Roll", "Yaw")
     assert np.allclose(table.data, [[1.0, 12.5, 0.1], [1.02, 13.5, 0.2], [1.04, 14.5, 0.3]])
+
+
+def test_ulog_multi_instance(tmp_path):
+    pytest.importorskip("pyulog")
+    stamps = np.arange(10) * 10_000
+    rows0, rows1 = RNG.normal(size=(10, 1)), RNG.normal(size=(10, 1))
+    topics = {
+        "sensor_gyro": ([("float", "x")], stamps, rows0),
+        "sensor_gyro:1": ([("float", "x")], stamps + 5_000, rows1),
+    }
+    path = _write_ulog(tmp_path / "multi.ulg", topics, {})
+    table = read_table(path, variable="sensor_gyro,sensor_gyro:1")
+    assert table.names == ("t", "sensor_gyro.x", "sensor_gyro_1.x")
+    # instance 1 at 5..95 ms: instance 0's rows inside that span are 10..90 ms, where
+    # instance 1 is interpolated halfway between its samples
+    assert np.allclose(table.column("t"), stamps[1:] * 1e-6)
+    assert np.allclose(table.column("sensor_gyro.x"), rows0[1:, 0].astype(np.float32))
+    mid = (rows1[:-1, 0] + rows1[1:, 0]).astype(np.float32) / 2
+    assert np.allclose(table.column("sensor_gyro_1.x"), mid, atol=1e-6)
+    assert read_table(path, variable="sensor_gyro:1").n_rows == 10
+
+
+def test_mat73_plain_hdf5_without_user_block(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    # an HDF5 file whose signature is at byte 0 (no MATLAB header), one stored matrix
+    path = tmp_path / "plain.mat"
+    matrix = np.column_stack([T, ALPHA_DEG])
+    with h5py.File(path, "w") as f:
+        f.create_dataset("m", data=matrix.T)
+    assert np.array_equal(read_table(path).data, matrix)
