@@ -7,7 +7,9 @@ Two steps, each checked:
    with or without header lines (the names line and an optional units line above the
    numbers, as in the FVSysID ``_withHeader`` files), MATLAB ``.mat`` (SIDPAC's ``fdata``
    matrix with ``varlab`` labels, a single plain matrix, a chosen variable, or a set of
-   equal-length vectors), and pandas DataFrames (``table_from_dataframe``).
+   equal-length vectors), and pandas DataFrames (``table_from_dataframe``). With optional
+   extras (``flightid.data.formats``): Parquet, MATLAB v7.3 (HDF5) ``.mat``, PX4 ULog and
+   ArduPilot DataFlash logs.
 2. ``to_flight_data(table, time=..., inputs=..., outputs=...)`` builds the ``FlightData``
    from channel specifications. A specification is a column (1-based number or name) or an
    expression, with an optional scale, offset and unit conversion::
@@ -251,7 +253,8 @@ _VARLAB = re.compile(r"^\s*\*?\s*(?P<name>.*?)\s*(?:\((?P<unit>[^)]*)\))?\s*$")
 
 
 def read_mat(path: str | Path, variable: str | None = None) -> Table:
-    """MATLAB .mat (v5; via ``scipy.io.loadmat``).
+    """MATLAB .mat (v5 via ``scipy.io.loadmat``; v7.3, an HDF5 file, via
+    ``flightid.data.formats.read_mat73``, which needs the ``hdf5`` extra).
 
     * ``variable`` given: that matrix (or vector).
     * SIDPAC layout: ``fdata`` (N × k) with ``varlab`` labels like ``"* alpha (deg)"``.
