@@ -10,6 +10,9 @@ A model module defines, at module level::
     def f(t, x, u, theta): ...               # dx/dt, 1-D array of len(STATES)
     def h(t, x, u, theta): ...               # y, 1-D array of len(OUTPUTS)
 
+A model without states (outputs that are algebraic functions of the inputs: regression by
+output error) sets ``STATES = ()`` and may leave ``f`` out (or set ``f = None``).
+
 Lower-case names (``states``, ``inputs`` ...) are accepted too. Functions numba can compile
 (plain arithmetic, ``math``, ``numpy`` arrays, module-level constants) run compiled.
 **Loading a model module executes it**: the file is imported as Python code (whatever it
@@ -86,6 +89,10 @@ def _get(module: ModuleType, name: str, path: Path) -> Any:
     raise UserModelError(f"model.module {path.name}: missing the definition {name}")
 
 
+def _has(module: ModuleType, name: str) -> bool:
+    return any(hasattr(module, candidate) for candidate in (name, name.lower()))
+
+
 def _names(value: Any, name: str, path: Path) -> tuple[str, ...]:
     if isinstance(value, str) or not isinstance(value, (list, tuple)):
         raise UserModelError(f"model.module {path.name}: {name} must be a list of names")
@@ -133,9 +140,12 @@ def load_user_model(path: str | Path) -> UserModel:
             parameters[str(name)] = float(value)
     else:
         parameters = {name: 0.0 for name in _names(raw, "PARAMETERS", path)}
-    f = _get(module, "f", path)
+    # no states: f may be left out (None); StateSpaceModel puts the empty derivative there
+    f = _get(module, "f", path) if states or _has(module, "f") else None
     h = _get(module, "h", path)
     for name, fn in (("f", f), ("h", h)):
+        if fn is None and name == "f" and not states:
+            continue
         if not callable(fn):
             raise UserModelError(f"model.module {path.name}: {name} must be a function")
     return UserModel(path, states, inputs, outputs, parameters, f, h, module)

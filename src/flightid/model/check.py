@@ -25,6 +25,9 @@ Each evaluation must
 * at the first sample of each maneuver (the start values) be finite; a non-finite entry is
   named by its state or output.
 
+A model without states (``states=()``) has no f to check: only h is evaluated, with x the
+empty array.
+
 No trajectory is integrated, so the check costs 2 × (samples checked) Python calls: a few
 milliseconds, whatever the record length.
 """
@@ -76,10 +79,16 @@ class ModelCheck:
 
     def summary(self) -> str:
         """One line for ``flightid validate``."""
+        # a model without states (f_shape (0,)) has only h checked
+        functions, returns = (
+            ("f and h", f"f returns {self.f_shape[0]} derivatives, h")
+            if self.f_shape[0]
+            else ("h (no states, no f)", "h returns")
+        )
         return (
-            f"model functions checked: f and h evaluated at {self.n_samples} samples of "
-            f"{self.n_maneuvers} maneuver(s) at the start values; f returns {self.f_shape[0]} "
-            f"derivatives, h {self.h_shape[0]} outputs, with {_plural(self.n_inputs, 'input')} "
+            f"model functions checked: {functions} evaluated at {self.n_samples} samples of "
+            f"{self.n_maneuvers} maneuver(s) at the start values; {returns} "
+            f"{self.h_shape[0]} outputs, with {_plural(self.n_inputs, 'input')} "
             f"and {_plural(self.n_parameters, 'parameter')}; no index out of range, all finite "
             f"at the start "
             f"({self.elapsed_s * 1e3:.0f} ms)"
@@ -361,6 +370,8 @@ def check_model(
     simulator = Simulator(model, data, method=method, compiled=False)
     theta = np.array(model.parameters.values, dtype=float)
     functions = {"f": _python_function(model.f), "h": _python_function(model.h)}
+    # a model without states has no f to call (simulate.kernels: h alone at every sample)
+    checked = ("h", "f") if model.has_states else ("h",)
     n_maneuvers = len(simulator.maneuvers)
     shapes = {"f": (len(model.states),), "h": (len(model.outputs),)}
     n_checked = 0
@@ -374,7 +385,7 @@ def check_model(
             site = _Site(i, maneuver.name or "", n_maneuvers, k, float(t[k]))
             arguments = (t[k], x0, np.array(u[k], dtype=float), theta)
             # y_k = h(t_k, x_k, u_k, θ), then dx/dt = f(t_k, x_k, u_k, θ), as the kernel does
-            for name in ("h", "f"):
+            for name in checked:
                 result = _call(name, functions[name], model, arguments, site)
                 _check_result(name, result, model, site, at_start=k == 0)
             n_checked += 1

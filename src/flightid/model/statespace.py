@@ -8,6 +8,10 @@
 and return 1-D float arrays of length ``len(states)`` and ``len(outputs)``. Functions that
 numba can compile are run compiled; anything else still runs, in pure Python.
 
+Models without states (output error on algebraic outputs, nonlinear regression): give
+``states=()`` and ``f=None``; the outputs are then y_k = h(t_k, [], u_k, θ) at every sample
+(``x`` is an empty array) and the simulator evaluates h alone, without integrating.
+
 Initial states: each entry of ``x0`` is a number (fixed) or the name of a parameter (so the
 initial state can be estimated). With several maneuvers, ``x0`` may be a list with one such
 specification per maneuver.
@@ -48,7 +52,8 @@ class StateSpaceModel:
         states: state names.
         inputs: input channel names, looked up by name in the ``FlightData``.
         outputs: output channel names, looked up by name in the ``FlightData``.
-        f: state derivative ``f(t, x, u, theta) -> dx/dt``.
+        f: state derivative ``f(t, x, u, theta) -> dx/dt``; ``None`` for a model without
+            states (``states=()``), where it becomes ``no_state_derivative``.
         h: output map ``h(t, x, u, theta) -> y``.
         parameters: ``Parameters`` (or anything ``Parameters`` accepts).
         x0: initial state: numbers and/or parameter names (one list, or one per maneuver).
@@ -58,7 +63,7 @@ class StateSpaceModel:
     states: tuple[str, ...]
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
-    f: Callable
+    f: Callable | None
     h: Callable
     parameters: Parameters
     x0: tuple = ()
@@ -68,8 +73,16 @@ class StateSpaceModel:
         object.__setattr__(self, "states", _names(self.states, "states"))
         object.__setattr__(self, "inputs", _names(self.inputs, "inputs"))
         object.__setattr__(self, "outputs", _names(self.outputs, "outputs"))
-        if not self.states:
-            raise InputError("states: expected at least one state name, got none")
+        if self.f is None:
+            if self.states:
+                raise InputTypeError(
+                    f"f: expected a function (t, x, u, theta) -> dx/dt for the states "
+                    f"{list(self.states)}, got None (f=None is only for a model without states)"
+                )
+            # no states: dx/dt is the empty array, never integrated (simulate.kernels)
+            from flightid.simulate.kernels import no_state_derivative
+
+            object.__setattr__(self, "f", no_state_derivative)
         if not self.outputs:
             raise InputError("outputs: expected at least one output name, got none")
         for argument in ("f", "h"):
@@ -118,6 +131,11 @@ class StateSpaceModel:
                     raise InputError(f"{where}[{state!r}]: must be finite, got {value}")
                 checked.append(value)
         return checked
+
+    @property
+    def has_states(self) -> bool:
+        """False for a model without states (outputs y = h(t, [], u, θ), nothing integrated)."""
+        return len(self.states) > 0
 
     @property
     def per_maneuver_x0(self) -> bool:

@@ -31,6 +31,10 @@ left as NaN for the caller to report — they never reach an estimate.
 state kernel here steps x with f, the sensitivity kernel (``flightid.simulate.sensitivity``)
 steps the stacked (x, S) with the sensitivity equations.
 
+A model without states (``StateSpaceModel(states=(), f=None, ...)``) is not integrated: its
+kernel (``stateless=True``) evaluates y_k = h(t_k, [], u_k, θ) at every sample, with x an
+empty float64 array; ``method`` and ``interpolation`` do not matter there.
+
 The same Python source runs compiled (numba ``njit``) or interpreted; ``make_kernel`` builds
 both from the user's ``f`` and ``h``. The compiled kernel is kept on disk between runs, keyed
 by a digest of the model functions (``flightid.simulate.cache``).
@@ -43,7 +47,16 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["make_kernel", "make_step", "EULER", "RK4", "LINEAR", "ZOH", "INTERPOLATIONS"]
+__all__ = [
+    "make_kernel",
+    "make_step",
+    "no_state_derivative",
+    "EULER",
+    "RK4",
+    "LINEAR",
+    "ZOH",
+    "INTERPOLATIONS",
+]
 
 EULER = 0
 RK4 = 1
@@ -82,6 +95,11 @@ def make_step(rate: Callable) -> Callable:
         return x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
     return step
+
+
+def no_state_derivative(t: float, x: np.ndarray, u: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """dx/dt of a model without states: the empty array (the ``f`` of ``f=None``)."""
+    return np.empty(0)
 
 
 def _identity(function: Callable) -> Callable:
@@ -123,8 +141,40 @@ def _kernel_source(f: Callable, h: Callable, jit: Callable = _identity) -> Calla
     return kernel
 
 
-def make_kernel(f: Callable, h: Callable, compiled: bool = True) -> tuple[Callable, bool]:
-    """Build the batch kernel for ``f`` and ``h``.
+def _output_kernel_source(h: Callable) -> Callable:
+    """The batch loop of a model without states: y_k = h(t_k, [], u_k, θ) at every sample
+    (no integration; ``method`` and ``interpolation`` are accepted and unused)."""
+
+    def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
+        n_batch = thetas.shape[0]
+        n_samples = t.shape[0]
+        x = np.empty(0)
+        for b in range(n_batch):
+            theta = thetas[b]
+            diverged_at[b] = -1
+            for k in range(n_samples):
+                # y_k = h(t_k, [], u_k, θ)
+                y = h(t[k], x, u[k], theta)
+                finite = True
+                for j in range(n_outputs):
+                    y_out[b, k, j] = y[j]
+                    if not math.isfinite(y[j]):
+                        finite = False
+                if not finite:
+                    diverged_at[b] = k
+                    for kk in range(k, n_samples):
+                        for j in range(n_outputs):
+                            y_out[b, kk, j] = np.nan
+                    break
+
+    return kernel
+
+
+def make_kernel(
+    f: Callable, h: Callable, compiled: bool = True, stateless: bool = False
+) -> tuple[Callable, bool]:
+    """Build the batch kernel for ``f`` and ``h`` (``stateless``: the model has no states, the
+    kernel evaluates h alone at every sample and ``f`` is not called).
 
     Returns ``(kernel, is_compiled)``. With ``compiled=True`` the kernel is numba-compiled if
     numba can compile ``f``, ``h`` and the loop (checked lazily by the first call: see
@@ -134,11 +184,16 @@ def make_kernel(f: Callable, h: Callable, compiled: bool = True) -> tuple[Callab
     py_f = getattr(f, "py_func", f)
     py_h = getattr(h, "py_func", h)
     if not compiled:
+        if stateless:
+            return _output_kernel_source(py_h), False
         return _kernel_source(py_f, py_h), False
     import numba
 
     from flightid.simulate.cache import cached_njit
 
+    if stateless:
+        jit_h = h if hasattr(h, "py_func") else numba.njit(h)
+        return cached_njit(_output_kernel_source(jit_h)), True
     jit_f = f if hasattr(f, "py_func") else numba.njit(f)
     jit_h = h if hasattr(h, "py_func") else numba.njit(h)
     return cached_njit(_kernel_source(jit_f, jit_h, numba.njit)), True

@@ -145,10 +145,12 @@ class Simulator:
 
     def _get_kernel(self, compiled: bool):
         def build():
-            kernel, is_compiled = make_kernel(self.model.f, self.model.h, compiled)
+            kernel, is_compiled = make_kernel(
+                self.model.f, self.model.h, compiled, stateless=not self.model.has_states
+            )
             return self._try_compile(kernel) if is_compiled else (kernel, is_compiled)
 
-        return self._memo(("state", compiled), build)
+        return self._memo(("state", compiled, self.model.has_states), build)
 
     def _try_compile(self, kernel):
         """Run the compiled kernel once on the first samples; fall back to Python on failure."""
@@ -178,7 +180,12 @@ class Simulator:
                     RuntimeWarning,
                     stacklevel=4,
                 )
-                return make_kernel(self.model.f, self.model.h, compiled=False)
+                return make_kernel(
+                    self.model.f,
+                    self.model.h,
+                    compiled=False,
+                    stateless=not self.model.has_states,
+                )
             raise
 
     # --------------------------------------------------------------------- running
