@@ -15,6 +15,11 @@ Models without states (output error on algebraic outputs, nonlinear regression):
 Initial states: each entry of ``x0`` is a number (fixed) or the name of a parameter (so the
 initial state can be estimated). With several maneuvers, ``x0`` may be a list with one such
 specification per maneuver.
+
+Output time delays: ``output_delays={"r": "tau_r"}`` delays the simulated output ``r`` by the
+parameter ``tau_r`` (s), which can then be fixed or estimated like any parameter; the rule
+between samples is ``delay_convention`` ("fractional" or "two_sample", see
+``flightid.simulate.simulator.apply_output_delays`` and docs/method.md, "Time delays").
 """
 
 from __future__ import annotations
@@ -27,9 +32,13 @@ import numpy as np
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.model.parameters import Parameters
 
-__all__ = ["StateSpaceModel", "InitialState"]
+__all__ = ["StateSpaceModel", "InitialState", "DELAY_CONVENTIONS"]
 
 InitialState = Sequence[float | str]
+# how a delayed output is formed between samples (flightid.simulate.simulator):
+# "fractional": s(t_k − τ), linear between the bracketing samples, any τ;
+# "two_sample": the reference's rule (τ/dt)·s_{k−1} + (1 − τ/dt)·s_k
+DELAY_CONVENTIONS = ("fractional", "two_sample")
 
 
 def _names(values: Sequence[str], argument: str) -> tuple[str, ...]:
@@ -58,6 +67,10 @@ class StateSpaceModel:
         parameters: ``Parameters`` (or anything ``Parameters`` accepts).
         x0: initial state: numbers and/or parameter names (one list, or one per maneuver).
         name: label for reports.
+        output_delays: ``{output name: parameter name}``: the simulated output is delayed by
+            that parameter's value (s); default none.
+        delay_convention: ``"fractional"`` (default) or ``"two_sample"`` (the reference's
+            rule); see ``flightid.simulate.simulator.apply_output_delays``.
     """
 
     states: tuple[str, ...]
@@ -68,6 +81,8 @@ class StateSpaceModel:
     parameters: Parameters
     x0: tuple = ()
     name: str = "model"
+    output_delays: dict[str, str] | None = None  # a dict ({} for none) after __post_init__
+    delay_convention: str = "fractional"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "states", _names(self.states, "states"))
@@ -99,6 +114,41 @@ class StateSpaceModel:
         else:
             checked = tuple(self._check_x0(x0, None))
         object.__setattr__(self, "x0", checked)
+        self._check_delays()
+
+    # ----------------------------------------------------------------- output delays
+    def _check_delays(self) -> None:
+        delays = {} if self.output_delays is None else self.output_delays
+        if not isinstance(delays, dict):
+            raise InputTypeError(
+                f"output_delays: expected a mapping {{output name: parameter name}}, "
+                f"got {describe(delays)}"
+            )
+        for output, parameter in delays.items():
+            if output not in self.outputs:
+                raise InputError(
+                    f"output_delays: {output!r} is not an output of the model; "
+                    f"outputs: {list(self.outputs)}"
+                )
+            if not isinstance(parameter, str) or parameter not in self.parameters:
+                raise InputError(
+                    f"output_delays[{output!r}]: expected the name of a parameter (the delay "
+                    f"in s), got {describe(parameter)}; parameters: {self.parameters.names}"
+                )
+        if self.delay_convention not in DELAY_CONVENTIONS:
+            raise InputError(
+                f"delay_convention: expected one of {list(DELAY_CONVENTIONS)}, "
+                f"got {describe(self.delay_convention)}"
+            )
+        object.__setattr__(self, "output_delays", dict(delays))
+
+    def output_delay_maps(self) -> list[tuple[int, int]]:
+        """(output index, parameter index) of every delayed output, in output order."""
+        return [
+            (self.outputs.index(o), self.parameters.index(self.output_delays[o]))
+            for o in self.outputs
+            if o in self.output_delays
+        ]
 
     # ----------------------------------------------------------------- initial state
     def _check_x0(self, spec: InitialState, maneuver: int | None) -> list:

@@ -23,6 +23,8 @@ __all__ = [
     "simulate",
     "INPUT_INTERPOLATIONS",
     "check_input_interpolation",
+    "delay_weights",
+    "apply_output_delays",
 ]
 
 _METHODS = {"euler": EULER, "rk4": RK4}
@@ -39,6 +41,74 @@ def check_input_interpolation(value: object) -> str:
             f"input varies between samples), got {value!r}"
         )
     return value
+
+
+def delay_weights(
+    t: np.ndarray, tau: float, convention: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Indices and weights of a delayed signal over one maneuver's times ``t`` (s).
+
+    Returns (i1, i0, c, dc) such that the delayed signal is
+    s_τ,k = s[i1_k] + c_k·(s[i0_k] − s[i1_k]) and ∂s_τ,k/∂τ = dc_k·(s[i0_k] − s[i1_k]).
+
+    ``"fractional"``: s_τ,k = s(t_k − τ), linear between the two samples that bracket
+    t_k − τ (any sign, any size); before the first sample or after the last the end value is
+    held (and ∂/∂τ = 0 there). ``"two_sample"`` (the reference's ``timeDelay``):
+    s_τ,k = (τ/dt_k)·s_{k−1} + (1 − τ/dt_k)·s_k with dt_k = t_k − t_{k−1}, and
+    s_τ,0 = s_0 at the maneuver's first sample.
+    """
+    n = t.shape[0]
+    k = np.arange(n)
+    if n < 2:
+        zero = np.zeros(n)
+        return k, k, zero, zero
+    if convention == "two_sample":
+        i0 = np.maximum(k - 1, 0)
+        dt = np.empty(n)
+        dt[0] = 1.0
+        dt[1:] = np.diff(t)
+        # s_τ,k = s_k + (τ/dt_k)·(s_{k−1} − s_k);  ∂/∂τ = (s_{k−1} − s_k)/dt_k;  s_τ,0 = s_0
+        dc = np.where(k > 0, 1.0 / dt, 0.0)
+        return k, i0, tau * dc, dc
+    # fractional: target time t_k − τ, held at the maneuver's ends
+    target = t - tau
+    inside = (target >= t[0]) & (target <= t[-1])
+    target = np.clip(target, t[0], t[-1])
+    # j: the sample with t_j ≤ target < t_{j+1} (the last interval at the end)
+    j = np.clip(np.searchsorted(t, target, side="right") - 1, 0, n - 2)
+    h = t[j + 1] - t[j]
+    # s(t_k − τ) = s_j + w·(s_{j+1} − s_j),  w = (t_k − τ − t_j)/(t_{j+1} − t_j);
+    # ∂w/∂τ = −1/(t_{j+1} − t_j) inside the record, 0 where the end value is held
+    w = (target - t[j]) / h
+    dw = np.where(inside, -1.0 / h, 0.0)
+    return j, j + 1, w, dw
+
+
+def apply_output_delays(
+    model: StateSpaceModel,
+    times: Sequence[np.ndarray],
+    thetas: np.ndarray,
+    outputs: np.ndarray,
+) -> np.ndarray:
+    """Delay the model's ``output_delays`` channels in ``outputs`` (B, N_total, n_o), in place.
+
+    Each batch row b uses its own delay τ = thetas[b, index]; each maneuver (``times``, s) is
+    delayed on its own, so no sample of one maneuver enters another (rule: ``delay_weights``).
+    """
+    delays = model.output_delay_maps()
+    if not delays:
+        return outputs
+    start = 0
+    for t in times:
+        stop = start + t.shape[0]
+        for b in range(outputs.shape[0]):
+            for j, p in delays:
+                i1, i0, c, _ = delay_weights(t, float(thetas[b, p]), model.delay_convention)
+                s = outputs[b, start:stop, j].copy()
+                # s_τ,k = s[i1_k] + c_k·(s[i0_k] − s[i1_k])
+                outputs[b, start:stop, j] = s[i1] + c * (s[i0] - s[i1])
+        start = stop
+    return outputs
 
 
 # Kernels are kept per (f, h) pair so that repeated estimations in a process reuse them
@@ -237,6 +307,8 @@ class Simulator:
                         f"(sample {int(flag[b])}): non-finite state or output"
                     )
             start += t.shape[0]
+        # output time delays act on the simulated outputs, per row and per maneuver
+        apply_output_delays(self.model, self._times, thetas, outputs)
         self.evaluations += n_batch
         return SimulationBatch(outputs, diverged, tuple(messages))
 
@@ -300,6 +372,16 @@ class Simulator:
                     f"simulation diverged in maneuver {i} at t = {t[flag]:.4g} s "
                     f"(sample {int(flag)}): non-finite state or output"
                 )
+            # output time delays: the delayed sensitivity is the same interpolation of the
+            # sensitivity, G_τ,k = G[i1_k] + c_k·(G[i0_k] − G[i1_k]), plus for the delay
+            # parameter itself ∂s_τ,k/∂τ = dc_k·(s[i0_k] − s[i1_k]) (undelayed s)
+            for j, p in self.model.output_delay_maps():
+                i1, i0, c, dc = delay_weights(t, float(theta[p]), self.model.delay_convention)
+                s = y_block[:, j].copy()
+                gj = g_block[:, j, :].copy()
+                y_block[:, j] = s[i1] + c * (s[i0] - s[i1])
+                g_block[:, j, :] = gj[i1] + c[:, None] * (gj[i0] - gj[i1])
+                g_block[:, j, free_index == p] += (dc * (s[i0] - s[i1]))[:, None]
             outputs[start : start + t.shape[0]] = y_block
             g[start : start + t.shape[0]] = g_block
             start += t.shape[0]
