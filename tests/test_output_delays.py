@@ -203,3 +203,109 @@ def test_no_declaration_changes_nothing():
     model = _model(delayed=False)
     assert model.output_delays == {} and model.delay_convention == "fractional"
     assert model.output_delay_maps() == []
+
+
+# ------------------------------------------------------------------ case files
+
+_MODULE = """
+import numpy as np
+
+STATES = ("alpha", "q")
+INPUTS = ("de",)
+OUTPUTS = ("alpha", "q")
+PARAMETERS = {"Za": -1.0, "Zd": -0.1, "Ma": -5.0, "Mq": -1.5, "Md": -8.0}
+
+
+def f(t, x, u, theta):
+    return np.array(
+        [
+            theta[0] * x[0] + x[1] + theta[1] * u[0],
+            theta[2] * x[0] + theta[3] * x[1] + theta[4] * u[0],
+        ]
+    )
+
+
+def h(t, x, u, theta):
+    return np.array([x[0], x[1]])
+"""
+
+
+def _case_dir(tmp_path, extra_model: str, extra_parameters: str = "") -> object:
+    measured = _measured("fractional")
+    rows = np.column_stack(
+        [measured.time, measured.channel("de"), measured.channel("alpha"), measured.channel("q")]
+    )
+    np.savetxt(tmp_path / "flight.csv", rows, delimiter=",", header="t,de,alpha,q", comments="")
+    (tmp_path / "sp.py").write_text(_MODULE)
+    (tmp_path / "case.toml").write_text(
+        f"""title = "delayed q"
+[data]
+data_dir = "."
+file = "flight.csv"
+time = "t"
+[data.inputs]
+de = {{ column = "de" }}
+[data.outputs]
+alpha = {{ column = "alpha" }}
+q = {{ column = "q" }}
+[model]
+module = "sp.py"
+{extra_model}
+[parameters]
+{extra_parameters}
+[initial_state]
+default = 0.0
+[biases.outputs]
+q = 0.0
+[estimation]
+solver = "mnr"
+"""
+    )
+    return tmp_path / "case.toml"
+
+
+def test_case_file_declares_and_estimates_an_output_delay(tmp_path):
+    from flightid.cases import load_case, run_case
+
+    path = _case_dir(tmp_path, 'output_delays = { q = "tau_q" }\ndelay_convention = "fractional"')
+    run = run_case(load_case(path), accuracy="cr")
+    est = run.estimate
+    assert est.converged, est.message
+    # the new delay parameter comes after the biases (start 0 s, free)
+    assert list(est.names)[-2:] == ["by_q", "tau_q"]
+    assert abs(est.value("tau_q") - TRUE["tau_q"]) < 3.0 * est.stddev("tau_q")
+    # the bias takes the mean of the seeded q noise (−1.6e-4 rad/s, itself 3.4 σ from 0)
+    noise_q = np.random.default_rng(7).normal(size=(400, 2))[:, 1] * 1e-3
+    assert abs(est.value("by_q") - noise_q.mean()) < 0.1 * est.stddev("by_q")
+
+
+@pytest.mark.parametrize(
+    "model_lines, parameters, message",
+    [
+        ('output_delays = { r = "tau" }', "", r"output_delays: 'r' is not an output"),
+        ("output_delays = { q = 0.05 }", "", r"model.output_delays.q: expected a parameter name"),
+        ('delay_convention = "cubic"', "", r"model.delay_convention"),
+    ],
+)
+def test_case_file_delay_errors_are_named(tmp_path, model_lines, parameters, message):
+    from flightid.cases import CaseError, load_case, run_case
+
+    path = _case_dir(tmp_path, model_lines, parameters)
+    with pytest.raises(CaseError, match=message):
+        run_case(load_case(path), accuracy="none")
+
+
+def test_case_file_passes_the_convention_to_the_model(tmp_path):
+    from flightid.cases import load_case
+    from flightid.cases.run import prepare_case
+
+    path = _case_dir(tmp_path, 'output_delays = { q = "tau_q" }\ndelay_convention = "two_sample"')
+    model = prepare_case(load_case(path)).model
+    assert model.delay_convention == "two_sample"
+    assert model.output_delays == {"q": "tau_q"}
+    # [parameters] sets a new delay parameter like any other
+    path = _case_dir(
+        tmp_path, 'output_delays = { q = "tau_q" }', "tau_q = { value = 0.04, free = false }"
+    )
+    parameter = prepare_case(load_case(path)).model.parameters["tau_q"]
+    assert (parameter.value, parameter.free) == (0.04, False)

@@ -416,13 +416,26 @@ def build_model(
     """
     base = base_model(case)[0] if base is None else base
     _check_channels(base, maneuvers)
-    params = _apply_parameters(base.parameters, case.parameters)
+    delays = dict(case.model.get("output_delays", {}))
+    # delay parameters the model does not have: new parameters τ (s), start 0, free, put
+    # after the biases and initial states; [parameters] sets them like any other
+    new_delays = [n for n in dict.fromkeys(delays.values()) if n not in base.parameters]
+    section = {k: v for k, v in case.parameters.items() if k not in new_delays}
+    params = _apply_parameters(base.parameters, section)
+    delay_params = (
+        _apply_parameters(
+            Parameters([Parameter(n, 0.0) for n in new_delays]),
+            {k: v for k, v in case.parameters.items() if k in new_delays},
+        )
+        if new_delays
+        else []
+    )
     n_m = len(maneuvers)
     bx, by, bias_params, per_maneuver = _biases(base, case.biases, n_m)
     section = case.initial_state if initial_state is None else initial_state
     x0, x0_params = _initial_states(base, section, maneuvers, key, allow_estimate=values is None)
     try:
-        parameters = Parameters(params + bias_params + x0_params)
+        parameters = Parameters(params + bias_params + x0_params + delay_params)
     except InputError as exc:
         raise CaseError(f"parameters: {exc}") from None
     f, h, inputs = base.f, base.h, base.inputs
@@ -449,7 +462,16 @@ def build_model(
         parameters = parameters.with_values({k: v for k, v in values.items() if k in parameters})
     try:
         model = StateSpaceModel(
-            base.states, inputs, base.outputs, f, h, parameters, x0=x0, name=base.name
+            base.states,
+            inputs,
+            base.outputs,
+            f,
+            h,
+            parameters,
+            x0=x0,
+            name=base.name,
+            output_delays=delays or None,
+            delay_convention=case.model.get("delay_convention", "fractional"),
         )
     except InputError as exc:
         raise CaseError(f"model: {exc}") from None

@@ -65,6 +65,7 @@ from flightid.cases.checks import (
 from flightid.data.loaders import ChannelSpec
 from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence
+from flightid.model.statespace import DELAY_CONVENTIONS
 
 __all__ = ["CaseError", "Case", "ManeuverSpec", "StageSpec", "load_case", "parse_case"]
 
@@ -121,6 +122,8 @@ _MODEL = {
     "name",
     "accelerometer",
     "measured",
+    "output_delays",
+    "delay_convention",
 }
 _ESTIMATION = {
     "solver",
@@ -375,6 +378,16 @@ def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
     for key in ("controls", "outputs", "measured"):
         if key in model:
             _names(model[key], f"model.{key}")
+    # output_delays = { output = "parameter" }: the output is delayed by that parameter (s);
+    # the output and parameter names are checked with the model (cases.build)
+    for output, parameter in _table(model.get("output_delays", {}), "model.output_delays").items():
+        if not isinstance(parameter, str) or not parameter.isidentifier():
+            raise CaseError(
+                f"model.output_delays.{output}: expected a parameter name (the delay in s), "
+                f"got {parameter!r}"
+            )
+    if "delay_convention" in model:
+        _string(model["delay_convention"], "model.delay_convention", DELAY_CONVENTIONS)
     if "module" in model:
         _string(model["module"], "model.module")
         for key in ("airplane", "aero", "controls"):
