@@ -59,3 +59,20 @@ def test_twin_otter_with_prediction_on_017():
     # the estimated model predicts the other maneuver well (regression value, flightid's own
     # output at commit 30fc558, not an independent reference: R² 0.987, 0.992, 0.966)
     assert np.all(prediction.r2 > 0.9)
+
+
+def test_attas_lateral_yaw_delay_reports_the_reference_names():
+    # CASES.md §5 (TC31): 23 free parameters, in this order, under these names
+    names = (
+        "Lp Lr Lda Ldr Lβ Np Nr Nda Ndr Nβ Yp Yr Yda Ydr Yβ BX1 BX2 BY1 BY2 BY3 BY4 BY5 tDelay_r"
+    ).split()
+    est = _run("attas_lateral_yaw_delay").estimate
+    assert est.converged, est.message
+    assert est.free_names == names
+    assert np.all(np.isfinite(est.std[est.free]))
+    # the delay is resolved (σ well below dt = 0.04 s) and lies within one sample; regression
+    # value (flightid at this commit, not an independent reference): 0.0141 ± 0.0031 s
+    tau, sigma = est.value("tDelay_r"), est.stddev("tDelay_r")
+    assert sigma < 0.01 and 0.0 < tau < 0.04
+    # the derivatives stay those of the case without the delay (its Lp −2.049 ± 0.005)
+    assert abs(est.value("Lp") - (-2.049)) < 3 * est.stddev("Lp")
