@@ -215,7 +215,8 @@ def unstab_3c_f(t, x, u, theta):
     return dx
 
 
-def unstab_3c_h(t, x, u, theta):
+def unstab_h(t, x, u, theta):
+    """Outputs of 3c and 3e (the same in both)."""
     w, q = x[0], x[1]
     y = np.empty(3)
     # a_z = Zw w + Zq q + Zδe δe (integrated w, q); y2 = w, y3 = q
@@ -236,16 +237,6 @@ def unstab_3e_f(t, x, u, theta):
     return dx
 
 
-def unstab_3e_h(t, x, u, theta):
-    w, q = x[0], x[1]
-    y = np.empty(3)
-    # a_z = Zw w + Zq q + Zδe δe; y2 = w, y3 = q
-    y[0] = theta[0] * w + theta[1] * q + theta[2] * u[0]
-    y[1] = w
-    y[2] = q
-    return y
-
-
 def unstab_problems(data_dir: Path = DATA) -> Iterator[Problem]:
     """3c (equation decoupling) and 3e (eigenvalue transformation), noise "max"."""
     table = np.loadtxt(data_dir / "fvsysid/unStabAC_sim.asc")
@@ -263,7 +254,7 @@ def unstab_problems(data_dir: Path = DATA) -> Iterator[Problem]:
             inputs=("de", "w_m", "q_m"),
             outputs=("az", "w", "q"),
             f=unstab_3c_f,
-            h=unstab_3c_h,
+            h=unstab_h,
             parameters=parameters,
             x0=(0.0, 0.0),
             name="unstab_sp_equation_decoupling",
@@ -286,7 +277,7 @@ def unstab_problems(data_dir: Path = DATA) -> Iterator[Problem]:
             inputs=("de",),
             outputs=("az", "w", "q"),
             f=unstab_3e_f,
-            h=unstab_3e_h,
+            h=unstab_h,
             parameters=parameters,
             x0=(0.0, 0.0),
             name="unstab_sp_eigenvalue_transform",
