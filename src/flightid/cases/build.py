@@ -74,6 +74,9 @@ def load_maneuvers(
                 start=spec.start,
                 stop=spec.stop,
                 gaps=spec.gaps,
+                constants=case.data.get("constants"),
+                signals=case.data.get("signals"),
+                steps=case.data.get("steps"),
             )
         except InputError as exc:
             raise CaseError(f"{where}: {exc}") from None

@@ -110,6 +110,9 @@ _DATA = {
     "outputs",
     "start",
     "stop",
+    "constants",
+    "signals",
+    "steps",
 }
 _MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps"}
 _MODEL = {
@@ -340,6 +343,17 @@ def _channels(data: Mapping[str, Any]) -> None:
                 raise CaseError(message) from None
 
 
+def _pipeline(data: Mapping[str, Any]) -> None:
+    """``[data.constants]``, ``[data.signals]``, ``[[data.steps]]``: checked without data
+    (settings, constants named by steps, cycles, declared units; ``flightid.data.pipeline``)."""
+    from flightid.data.pipeline import parse_pipeline
+
+    try:
+        parse_pipeline(data.get("constants"), data.get("signals"), data.get("steps"))
+    except InputError as exc:
+        raise CaseError(f"data.{exc}") from None
+
+
 def _data_section(raw: Mapping[str, Any], staged: bool) -> tuple[Mapping[str, Any], list]:
     """``[data]``: (the table, its maneuvers)."""
     data = _table(raw["data"], "data")
@@ -350,6 +364,7 @@ def _data_section(raw: Mapping[str, Any], staged: bool) -> tuple[Mapping[str, An
             'MATLAB files: format = "mat" (or leave it out)'
         )
     _channels(data)
+    _pipeline(data)
     if not staged and not data.get("outputs"):
         raise CaseError("data.outputs: missing; name the measured output channels")
     if "data_dir" in data:

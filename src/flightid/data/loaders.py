@@ -634,37 +634,52 @@ def parse_expression(text: str) -> tuple:
     return _Parser(text).parse()
 
 
+def _lookup(name: int | str, table: Table, where: str, names: Mapping[str, Any] | None):
+    """A name's values: a signal or constant of ``names`` (signals: arrays over all rows),
+    else the table's column (``$N`` is always the column)."""
+    if names and isinstance(name, str) and name in names:
+        return names[name]
+    try:
+        return table.column(name, where)
+    except ChannelError as exc:
+        if not names or not isinstance(name, str):
+            raise
+        raise ChannelError(f"{exc}; nor a signal or constant (known: {sorted(names)})") from None
+
+
 def _evaluate(
     tree: tuple,
     table: Table,
     where: str,
     time: np.ndarray | None = None,
     problems: list | None = None,
+    names: Mapping[str, Any] | None = None,
 ) -> np.ndarray | float:
     """Values of an expression tree over the table's rows. ``time``: the values of ``t`` (s)
-    (None: ``t`` is the column named t, as inside the time channel itself). Arguments
-    outside a function's domain are recorded in ``problems`` as (words, mask, argument)
-    and give NaN there; the caller reports the first such row it keeps."""
+    (None: ``t`` is the column named t, as inside the time channel itself). ``names``:
+    signals (arrays over all rows) and constants (numbers) looked up before the columns.
+    Arguments outside a function's domain are recorded in ``problems`` as (words, mask,
+    argument) and give NaN there; the caller reports the first such row it keeps."""
     kind = tree[0]
     if kind == "num":
         return tree[1]
     if kind == "col":
-        return table.column(tree[1], where)
+        return _lookup(tree[1], table, where, names)
     if kind == "time":
         return table.column("t", where) if time is None else time
     if kind == "neg":
-        return -_evaluate(tree[1], table, where, time, problems)
+        return -_evaluate(tree[1], table, where, time, problems, names)
     if kind == "call":
         function = _FUNCTIONS[tree[1]]
-        args = [_evaluate(sub, table, where, time, problems) for sub in tree[2:]]
+        args = [_evaluate(sub, table, where, time, problems, names) for sub in tree[2:]]
         if function.refuses is not None:
             refused = function.refuses(np.asarray(args[0], dtype=float))
             if np.any(refused) and problems is not None:
                 problems.append((f"{tree[1]}() needs {function.domain}", refused, args[0]))
         with np.errstate(all="ignore"):
             return function.apply(*args)
-    left = _evaluate(tree[1], table, where, time, problems)
-    right = _evaluate(tree[2], table, where, time, problems)
+    left = _evaluate(tree[1], table, where, time, problems, names)
+    right = _evaluate(tree[2], table, where, time, problems, names)
     if kind == "+":
         return left + right
     if kind == "-":
@@ -807,17 +822,20 @@ class ChannelSpec:
         where: str,
         keep: np.ndarray | None = None,
         time: np.ndarray | None = None,
+        names: Mapping[str, Any] | None = None,
     ) -> np.ndarray:
         """The channel's values in the target unit, on the rows ``keep`` (default all).
         ``time``: the values of the expression variable ``t`` on all rows (s); None inside the
-        time channel itself, where ``t`` is the column named t."""
+        time channel itself, where ``t`` is the column named t. ``names``: signals (arrays
+        over all rows) and constants (numbers) that names refer to before columns
+        (``flightid.data.pipeline``)."""
         if self.expr is not None:
             try:
                 tree = parse_expression(self.expr)
             except ChannelError as exc:
                 raise ChannelError(f"{where}: {exc}") from None
             problems: list = []
-            values = _evaluate(tree, table, where, time, problems)
+            values = _evaluate(tree, table, where, time, problems, names)
             values = np.broadcast_to(np.asarray(values, dtype=float), (table.n_rows,)).copy()
             rows = np.ones(table.n_rows, dtype=bool) if keep is None else keep
             for words, refused, argument in problems:
@@ -830,7 +848,10 @@ class ChannelSpec:
                         f"{table.source or 'the table'} ({int(refused.sum())} row(s) in all)"
                     )
         else:
-            values = table.column(self.column, where).copy()
+            values = np.broadcast_to(
+                np.asarray(_lookup(self.column, table, where, names), dtype=float),
+                (table.n_rows,),
+            ).copy()
         factor, _ = self.conversion(where)
         # value = (source · scale + offset) · factor   (scale, offset in the source unit)
         values = (values * self.scale + self.offset) * factor
@@ -875,6 +896,10 @@ def to_flight_data(
     stop: float | None = None,
     gaps: str = "error",
     uniform_rtol: float = 1e-6,
+    constants: Mapping[str, Any] | None = None,
+    signals: Mapping[str, Any] | None = None,
+    steps: Sequence[Any] | None = None,
+    pipeline: Any = None,
 ) -> FlightData:
     """Build ``FlightData`` from a table and channel specifications.
 
@@ -890,29 +915,35 @@ def to_flight_data(
         stop: see ``start``.
         gaps: ``"error"`` (default) refuses non-uniform time; ``"join"`` treats the rows as
             consecutive samples at the median interval (files holding several segments).
+        constants, signals, steps: ``[data.constants]``, ``[data.signals]`` and
+            ``[[data.steps]]`` (``flightid.data.pipeline``): named numbers, intermediate
+            signals and built-in steps whose names the channels can use.
+        pipeline: an already checked ``flightid.data.pipeline.Pipeline`` instead of
+            ``constants``/``signals``/``steps``.
     """
+    from flightid.data.pipeline import parse_pipeline
+
+    if pipeline is None:
+        pipeline = parse_pipeline(constants, signals, steps)
     time_spec = ChannelSpec.from_value(time, "time")
     if time_spec.unit and parse_unit(time_spec.target_unit) != parse_unit("s"):
         raise ChannelError(
             f"time: expected the time in s (leave out 'to', or to = 's'), got to = {time_spec.to!r}"
         )
-    t = time_spec.evaluate(table, "time")
+    t_all = time_spec.evaluate(table, "time")
     in_specs = _specs(inputs, "inputs")
     out_specs = _specs(outputs, "outputs")
-    units = {k: s.target_unit for k, s in {**in_specs, **out_specs}.items()}
-    keep = np.ones(t.shape[0], dtype=bool)
+    keep = np.ones(t_all.shape[0], dtype=bool)
     if start is not None:
-        keep &= t >= start - 1e-9
+        keep &= t_all >= start - 1e-9
     if stop is not None:
-        keep &= t <= stop + 1e-9
+        keep &= t_all <= stop + 1e-9
     if keep.sum() < 2:
         raise InputError(
             f"start/stop: [{start}, {stop}] keeps fewer than 2 samples of "
-            f"{table.source} (time runs {t[0]:g}..{t[-1]:g} s)"
+            f"{table.source} (time runs {t_all[0]:g}..{t_all[-1]:g} s)"
         )
-    channels_in = {k: s.evaluate(table, f"inputs.{k}", keep, t) for k, s in in_specs.items()}
-    channels_out = {k: s.evaluate(table, f"outputs.{k}", keep, t) for k, s in out_specs.items()}
-    t = t[keep]
+    t = t_all[keep]
     stored = t
     dt = np.diff(t)
     if gaps not in ("error", "join"):
@@ -938,6 +969,14 @@ def to_flight_data(
     # joined rows) and, as each maneuver is built here on its own, at every maneuver
     segments = segment_slices(stored, gaps == "join")
     step = float((t[-1] - t[0]) / (t.shape[0] - 1))  # s, the uniform interval
+    names = None if pipeline.empty else pipeline.evaluate(table, keep, t_all, step, segments)
+    units = {k: pipeline.unit_of(s) for k, s in {**in_specs, **out_specs}.items()}
+    channels_in = {
+        k: s.evaluate(table, f"inputs.{k}", keep, t_all, names) for k, s in in_specs.items()
+    }
+    channels_out = {
+        k: s.evaluate(table, f"outputs.{k}", keep, t_all, names) for k, s in out_specs.items()
+    }
     for group, specs, channels in (
         ("inputs", in_specs, channels_in),
         ("outputs", out_specs, channels_out),
@@ -969,11 +1008,17 @@ def load_flight_data(
     start: float | None = None,
     stop: float | None = None,
     gaps: str = "error",
+    constants: Mapping[str, Any] | None = None,
+    signals: Mapping[str, Any] | None = None,
+    steps: Sequence[Any] | None = None,
 ) -> FlightData:
     """``read_table`` then ``to_flight_data``; the maneuver name defaults to the file stem."""
     table = read_table(path, format, variable=variable)
     return to_flight_data(
         table,
+        constants=constants,
+        signals=signals,
+        steps=steps,
         time=time,
         inputs=inputs,
         outputs=outputs,
