@@ -98,6 +98,10 @@ def base_model(case: Case, data_dir: Path | None = None) -> tuple[StateSpaceMode
 
         structure = structure_from_terms(spec["aero"])
         return alpha_q_base(case, data_dir, structure, zero_parameters(structure))
+    if spec.get("type") == "kinematic":
+        from flightid.compat.case import kinematic_from_case
+
+        return kinematic_from_case(case), "built-in kinematic model (flight-path reconstruction)"
     if "module" in spec:
         path = Path(spec["module"])
         path = path if path.is_absolute() else case.directory / path

@@ -161,8 +161,9 @@ NOISE = ("max", "maxlik", "fixed")
 INPUT_INTERPOLATIONS = ("linear", "zoh")
 SOLVER_CLASSES = {"mnres": MNRES, "mnr": MNR, "fps": FPS}
 AIRCRAFT_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
-# "alpha_q": α and q integrated, the other flight variables measured (flightid.cases.alpha_q)
-MODEL_TYPES = (*AIRCRAFT_TYPES, "alpha_q")
+# "alpha_q": α and q integrated, the other flight variables measured (flightid.cases.alpha_q);
+# "kinematic": flight-path reconstruction (flightid.compat)
+MODEL_TYPES = (*AIRCRAFT_TYPES, "alpha_q", "kinematic")
 _ALPHA_Q_MODEL = {"type", "name", "constants", "aero"}
 
 
@@ -382,6 +383,10 @@ def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
     model = _table(raw["model"], "model")
     if model.get("type") == "alpha_q":
         return _alpha_q_section(model)
+    if model.get("type") == "kinematic":
+        from flightid.compat.case import kinematic_section
+
+        return kinematic_section(model)
     _known(model, _MODEL, "model")
     if ("module" in model) == ("type" in model):
         raise CaseError(
