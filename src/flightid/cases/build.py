@@ -29,7 +29,7 @@ from flightid.data.location import DEFAULT_DATA_DIR, data_directory
 from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence
 from flightid.model.parameters import Parameter, Parameters
-from flightid.model.statespace import StateSpaceModel
+from flightid.model.statespace import StateSpaceModel, per_maneuver_name
 
 __all__ = [
     "resolve_data_dir",
@@ -211,11 +211,58 @@ def _apply_parameters(parameters: Parameters, section: Mapping[str, Any]) -> lis
                 f"{parameters.names}"
             )
         settings = dict(value) if isinstance(value, Mapping) else {"value": value}
+        # per_maneuver is read by _per_maneuver_names, not a field of Parameter
+        settings.pop("per_maneuver", None)
         try:
             items[name] = replace(items[name], **{k: v for k, v in settings.items()})
         except InputError as exc:
             raise CaseError(f"parameters.{name}: {exc}") from None
     return list(items.values())
+
+
+def _per_maneuver_names(
+    section: Mapping[str, Any], parameters: Parameters, not_allowed: Sequence[str]
+) -> list[str]:
+    """Names of the model parameters with ``per_maneuver = true`` in ``[parameters]``, in
+    the model's parameter order (``not_allowed``: delay parameters the case adds)."""
+    chosen = set()
+    for name, value in section.items():
+        if not isinstance(value, Mapping) or "per_maneuver" not in value:
+            continue
+        flag = value["per_maneuver"]
+        where = f"parameters.{name}.per_maneuver"
+        if not isinstance(flag, bool):
+            raise CaseError(f"{where}: expected true or false, got {flag!r}")
+        if not flag:
+            continue
+        if name in not_allowed:
+            raise CaseError(
+                f"{where}: {name!r} is a time delay the case adds; only parameters of the "
+                "model's f and h can be per maneuver"
+            )
+        if name not in parameters:
+            raise CaseError(
+                f"{where}: {name!r} is not a parameter of the model; its parameters: "
+                f"{parameters.names}"
+            )
+        chosen.add(name)
+    return [n for n in parameters.names if n in chosen]
+
+
+def _expand_per_maneuver(
+    params: Sequence[Parameter], names: Sequence[str], n_m: int
+) -> tuple[list[Parameter], dict[str, tuple[str, ...]]]:
+    """The model parameters with each of ``names`` replaced by one copy per maneuver
+    (``NAME_1`` … ``NAME_n``, same settings): the others in order, then the copies in
+    maneuver-major order; and the {NAME: copies} map of ``StateSpaceModel``."""
+    chosen = [p for p in params if p.name in names]
+    expanded = [p for p in params if p.name not in names]
+    for k in range(1, n_m + 1):
+        expanded += [replace(p, name=per_maneuver_name(p.name, k)) for p in chosen]
+    copies = {
+        p.name: tuple(per_maneuver_name(p.name, k) for k in range(1, n_m + 1)) for p in chosen
+    }
+    return expanded, copies
 
 
 # Body-axis states the built-in airplane models carry that data sets rarely record: their
@@ -438,9 +485,17 @@ def build_model(
         else []
     )
     n_m = len(maneuvers)
+    per_names = _per_maneuver_names(case.parameters, base.parameters, new_delays)
     bx, by, bias_params, per_maneuver = _biases(base, case.biases, n_m)
     section = case.initial_state if initial_state is None else initial_state
     x0, x0_params = _initial_states(base, section, maneuvers, key, allow_estimate=values is None)
+    # f and h index θ as (model, biases, x0, delays); with per-maneuver parameters θ holds
+    # (other model parameters, copies per maneuver, biases, x0, delays) and the simulator
+    # substitutes each maneuver's copies (StateSpaceModel.maneuver_parameters)
+    layout = [p.name for p in params + bias_params + x0_params + delay_params]
+    copies: dict[str, tuple[str, ...]] = {}
+    if per_names and n_m > 1:
+        params, copies = _expand_per_maneuver(params, per_names, n_m)
     try:
         parameters = Parameters(params + bias_params + x0_params + delay_params)
     except InputError as exc:
@@ -479,6 +534,8 @@ def build_model(
             name=base.name,
             output_delays=delays or None,
             delay_convention=case.model.get("delay_convention", "fractional"),
+            function_parameters=layout if copies else None,
+            maneuver_parameters=copies or None,
         )
     except InputError as exc:
         raise CaseError(f"model: {exc}") from None
@@ -547,7 +604,11 @@ def unbiased_model(
     if model.f is base.f and model.h is base.h:
         return None
     theta = model.parameters.values
-    parameters = Parameters(list(model.parameters)[: len(base.parameters)])
+    # the base model's parameters (or, per maneuver, the others and the copies): the
+    # leading entries of θ
+    copies = {k: v for k, v in model.maneuver_parameters.items() if k in base.parameters}
+    n_lead = len(base.parameters) + len(copies) * (max(model.n_parameter_maneuvers, 1) - 1)
+    parameters = Parameters(list(model.parameters)[:n_lead])
     x0 = [model.initial_state(theta, i).tolist() for i in range(n_maneuvers)]
     return StateSpaceModel(
         base.states,
@@ -558,4 +619,6 @@ def unbiased_model(
         parameters,
         x0=x0 if model.per_maneuver_x0 else x0[0],
         name=base.name,
+        function_parameters=base.parameters.names if copies else None,
+        maneuver_parameters=copies or None,
     )

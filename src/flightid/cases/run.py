@@ -220,6 +220,11 @@ def prepare_case(
     ]
     if prediction and per_maneuver:
         raise CaseError("prediction: not available with per-maneuver biases")
+    if prediction and model.maneuver_parameters:
+        raise CaseError(
+            f"prediction: not available with parameters per maneuver "
+            f"{list(model.maneuver_parameters)} (a predicted maneuver has no copy of its own)"
+        )
     return Prepared(case, directory, model, tuple(maneuvers), tuple(prediction), base, description)
 
 

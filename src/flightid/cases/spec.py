@@ -467,15 +467,21 @@ def _alpha_q_section(model: Mapping[str, Any]) -> Mapping[str, Any]:
 
 
 def _parameters_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
-    """``[parameters]``: name = start value, or {value, free, scale, lower, upper, unit}."""
+    """``[parameters]``: name = start value, or {value, free, scale, lower, upper, unit,
+    per_maneuver} (per_maneuver = true: one copy NAME_1, NAME_2, ... per maneuver)."""
     parameters = _table(raw.get("parameters", {}), "parameters")
     for name, value in parameters.items():
         where = f"parameters.{name}"
         if not isinstance(value, Mapping):
             _number(value, where)
             continue
-        _known(value, {"value", "free", "scale", "lower", "upper", "unit"}, where)
-        for key, check in (("value", _number), ("free", _bool), ("scale", _number)):
+        _known(value, {"value", "free", "scale", "lower", "upper", "unit", "per_maneuver"}, where)
+        for key, check in (
+            ("value", _number),
+            ("free", _bool),
+            ("scale", _number),
+            ("per_maneuver", _bool),
+        ):
             if key in value:
                 check(value[key], f"{where}.{key}")
         for bound in ("lower", "upper"):

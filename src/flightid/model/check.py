@@ -156,7 +156,7 @@ def _declared(model: StateSpaceModel, argument: str) -> str:
     names = {
         "x": (model.states, "state"),
         "u": (model.inputs, "input"),
-        "theta": (model.parameters.names, "parameter"),
+        "theta": (list(model.function_parameters), "parameter"),
     }[argument]
     listed = ", ".join(repr(n) for n in names[0][:12]) + (", ..." if len(names[0]) > 12 else "")
     return f"{_plural(len(names[0]), names[1])} ({listed})" if names[0] else f"no {names[1]}s"
@@ -383,7 +383,9 @@ def check_model(
             continue
         for k in _samples(t.shape[0]):
             site = _Site(i, maneuver.name or "", n_maneuvers, k, float(t[k]))
-            arguments = (t[k], x0, np.array(u[k], dtype=float), theta)
+            # f and h receive the θ of their own layout (per-maneuver parameters substituted)
+            theta_f = model.function_theta(theta, i)
+            arguments = (t[k], x0, np.array(u[k], dtype=float), theta_f)
             # y_k = h(t_k, x_k, u_k, θ), then dx/dt = f(t_k, x_k, u_k, θ), as the kernel does
             for name in checked:
                 result = _call(name, functions[name], model, arguments, site)

@@ -20,6 +20,21 @@ Output time delays: ``output_delays={"r": "tau_r"}`` delays the simulated output
 parameter ``tau_r`` (s), which can then be fixed or estimated like any parameter; the rule
 between samples is ``delay_convention`` ("fractional" or "two_sample", see
 ``flightid.simulate.simulator.apply_output_delays`` and docs/method.md, "Time delays").
+
+Input time delays: ``input_delays={"de": "tau_de"}`` feeds the model the input ``de`` at
+t − τ (τ = the parameter ``tau_de``, s): the delayed input samples ũ_k = u(t_k − τ) follow the
+same rule as a delayed output (``delay_convention``; per maneuver, end values held), and the
+integration treats ũ as the input samples (``input_interpolation`` between them); see
+``flightid.simulate.simulator.delayed_inputs``.
+
+Parameters per maneuver: ``f`` and ``h`` index θ in the order ``function_parameters``
+(default: the names of ``parameters``). A name of ``function_parameters`` that is a key of
+``maneuver_parameters`` is not itself a parameter: in maneuver k (0-based) its slot receives
+the value of the parameter ``maneuver_parameters[name][k]``. ``with_per_maneuver`` builds
+such a model from an ordinary one::
+
+    θ_f,k[s] = θ[index of maneuver_parameters[name_s][k]]   if name_s is per maneuver
+               θ[index of name_s]                            otherwise
 """
 
 from __future__ import annotations
@@ -32,13 +47,18 @@ import numpy as np
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.model.parameters import Parameters
 
-__all__ = ["StateSpaceModel", "InitialState", "DELAY_CONVENTIONS"]
+__all__ = ["StateSpaceModel", "InitialState", "DELAY_CONVENTIONS", "per_maneuver_name"]
 
 InitialState = Sequence[float | str]
 # how a delayed output is formed between samples (flightid.simulate.simulator):
 # "fractional": s(t_k − τ), linear between the bracketing samples, any τ;
 # "two_sample": the reference's rule (τ/dt)·s_{k−1} + (1 − τ/dt)·s_k
 DELAY_CONVENTIONS = ("fractional", "two_sample")
+
+
+def per_maneuver_name(name: str, maneuver: int) -> str:
+    """Name of the copy of parameter ``name`` for maneuver number ``maneuver`` (1-based)."""
+    return f"{name}_{maneuver}"
 
 
 def _names(values: Sequence[str], argument: str) -> tuple[str, ...]:
@@ -70,7 +90,17 @@ class StateSpaceModel:
         output_delays: ``{output name: parameter name}``: the simulated output is delayed by
             that parameter's value (s); default none.
         delay_convention: ``"fractional"`` (default) or ``"two_sample"`` (the reference's
-            rule); see ``flightid.simulate.simulator.apply_output_delays``.
+            rule); see ``flightid.simulate.simulator.apply_output_delays``. It applies to
+            output and input delays alike.
+        input_delays: ``{input name: parameter name}``: the model receives that input at
+            t − τ, τ = the parameter's value (s); default none
+            (``flightid.simulate.simulator.delayed_inputs``).
+        function_parameters: names, in the order in which ``f`` and ``h`` index θ; default
+            the names of ``parameters``. Every name is a parameter or a key of
+            ``maneuver_parameters``.
+        maneuver_parameters: ``{name: (parameter of maneuver 1, of maneuver 2, ...)}``: the
+            slot ``name`` of the θ that f and h receive takes, in each maneuver, the value of
+            that maneuver's parameter; default none. See ``with_per_maneuver``.
     """
 
     states: tuple[str, ...]
@@ -83,6 +113,9 @@ class StateSpaceModel:
     name: str = "model"
     output_delays: dict[str, str] | None = None  # a dict ({} for none) after __post_init__
     delay_convention: str = "fractional"
+    input_delays: dict[str, str] | None = None  # a dict ({} for none) after __post_init__
+    function_parameters: tuple[str, ...] | None = None  # a tuple after __post_init__
+    maneuver_parameters: dict[str, tuple[str, ...]] | None = None  # a dict after
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "states", _names(self.states, "states"))
@@ -108,6 +141,7 @@ class StateSpaceModel:
                 )
         if not isinstance(self.parameters, Parameters):
             object.__setattr__(self, "parameters", Parameters(self.parameters))
+        self._check_maneuver_parameters()
         x0 = self.x0 if len(self.x0) else (0.0,) * len(self.states)
         if _is_per_maneuver(x0):
             checked = tuple(tuple(self._check_x0(spec, i)) for i, spec in enumerate(x0))
@@ -118,29 +152,40 @@ class StateSpaceModel:
 
     # ----------------------------------------------------------------- output delays
     def _check_delays(self) -> None:
-        delays = {} if self.output_delays is None else self.output_delays
-        if not isinstance(delays, dict):
-            raise InputTypeError(
-                f"output_delays: expected a mapping {{output name: parameter name}}, "
-                f"got {describe(delays)}"
-            )
-        for output, parameter in delays.items():
-            if output not in self.outputs:
-                raise InputError(
-                    f"output_delays: {output!r} is not an output of the model; "
-                    f"outputs: {list(self.outputs)}"
+        for argument, channels, kind, other in (
+            ("output_delays", self.outputs, "output", self.inputs),
+            ("input_delays", self.inputs, "input", self.outputs),
+        ):
+            delays = getattr(self, argument)
+            delays = {} if delays is None else delays
+            if not isinstance(delays, dict):
+                raise InputTypeError(
+                    f"{argument}: expected a mapping {{{kind} name: parameter name}}, "
+                    f"got {describe(delays)}"
                 )
-            if not isinstance(parameter, str) or parameter not in self.parameters:
-                raise InputError(
-                    f"output_delays[{output!r}]: expected the name of a parameter (the delay "
-                    f"in s), got {describe(parameter)}; parameters: {self.parameters.names}"
-                )
+            for channel, parameter in delays.items():
+                if channel not in channels:
+                    also = (
+                        f" ({channel!r} is an {'input' if kind == 'output' else 'output'}: "
+                        f"use {'input' if kind == 'output' else 'output'}_delays)"
+                        if channel in other
+                        else ""
+                    )
+                    raise InputError(
+                        f"{argument}: {channel!r} is not an {kind} of the model{also}; "
+                        f"{kind}s: {list(channels)}"
+                    )
+                if not isinstance(parameter, str) or parameter not in self.parameters:
+                    raise InputError(
+                        f"{argument}[{channel!r}]: expected the name of a parameter (the delay "
+                        f"in s), got {describe(parameter)}; parameters: {self.parameters.names}"
+                    )
+            object.__setattr__(self, argument, dict(delays))
         if self.delay_convention not in DELAY_CONVENTIONS:
             raise InputError(
                 f"delay_convention: expected one of {list(DELAY_CONVENTIONS)}, "
                 f"got {describe(self.delay_convention)}"
             )
-        object.__setattr__(self, "output_delays", dict(delays))
 
     def output_delay_maps(self) -> list[tuple[int, int]]:
         """(output index, parameter index) of every delayed output, in output order."""
@@ -149,6 +194,162 @@ class StateSpaceModel:
             for o in self.outputs
             if o in self.output_delays
         ]
+
+    def input_delay_maps(self) -> list[tuple[int, int]]:
+        """(input index, parameter index) of every delayed input, in input order."""
+        return [
+            (self.inputs.index(i), self.parameters.index(self.input_delays[i]))
+            for i in self.inputs
+            if i in self.input_delays
+        ]
+
+    # ----------------------------------------------------------------- per-maneuver θ
+    def _check_maneuver_parameters(self) -> None:
+        names = self.parameters.names
+        layout = names if self.function_parameters is None else self.function_parameters
+        layout = _names(layout, "function_parameters")
+        per = {} if self.maneuver_parameters is None else self.maneuver_parameters
+        if not isinstance(per, dict):
+            raise InputTypeError(
+                f"maneuver_parameters: expected a mapping {{name: (parameter of maneuver 1, "
+                f"...)}}, got {describe(per)}"
+            )
+        counts = set()
+        checked: dict[str, tuple[str, ...]] = {}
+        for name, copies in per.items():
+            where = f"maneuver_parameters[{name!r}]"
+            if name not in layout:
+                raise InputError(
+                    f"{where}: {name!r} is not one of the function parameters {list(layout)}"
+                )
+            if name in self.parameters:
+                raise InputError(
+                    f"{where}: {name!r} is also a parameter; a per-maneuver slot takes its "
+                    f"values from its copies only"
+                )
+            copies = _names(copies, where)
+            if not copies:
+                raise InputError(f"{where}: expected one parameter name per maneuver, got none")
+            for copy in copies:
+                if copy not in self.parameters:
+                    raise InputError(f"{where}: {copy!r} is not a parameter; parameters: {names}")
+            counts.add(len(copies))
+            checked[name] = copies
+        if len(counts) > 1:
+            raise InputError(
+                f"maneuver_parameters: every entry needs the same number of maneuvers, got "
+                f"{ {k: len(v) for k, v in checked.items()} }"
+            )
+        missing = [n for n in layout if n not in checked and n not in self.parameters]
+        if missing:
+            raise InputError(
+                f"function_parameters: {missing} are neither parameters nor per-maneuver "
+                f"entries; parameters: {names}"
+            )
+        object.__setattr__(self, "function_parameters", layout)
+        object.__setattr__(self, "maneuver_parameters", checked)
+        for k in range(max(self.n_parameter_maneuvers, 1)):
+            slots = self.function_theta_map(k)
+            if np.unique(slots).size != slots.size:
+                fed = [n for n, i in zip(layout, slots, strict=True) if (slots == i).sum() > 1]
+                raise InputError(
+                    f"maneuver_parameters: in maneuver {k + 1} one parameter feeds several "
+                    f"slots of θ {fed}; each parameter may feed one slot per maneuver"
+                )
+
+    @property
+    def n_parameter_maneuvers(self) -> int:
+        """Number of maneuvers the per-maneuver parameters are given for (0: none)."""
+        per = self.maneuver_parameters
+        return len(next(iter(per.values()))) if per else 0
+
+    def function_theta_map(self, maneuver: int = 0) -> np.ndarray:
+        """Indices into θ (the full parameter vector) of every slot of the θ that f and h
+        receive in maneuver number ``maneuver`` (0-based): θ_f = θ[map]."""
+        per = self.maneuver_parameters
+        if per and not 0 <= maneuver < self.n_parameter_maneuvers:
+            raise InputError(
+                f"maneuver: the model gives per-maneuver parameters for "
+                f"{self.n_parameter_maneuvers} maneuvers, asked for number {maneuver}"
+            )
+        # θ_f[s] = θ[copy of maneuver k] for a per-maneuver slot, θ[name] otherwise
+        return np.array(
+            [
+                self.parameters.index(per[n][maneuver] if n in per else n)
+                for n in self.function_parameters
+            ],
+            dtype=np.int64,
+        )
+
+    @property
+    def substitutes_parameters(self) -> bool:
+        """True if f and h receive another θ than the full parameter vector."""
+        return bool(self.maneuver_parameters) or (
+            list(self.function_parameters) != self.parameters.names
+        )
+
+    def function_theta(self, theta: np.ndarray | None = None, maneuver: int = 0) -> np.ndarray:
+        """The θ that f and h receive in maneuver ``maneuver`` (0-based) for the full vector
+        ``theta`` (default: the parameters' values)."""
+        theta = self.parameters.values if theta is None else np.asarray(theta, dtype=float)
+        if not self.substitutes_parameters:
+            return theta
+        return theta[self.function_theta_map(maneuver)]
+
+    def with_per_maneuver(self, names: Sequence[str], n_maneuvers: int) -> StateSpaceModel:
+        """Copy in which each parameter of ``names`` becomes one parameter per maneuver,
+        ``NAME_1`` … ``NAME_n`` (start value, free, scale, bounds and unit of ``NAME``).
+
+        The parameters become: the others in their order, then the copies in maneuver-major
+        order (all copies of maneuver 1 in parameter order, then maneuver 2, ...). f and h
+        still index θ as before (``function_parameters``). With ``n_maneuvers == 1`` the
+        model is returned unchanged.
+        """
+        names = list(_names(names, "names"))
+        unknown = [n for n in names if n not in self.parameters]
+        if unknown:
+            raise InputError(
+                f"names: {unknown} are not parameters of the model; parameters: "
+                f"{self.parameters.names}"
+            )
+        if isinstance(n_maneuvers, bool) or not isinstance(n_maneuvers, (int, np.integer)):
+            raise InputTypeError(f"n_maneuvers: expected an integer, got {describe(n_maneuvers)}")
+        if n_maneuvers < 1:
+            raise InputError(f"n_maneuvers: expected at least 1, got {n_maneuvers}")
+        if n_maneuvers == 1 or not names:
+            return self
+        if self.maneuver_parameters:
+            raise InputError(
+                "names: the model already has per-maneuver parameters "
+                f"{list(self.maneuver_parameters)}; expand all of them in one call"
+            )
+        used = [
+            n
+            for n in names
+            if n in (self.output_delays or {}).values()
+            or n in (self.input_delays or {}).values()
+            or any(n in spec for spec in (self.x0 if self.per_maneuver_x0 else (self.x0,)))
+        ]
+        if used:
+            raise InputError(
+                f"names: {used} are time delays or initial states; only parameters that f and "
+                f"h read can be per maneuver"
+            )
+        # parameters: the others in order, then maneuver-major copies
+        chosen = [p for p in self.parameters if p.name in names]
+        parameters = [p for p in self.parameters if p.name not in names]
+        for k in range(1, n_maneuvers + 1):
+            parameters += [replace(p, name=per_maneuver_name(p.name, k)) for p in chosen]
+        per = {
+            p.name: tuple(per_maneuver_name(p.name, k) for k in range(1, n_maneuvers + 1))
+            for p in chosen
+        }
+        return replace(
+            self,
+            parameters=Parameters(parameters),
+            function_parameters=self.function_parameters,
+            maneuver_parameters=per,
+        )
 
     # ----------------------------------------------------------------- initial state
     def _check_x0(self, spec: InitialState, maneuver: int | None) -> list:

@@ -2,6 +2,12 @@
 
 One call of ``outputs`` for a batch of B parameter vectors performs B system integrations
 (B "equivalent evaluations" in the paper's accounting, RP-1153 §6); the simulator counts them.
+
+Per maneuver k the simulator hands f and h the θ of the model's function layout,
+θ_f = θ[``model.function_theta_map(k)``] (per-maneuver parameters), the initial state from
+the full θ, and the inputs of that maneuver — delayed per batch row where the model has
+``input_delays`` (``delayed_inputs``); output delays act on the finished outputs
+(``apply_output_delays``).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ __all__ = [
     "check_input_interpolation",
     "delay_weights",
     "apply_output_delays",
+    "delayed_inputs",
 ]
 
 _METHODS = {"euler": EULER, "rk4": RK4}
@@ -111,6 +118,28 @@ def apply_output_delays(
     return outputs
 
 
+def delayed_inputs(
+    model: StateSpaceModel, t: np.ndarray, u: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """One maneuver's input samples ``u`` (N, n_u) at times ``t`` (s) with the model's
+    ``input_delays`` applied for the full parameter vector ``theta``.
+
+    A delayed channel becomes ũ_k = u(t_k − τ) by the rule of ``delay_weights`` (the model's
+    ``delay_convention``: "fractional", linear between the samples that bracket t_k − τ, any
+    sign and size, the maneuver's first / last sample held outside it; or "two_sample"). Only
+    this maneuver's samples are used. The integration then treats ũ as the input samples.
+    """
+    maps = model.input_delay_maps()
+    if not maps:
+        return u
+    out = np.array(u, dtype=float, copy=True)
+    for j, p in maps:
+        i1, i0, c, _ = delay_weights(t, float(theta[p]), model.delay_convention)
+        # ũ_k = u[i1_k] + c_k·(u[i0_k] − u[i1_k])
+        out[:, j] = u[i1, j] + c * (u[i0, j] - u[i1, j])
+    return np.ascontiguousarray(out)
+
+
 # Kernels are kept per (f, h) pair so that repeated estimations in a process reuse them
 # (across processes the compiled code is kept on disk: flightid.simulate.cache).
 _KERNEL_CACHE: dict[tuple, tuple] = {}
@@ -173,6 +202,13 @@ class Simulator:
                 f"data: the model gives initial states for {len(model.x0)} maneuvers, "
                 f"but {len(self.maneuvers)} were given"
             )
+        n_per = model.n_parameter_maneuvers
+        if n_per and n_per != len(self.maneuvers):
+            raise InputError(
+                f"data: the model gives per-maneuver parameters "
+                f"{list(model.maneuver_parameters)} for {n_per} maneuvers, but "
+                f"{len(self.maneuvers)} were given"
+            )
         self._times = []
         self._inputs = []
         for i, maneuver in enumerate(self.maneuvers):
@@ -196,6 +232,11 @@ class Simulator:
             self._inputs.append(np.ascontiguousarray(u, dtype=float))
         self._x0_maps = [
             model.initial_state_maps(i if model.per_maneuver_x0 else 0)
+            for i in range(len(self.maneuvers))
+        ]
+        # θ_f = θ[map]: the θ that f and h receive in each maneuver (None: θ itself)
+        self._theta_maps = [
+            model.function_theta_map(i) if model.substitutes_parameters else None
             for i in range(len(self.maneuvers))
         ]
         self._kernel, self.compiled = self._get_kernel(compiled)
@@ -224,8 +265,9 @@ class Simulator:
 
     def _try_compile(self, kernel):
         """Run the compiled kernel once on the first samples; fall back to Python on failure."""
-        theta = self.model.parameters.values[None, :]
-        x0 = self.model.initial_state(theta[0], 0)[None, :]
+        full = self.model.parameters.values
+        theta = self.model.function_theta(full, 0)[None, :]
+        x0 = self.model.initial_state(full, 0)[None, :]
         n = min(3, self._times[0].shape[0])
         y = np.empty((1, n, len(self.model.outputs)))
         flag = np.empty(1, dtype=np.int64)
@@ -279,25 +321,36 @@ class Simulator:
         diverged = np.zeros(n_batch, dtype=bool)
         messages = [""] * n_batch
         start = 0
-        for i, (t, u, (constants, index)) in enumerate(
-            zip(self._times, self._inputs, self._x0_maps, strict=True)
+        for i, (t, u, (constants, index), theta_map) in enumerate(
+            zip(self._times, self._inputs, self._x0_maps, self._theta_maps, strict=True)
         ):
             x0s = np.repeat(constants[None, :], n_batch, axis=0)
             mask = index >= 0
             x0s[:, mask] = thetas[:, index[mask]]
+            x0s = np.ascontiguousarray(x0s)
+            # θ_f = θ[map]: per-maneuver parameters substituted into the θ of f and h
+            f_thetas = thetas if theta_map is None else np.ascontiguousarray(thetas[:, theta_map])
             block = np.empty((n_batch, t.shape[0], n_out))
             flag = np.empty(n_batch, dtype=np.int64)
-            self._kernel(
-                thetas,
-                np.ascontiguousarray(x0s),
-                t,
-                u,
-                _METHODS[self.method],
-                self._interpolation,
-                n_out,
-                block,
-                flag,
-            )
+            # rows that share their input delays share one delayed input matrix
+            for rows, u_rows in self._input_groups(t, u, thetas):
+                whole = rows.size == n_batch
+                sub_block = block if whole else np.empty((rows.size, t.shape[0], n_out))
+                sub_flag = flag if whole else np.empty(rows.size, dtype=np.int64)
+                self._kernel(
+                    f_thetas if whole else np.ascontiguousarray(f_thetas[rows]),
+                    x0s if whole else np.ascontiguousarray(x0s[rows]),
+                    t,
+                    u_rows,
+                    _METHODS[self.method],
+                    self._interpolation,
+                    n_out,
+                    sub_block,
+                    sub_flag,
+                )
+                if not whole:
+                    block[rows] = sub_block
+                    flag[rows] = sub_flag
             outputs[:, start : start + t.shape[0]] = block
             for b in np.flatnonzero(flag >= 0):
                 if not diverged[b]:
@@ -312,6 +365,19 @@ class Simulator:
         self.evaluations += n_batch
         return SimulationBatch(outputs, diverged, tuple(messages))
 
+    def _input_groups(self, t: np.ndarray, u: np.ndarray, thetas: np.ndarray):
+        """(rows, inputs) pairs: the batch rows that share one set of input delays, and that
+        maneuver's inputs delayed by them (all rows and ``u`` itself without input delays)."""
+        maps = self.model.input_delay_maps()
+        if not maps:
+            yield np.arange(thetas.shape[0]), u
+            return
+        taus = thetas[:, [p for _, p in maps]]
+        unique, inverse = np.unique(taus, axis=0, return_inverse=True)
+        for g in range(unique.shape[0]):
+            rows = np.flatnonzero(inverse.ravel() == g)
+            yield rows, delayed_inputs(self.model, t, u, thetas[rows[0]])
+
     def run_with_sensitivities(
         self,
         theta: np.ndarray,
@@ -325,7 +391,9 @@ class Simulator:
 
         ``steps`` are the finite-difference steps of the free parameters in the Jacobians.
         Counts 1 + n_s + n_f equivalent evaluations (the calls of f per stage, relative to a
-        plain integration). Raises ``SimulationError`` if the trajectory becomes non-finite.
+        plain integration), plus 2 per free input-delay parameter (its column comes from
+        central differences, ``_input_delay_columns``). Raises ``SimulationError`` if the
+        trajectory becomes non-finite.
         """
         from flightid.simulate.sensitivity import make_sensitivity_kernel
 
@@ -340,8 +408,8 @@ class Simulator:
         outputs = np.empty((self.n_samples, n_out))
         g = np.empty((self.n_samples, n_out, free_index.size))
         start = 0
-        for i, (t, u, (constants, index)) in enumerate(
-            zip(self._times, self._inputs, self._x0_maps, strict=True)
+        for i, (t, u, (constants, index), theta_map) in enumerate(
+            zip(self._times, self._inputs, self._x0_maps, self._theta_maps, strict=True)
         ):
             x0 = constants.copy()
             mask = index >= 0
@@ -350,17 +418,18 @@ class Simulator:
             s0 = np.zeros((n_states, free_index.size))
             for state, parameter in enumerate(index):
                 s0[state, free_index == parameter] = 1.0
+            f_theta, f_free = self._function_free(theta, free_index, theta_map)
             y_block = np.empty((t.shape[0], n_out))
             g_block = np.empty((t.shape[0], n_out, free_index.size))
             flag = kernel(
-                theta,
+                f_theta,
                 x0,
                 s0,
-                free_index,
+                f_free,
                 np.asarray(steps, dtype=float),
                 relative_step,
                 t,
-                u,
+                delayed_inputs(self.model, t, u, theta),
                 _METHODS[self.method],
                 self._interpolation,
                 n_out,
@@ -386,7 +455,57 @@ class Simulator:
             g[start : start + t.shape[0]] = g_block
             start += t.shape[0]
         self.evaluations += 1 + n_states + int(free_index.size)
+        self._input_delay_columns(theta, free_index, g)
         return outputs, g
+
+    @staticmethod
+    def _function_free(
+        theta: np.ndarray, free_index: np.ndarray, theta_map: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """θ_f and the free indices into it for the sensitivity kernel of one maneuver.
+
+        With per-maneuver parameters θ_f = (θ[map], 0): a free parameter that f and h do not
+        read in this maneuver (another maneuver's copy) points at the appended dummy slot,
+        whose Jacobian columns are zero, so its sensitivity there comes from S(t0) alone.
+        """
+        if theta_map is None:
+            return theta, free_index
+        dummy = theta_map.size
+        f_theta = np.append(theta[theta_map], 0.0)
+        slot = {int(p): s for s, p in enumerate(theta_map)}
+        f_free = np.array([slot.get(int(p), dummy) for p in free_index], dtype=np.int64)
+        return f_theta, f_free
+
+    def _input_delay_columns(self, theta: np.ndarray, free_index: np.ndarray, g: np.ndarray):
+        """Replace, in ``g`` (N, n_o, n_f), the columns of free input-delay parameters by
+        central differences of whole simulations (2 equivalent evaluations each):
+
+            ∂y/∂τ ≈ (y(τ + δ) − y(τ − δ)) / (2δ),   δ = 0.01·min Δt
+
+        The sensitivity kernel does not see τ (f and h receive the delayed samples, not τ);
+        ũ is piecewise linear in τ with kinks only where t_k − τ crosses a sample time, so a
+        step well inside one sample interval gives its slope (docs/method.md, "Time delays").
+        """
+        columns = [
+            (int(j), p)
+            for _, p in self.model.input_delay_maps()
+            for j in np.flatnonzero(free_index == p)
+        ]
+        if not columns:
+            return
+        steps = [np.diff(t) for t in self._times if t.shape[0] > 1]
+        delta = 0.01 * min((float(np.min(d)) for d in steps), default=1.0)
+        rows = np.repeat(theta[None, :], 2 * len(columns), axis=0)
+        for c, (_, p) in enumerate(columns):
+            rows[2 * c, p] += delta
+            rows[2 * c + 1, p] -= delta
+        batch = self.run(rows)
+        if batch.diverged.any():
+            first = int(np.flatnonzero(batch.diverged)[0])
+            raise SimulationError(f"input-delay sensitivity: {batch.messages[first]}")
+        for c, (j, _) in enumerate(columns):
+            # ∂y/∂τ = (y(τ + δ) − y(τ − δ)) / (2δ)
+            g[:, :, j] = (batch.outputs[2 * c] - batch.outputs[2 * c + 1]) / (2.0 * delta)
 
     def outputs(self, theta: np.ndarray) -> np.ndarray:
         """Outputs (N_total, n_o) for one full parameter vector; raises if it diverges."""
