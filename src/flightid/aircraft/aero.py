@@ -16,8 +16,11 @@ Coefficients (body axes, stability axes):
     CD, CL      drag and lift (may replace CX, CZ; converted with α, RP-1153 2.15)
     Cl, Cm, Cn  rolling, pitching and yawing moment coefficients
 
-Parameter names follow NASA notation: coefficient, underscore, the term's signals joined by
-underscores with powers appended — ``Cl`` × ``"beta"`` → ``Cl_beta`` (C_lβ),
+A coefficient may also be given as a mapping ``{parameter name: term}``, which names the
+parameters as a reference case does: ``{"CD": {"CD0": "1", "CDV": "Vrel", "CDa": "alpha"}}``.
+
+Parameter names otherwise follow NASA notation: coefficient, underscore, the term's signals
+joined by underscores with powers appended — ``Cl`` × ``"beta"`` → ``Cl_beta`` (C_lβ),
 ``CY`` × ``"alpha*beta"`` → ``CY_alpha_beta`` (C_Yαβ), ``CY`` × ``"beta^3"`` → ``CY_beta3``
 (C_Yβ³), ``Cn`` × ``"1"`` → ``Cn_0``. A spline factor is written as its signal, ``_s`` and the
 knot with "." as "p" and "-" as "m": ``CL`` × ``"spline1(alpha,0.15)"`` → ``CL_alpha_s0p15``
@@ -39,7 +42,7 @@ import numpy as np
 
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.model.parameters import Parameter, Parameters
-from flightid.model.terms import Spline, Term, TermError, parse_terms
+from flightid.model.terms import Abs, Spline, Term, TermError, parse_terms
 
 __all__ = ["AeroModel", "AeroTables", "COEFFICIENTS", "parameter_name"]
 
@@ -64,7 +67,8 @@ class AeroTables:
     factor_start     factors of term k are entries factor_start[k] : factor_start[k+1]
     factor_signal    signal index of each factor
     factor_power     integer power of each factor
-    factor_spline    1 if the factor is the spline (x − knot)₊ of its signal, 0 if the signal
+    factor_spline    1 if the factor is the spline (x − knot)₊ of its signal, 2 if it is the
+                     absolute value |x|, 0 if the signal
     factor_knot      the spline's knot (0 for plain signals), signal units
     """
 
@@ -83,21 +87,37 @@ class AeroModel:
     Args:
         coefficients: mapping ``{coefficient: [term, ...]}``, e.g.
             ``{"Cl": ["1", "beta", "phat", "rhat", "da", "dr", "alpha*phat"]}``; terms are
-            strings of the term language or ``Term`` objects.
+            strings of the term language or ``Term`` objects. A coefficient given as a
+            mapping ``{parameter name: term}`` names its parameters (default: NASA names).
 
     Raises:
-        InputError: unknown coefficient, CX/CZ mixed with CD/CL, or an empty term list.
+        InputError: unknown coefficient, CX/CZ mixed with CD/CL, an empty term list, or a
+            parameter name that is not an identifier or is used twice.
         TermError: a malformed or repeated term.
     """
 
-    def __init__(self, coefficients: Mapping[str, Sequence[str | Term]]) -> None:
+    def __init__(
+        self, coefficients: Mapping[str, Sequence[str | Term] | Mapping[str, str | Term]]
+    ) -> None:
         if not isinstance(coefficients, Mapping):
             raise InputTypeError(
                 "coefficients: expected a mapping {coefficient: [terms]}, "
                 f"got {describe(coefficients)}"
             )
         parsed: dict[str, tuple[Term, ...]] = {}
+        names: dict[tuple[str, str], str] = {}
         for name, terms in coefficients.items():
+            if isinstance(terms, Mapping):
+                for pname in terms:
+                    if not isinstance(pname, str) or not pname.isidentifier():
+                        raise InputError(
+                            f"coefficients[{name!r}]: parameter names must be identifiers, "
+                            f"got {describe(pname)}"
+                        )
+                labels = list(terms)
+                terms = list(terms.values())
+            else:
+                labels = None
             if name not in COEFFICIENTS:
                 raise InputError(
                     f"coefficients: unknown coefficient {name!r}; expected one of {COEFFICIENTS}"
@@ -110,6 +130,9 @@ class AeroModel:
             if not texts:
                 raise InputError(f"coefficients[{name!r}]: expected at least one term, got none")
             parsed[name] = tuple(parse_terms(texts))
+            if labels is not None:
+                for pname, term in zip(labels, parsed[name], strict=True):
+                    names[(name, term.label)] = pname
         body = {"CX", "CZ"} & set(parsed)
         wind = {"CD", "CL"} & set(parsed)
         if body and wind:
@@ -118,6 +141,11 @@ class AeroModel:
                 f"drag and lift (CD, CL), not both; got {sorted(body | wind)}"
             )
         self._terms = parsed
+        self._names = names
+        all_names = self.parameter_names
+        repeated = sorted({n for n in all_names if all_names.count(n) > 1})
+        if repeated:
+            raise InputError(f"coefficients: parameter names used twice: {repeated}")
 
     # ------------------------------------------------------------------ views
     @property
@@ -131,10 +159,15 @@ class AeroModel:
             )
         return self._terms[coefficient]
 
+    def parameter_name(self, coefficient: str, term: Term) -> str:
+        """The name of the parameter of ``term`` in ``coefficient``: the one given, else the
+        NASA-style ``parameter_name``."""
+        return self._names.get((coefficient, term.label), parameter_name(coefficient, term))
+
     @property
     def parameter_names(self) -> list[str]:
         """Parameter names in model order (coefficients as given, terms as given)."""
-        return [parameter_name(c, t) for c, terms in self._terms.items() for t in terms]
+        return [self.parameter_name(c, t) for c, terms in self._terms.items() for t in terms]
 
     @property
     def signals(self) -> tuple[str, ...]:
@@ -147,9 +180,17 @@ class AeroModel:
         return tuple(seen)
 
     @property
-    def spec(self) -> dict[str, list[str]]:
-        """The model as ``{coefficient: [term text, ...]}`` (canonical term labels)."""
-        return {c: [t.label for t in terms] for c, terms in self._terms.items()}
+    def spec(self) -> dict[str, list[str] | dict[str, str]]:
+        """The model as ``{coefficient: [term text, ...]}`` (canonical term labels), or
+        ``{coefficient: {parameter name: term text}}`` where the names were given."""
+        return {
+            c: (
+                {self.parameter_name(c, t): t.label for t in terms}
+                if any((c, t.label) in self._names for t in terms)
+                else [t.label for t in terms]
+            )
+            for c, terms in self._terms.items()
+        }
 
     def __add__(self, other: AeroModel) -> AeroModel:
         """Union of two models with different coefficients (e.g. longitudinal + lateral)."""
@@ -163,7 +204,9 @@ class AeroModel:
     def __repr__(self) -> str:
         inner = "; ".join(
             f"{c} = "
-            + " + ".join(parameter_name(c, t) + ("" if t.is_constant else f"·{t}") for t in terms)
+            + " + ".join(
+                self.parameter_name(c, t) + ("" if t.is_constant else f"·{t}") for t in terms
+            )
             for c, terms in self._terms.items()
         )
         return f"AeroModel({inner})"
@@ -200,7 +243,7 @@ class AeroModel:
         factor_signal, factor_power, factor_spline, factor_knot = [], [], [], []
         for coefficient, terms in self._terms.items():
             for term in terms:
-                pname = parameter_name(coefficient, term)
+                pname = self.parameter_name(coefficient, term)
                 if pname not in parameters:
                     raise InputError(
                         f"parameters: the aerodynamic model needs a parameter {pname!r}; "
@@ -208,7 +251,7 @@ class AeroModel:
                     )
                 for key, power in term.factors:
                     spline = isinstance(key, Spline)
-                    name = key.signal if spline else key
+                    name = key.signal if isinstance(key, (Spline, Abs)) else key
                     if name not in signal_index:
                         raise TermError(
                             f"coefficient {coefficient!r}, term {term.label!r}: unknown signal "
@@ -216,7 +259,8 @@ class AeroModel:
                         )
                     factor_signal.append(signal_index[name])
                     factor_power.append(power)
-                    factor_spline.append(1 if spline else 0)
+                    # 1: spline (x − knot)₊, 2: |x|, 0: the signal
+                    factor_spline.append(1 if spline else 2 if isinstance(key, Abs) else 0)
                     factor_knot.append(key.knot if spline else 0.0)
                 term_coef.append(COEFFICIENTS.index(coefficient))
                 term_param.append(parameters.index(pname))
@@ -244,6 +288,6 @@ class AeroModel:
         """Coefficient time histories {coefficient: C(t)} for parameter values by name."""
         out = {}
         for coefficient, terms in self._terms.items():
-            theta = np.array([values[parameter_name(coefficient, t)] for t in terms])
+            theta = np.array([values[self.parameter_name(coefficient, t)] for t in terms])
             out[coefficient] = self.regressors(coefficient, signals) @ theta
         return out

@@ -30,8 +30,29 @@ Forces from the coefficients, thrust T inclined α_T above the body x axis [2.14
 
 (a model gives either C_X, C_Z or C_D, C_L; the absent ones are zero).
 
+Thrust moment and engine (``engine_loads``; Airplane docstring): M += l_T T; a rotor of
+angular momentum h_E along body x adds −ω × h_E, i.e. M −= r h_E, N += q h_E; the propeller
+shaft torque Q adds the rolling moment L −= s Q.
+
 Outputs [2.19–2.26]: V = √(u²+v²+w²), α = atan(w/u), β = asin(v/V), Θ = asin(−l_xz),
-Φ = atan(l_yz/l_zz) (four-quadrant), a_x,y,z = (X, Y, Z)/(m g) in g units, p, q, r.
+Φ = atan(l_yz/l_zz) (four-quadrant), a_x,y,z = (X, Y, Z)/(m g) in g units, p, q, r, and the
+angular accelerations ṗ, q̇, ṙ (rad/s², the right-hand sides [2.8–2.10]).
+
+Signals of the aerodynamic terms (``SIGNALS``): besides the state variables, the
+non-dimensional rates p̂ = p b/(2V_n), q̂ = q c̄/(2V_n), r̂ = r b/(2V_n), α̇̂ = α̇ c̄/(2V_n),
+β̇̂ = β̇ b/(2V_n), with V_n = V (default) or the reference speed V0 (``rate_speed = "V0"``),
+and the speed ratios V/V0 (``Vrel``) and (V − V0)/V0 (``dVrel``).
+
+α̇ and β̇ terms make the equations implicit: the coefficients depend on α̇ = (u ẇ − w u̇)/(u²+w²)
+and β̇ = (v̇ (u²+w²) − v (u u̇ + w ẇ))/(V² √(u²+w²)), which depend on the forces. The terms are
+linear in α̇̂ and β̇̂ (power 1, enforced), so every derivative is affine in (α̇, β̇):
+D = D0 + α̇ D_α + β̇ D_β, with D0 the derivatives at α̇ = β̇ = 0 and D_α, D_β the responses
+to a unit rate. The kinematic relations then give the 2×2 linear system
+
+    (1 − a_α) α̇ − a_β β̇ = a_0,   −b_α α̇ + (1 − b_β) β̇ = b_0
+
+(a_•, b_• the kinematic α̇, β̇ of D0, D_α, D_β), solved in closed form (Cramer) in
+``solve_rate_terms``; the wind-axis form has α̇ = D[1] directly: α̇ = D0[1]/(1 − D_α[1]).
 
 Wind-axis longitudinal form (states V, α, Θ, q; β = Φ = p = r = 0), obtained from the body
 equations with u = V cos α, w = V sin α:
@@ -75,6 +96,11 @@ __all__ = [
     "rigid_body_derivatives",
     "body_outputs",
     "wind_axis_derivatives",
+    "EXTRA_CONSTANTS",
+    "engine_loads",
+    "alpha_rate",
+    "beta_rate",
+    "solve_rate_terms",
     "ALPHA_Q_INPUTS",
     "ALPHA_Q_OUTPUTS",
     "alpha_q_signals",
@@ -87,22 +113,33 @@ BODY_STATES = ("u", "v", "w", "p", "q", "r", "l_xz", "l_yz", "l_zz")
 # Standard signals available to aerodynamic terms; model inputs not listed here follow them.
 SIGNALS = (
     "V", "alpha", "beta", "u", "v", "w", "p", "q", "r", "phat", "qhat", "rhat", "theta", "phi",
+    "Vrel", "dVrel", "alphadot_hat", "betadot_hat",
 )  # fmt: skip
 N_STANDARD_SIGNALS = len(SIGNALS)
+# positions of α̇̂ and β̇̂ in the signal vector
+ALPHADOT_SIGNAL = SIGNALS.index("alphadot_hat")
+BETADOT_SIGNAL = SIGNALS.index("betadot_hat")
 # Full output vector, in order; models pick a subset.
-OUTPUTS = ("V", "alpha", "beta", "theta", "phi", "ax", "ay", "az", "p", "q", "r")
+OUTPUTS = (
+    "V", "alpha", "beta", "theta", "phi", "ax", "ay", "az", "p", "q", "r", "pdot", "qdot", "rdot",
+)  # fmt: skip
 # Measured inputs of the α–q form, first in its input vector (controls follow), and its outputs.
 ALPHA_Q_INPUTS = ("V", "qbar", "theta", "phi", "ax", "p", "r")
 ALPHA_Q_OUTPUTS = ("alpha", "q", "az")
 # Constant vector layout (closed over by the model functions).
 CONSTANTS = ("mass", "Ix", "Iy", "Iz", "Ixz", "S", "b", "cbar", "rho", "g", "alpha_T")
+# Second constant vector: thrust moment arm l_T (m), reference speed V0 (m/s, 0 if none),
+# 1 if the rates are normalised with V0 (else V), rotor sense s (±1), constant I_p Ω (kg·m²/s).
+EXTRA_CONSTANTS = ("thrust_arm", "V0", "rate_speed_V0", "rotation", "engine_momentum")
 
 
 @register_jitable
-def signals_from_body(X, U, extra_input, b, cbar):
-    """Signal vector (see ``SIGNALS``) from the body state X and the input vector U."""
+def signals_from_body(X, U, extra_input, b, cbar, V0, rate_V0):
+    """Signal vector (see ``SIGNALS``) from the body state X and the input vector U; the
+    rates are normalised with V_n = V0 where ``rate_V0`` is 1, else V; α̇̂ = β̇̂ = 0 (set by
+    ``solve_rate_terms``)."""
     n_extra = extra_input.shape[0]
-    sig = np.empty(14 + n_extra)
+    sig = np.zeros(18 + n_extra)
     u = X[0]
     v = X[1]
     w = X[2]
@@ -119,15 +156,21 @@ def signals_from_body(X, U, extra_input, b, cbar):
     sig[6] = X[3]
     sig[7] = X[4]
     sig[8] = X[5]
-    # p̂ = p b/2V, q̂ = q c̄/2V, r̂ = r b/2V
-    sig[9] = X[3] * b / (2.0 * V)
-    sig[10] = X[4] * cbar / (2.0 * V)
-    sig[11] = X[5] * b / (2.0 * V)
+    # V_n = V0 (rate_speed = "V0") or V
+    Vn = V0 if rate_V0 > 0.5 else V
+    # p̂ = p b/2V_n, q̂ = q c̄/2V_n, r̂ = r b/2V_n
+    sig[9] = X[3] * b / (2.0 * Vn)
+    sig[10] = X[4] * cbar / (2.0 * Vn)
+    sig[11] = X[5] * b / (2.0 * Vn)
     # Θ = asin(−l_xz), Φ = atan(l_yz/l_zz)                           [2.22–2.23]
     sig[12] = math.asin(max(-1.0, min(1.0, -X[6])))
     sig[13] = math.atan2(X[7], X[8])
+    if V0 > 0.0:
+        # V/V0 and (V − V0)/V0
+        sig[14] = V / V0
+        sig[15] = (V - V0) / V0
     for j in range(n_extra):
-        sig[14 + j] = U[extra_input[j]]
+        sig[18 + j] = U[extra_input[j]]
     return sig
 
 
@@ -139,7 +182,8 @@ def aero_coefficients(
     """Coefficient vector (CX, CY, CZ, CD, CL, Cl, Cm, Cn): C = Σ θ_k Π factor^power [2.16].
 
     The tables are those of ``flightid.aircraft.aero.AeroTables``; a factor is its signal x,
-    or the first-order spline (x − knot)₊ = max(x − knot, 0) where ``factor_spline`` is 1.
+    the first-order spline (x − knot)₊ = max(x − knot, 0) where ``factor_spline`` is 1, or
+    its absolute value |x| where it is 2.
     """
     C = np.zeros(8)
     for k in range(term_coef.shape[0]):
@@ -149,6 +193,9 @@ def aero_coefficients(
             if factor_spline[j] == 1:
                 # (x − k)₊ = max(x − k, 0)
                 x = max(x - factor_knot[j], 0.0)
+            elif factor_spline[j] == 2:
+                # |x|
+                x = abs(x)
             value *= x ** factor_power[j]
         C[term_coef[k]] += value
     return C
@@ -175,6 +222,59 @@ def forces_and_moments(C, alpha, V, thrust, consts):
     out[4] = qbar * S * consts[7] * C[6]
     out[5] = qbar * S * consts[6] * C[7]
     return out
+
+
+@register_jitable
+def engine_loads(F, X, U, thrust, torque_index, momentum_index, extra):
+    """Add the thrust moment and the engine terms to the loads F (in place; Airplane docs):
+
+    M += l_T T,   M −= r h_E,   N += q h_E,   L −= s Q,   h_E = s I_p Ω
+    """
+    # M_T = l_T T
+    F[4] += extra[0] * thrust
+    s = extra[3]
+    # h_E = s I_p Ω, constant or from an input channel
+    h = s * (U[momentum_index] if momentum_index >= 0 else extra[4])
+    # −ω × h_E with h_E = (h, 0, 0): (0, −r h, q h)
+    F[4] -= X[5] * h
+    F[5] += X[4] * h
+    if torque_index >= 0:
+        # reaction of the propeller shaft torque on the airframe: L_E = −s Q
+        F[3] -= s * U[torque_index]
+    return F
+
+
+@register_jitable
+def alpha_rate(X, D):
+    """α̇ = (u ẇ − w u̇)/(u² + w²) from the body state X and its derivative D (linear in D)."""
+    u = X[0]
+    w = X[2]
+    return (u * D[2] - w * D[0]) / (u * u + w * w)
+
+
+@register_jitable
+def beta_rate(X, D, lateral):
+    """β̇ = (v̇ (u²+w²) − v (u u̇ + w ẇ))/(V² √(u²+w²)) (linear in D); with ``lateral`` (u, w
+    measured, their derivatives unknown) the u̇, ẇ part is left out: β̇ = v̇ √(u²+w²)/V²."""
+    u = X[0]
+    v = X[1]
+    w = X[2]
+    uw2 = u * u + w * w
+    V2 = uw2 + v * v
+    if lateral:
+        return D[1] * math.sqrt(uw2) / V2
+    return (D[1] * uw2 - v * (u * D[0] + w * D[2])) / (V2 * math.sqrt(uw2))
+
+
+@register_jitable
+def solve_rate_terms(a0, a_alpha, a_beta, b0, b_alpha, b_beta):
+    """(α̇, β̇) of the linear system (1 − a_α) α̇ − a_β β̇ = a_0, −b_α α̇ + (1 − b_β) β̇ = b_0
+    (module docstring), by Cramer's rule."""
+    # det = (1 − a_α)(1 − b_β) − a_β b_α
+    det = (1.0 - a_alpha) * (1.0 - b_beta) - a_beta * b_alpha
+    alpha_dot = (a0 * (1.0 - b_beta) + a_beta * b0) / det
+    beta_dot = ((1.0 - a_alpha) * b0 + b_alpha * a0) / det
+    return alpha_dot, beta_dot
 
 
 @register_jitable
@@ -220,10 +320,10 @@ def rigid_body_derivatives(X, F, consts):
 
 
 @register_jitable
-def body_outputs(X, F, sig, consts):
-    """Full output vector (V, α, β, Θ, Φ, a_x, a_y, a_z, p, q, r) [2.19–2.26]."""
+def body_outputs(X, F, sig, consts, pdot, qdot, rdot):
+    """Full output vector (V, α, β, Θ, Φ, a_x, a_y, a_z, p, q, r, ṗ, q̇, ṙ) [2.19–2.26]."""
     mg = consts[0] * consts[9]
-    out = np.empty(11)
+    out = np.empty(14)
     out[0] = sig[0]
     out[1] = sig[1]
     out[2] = sig[2]
@@ -236,6 +336,10 @@ def body_outputs(X, F, sig, consts):
     out[8] = X[3]
     out[9] = X[4]
     out[10] = X[5]
+    # ṗ, q̇, ṙ: the right-hand sides of [2.8–2.10]
+    out[11] = pdot
+    out[12] = qdot
+    out[13] = rdot
     return out
 
 

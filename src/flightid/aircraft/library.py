@@ -115,14 +115,14 @@ def airplane_from_table(table: Mapping[str, Any]) -> Airplane:
         if "altitude" in settings and "density" not in settings:
             settings["density"] = None  # ISA density at the given altitude
         return dataclasses.replace(base, **settings)
-    missing = [
-        f.name
-        for f in dataclasses.fields(Airplane)
-        if f.default is dataclasses.MISSING and f.name not in settings
-    ]
-    if missing:
+    # every model needs mass, I_y, S, c̄; I_x, I_z, b only the lateral and 6-DOF ones
+    if any(name not in settings for name in ("mass", "Iy", "S", "cbar")):
+        missing = [
+            name for name in ("mass", "Ix", "Iy", "Iz", "S", "b", "cbar") if name not in settings
+        ]
         raise InputError(
-            f"airplane.{missing[0]}: missing; an airplane needs {missing} (SI units) or "
+            f"airplane.{missing[0]}: missing; an airplane needs {missing} (SI units; a "
+            "longitudinal-only airplane may leave out Ix, Iz, b) or "
             f"library = one of {sorted(AIRPLANES)}"
         )
     return Airplane(**settings)

@@ -33,10 +33,12 @@ from numba.extending import register_jitable
 
 from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import AeroModel
-from flightid.aircraft.airplane import Airplane
+from flightid.aircraft.airplane import Airplane, AirplaneDataError
 from flightid.aircraft.equations import (
     ALPHA_Q_INPUTS,
     ALPHA_Q_OUTPUTS,
+    ALPHADOT_SIGNAL,
+    BETADOT_SIGNAL,
     BODY_STATES,
     OUTPUTS,
     SIGNALS,
@@ -44,15 +46,20 @@ from flightid.aircraft.equations import (
     alpha_q_derivatives,
     alpha_q_outputs,
     alpha_q_signals,
+    alpha_rate,
+    beta_rate,
     body_outputs,
+    engine_loads,
     forces_and_moments,
     rigid_body_derivatives,
     signals_from_body,
+    solve_rate_terms,
     wind_axis_derivatives,
 )
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
+from flightid.model.terms import Abs, Spline
 
 __all__ = [
     "six_dof_model",
@@ -66,7 +73,7 @@ __all__ = [
 
 # Model kind → (states, measured inputs taken from the other axis, default outputs)
 _KINDS = {
-    "6dof": (BODY_STATES, (), OUTPUTS),
+    "6dof": (BODY_STATES, (), OUTPUTS[:11]),
     "longitudinal": (
         ("u", "w", "q", "l_xz", "l_yz", "l_zz"),
         ("v", "p", "r"),
@@ -84,19 +91,38 @@ DEFAULT_OUTPUTS = {kind: spec[2] for kind, spec in _KINDS.items()}
 
 
 def _constants(airplane: Airplane) -> np.ndarray:
+    """``equations.CONSTANTS`` of the airplane. A longitudinal-only airplane (no I_x, I_z, b)
+    gets I_x = I_z = I_y, I_xz = 0 and b = c̄ as placeholders: they then multiply only terms
+    that are zero or unused (the (I_z − I_x) p r coupling; the builders refuse models that
+    need b, I_x or I_z, ``_check_airplane``)."""
+    no_lateral_inertia = airplane.Ix is None
     return np.array(
         [
             airplane.mass,
-            airplane.Ix,
+            airplane.Iy if no_lateral_inertia else airplane.Ix,
             airplane.Iy,
-            airplane.Iz,
-            airplane.Ixz,
+            airplane.Iy if no_lateral_inertia else airplane.Iz,
+            0.0 if no_lateral_inertia else airplane.Ixz,
             airplane.S,
-            airplane.b,
+            airplane.cbar if airplane.b is None else airplane.b,
             airplane.cbar,
             airplane.rho,
             airplane.g,
             airplane.thrust_inclination,
+        ],
+        dtype=float,
+    )
+
+
+def _extra_constants(airplane: Airplane, reference_speed: float | None, rate_speed: str):
+    """``equations.EXTRA_CONSTANTS``: l_T, V0 (0 if none), 1 if rates use V0, s, I_p Ω."""
+    return np.array(
+        [
+            airplane.thrust_moment_arm,
+            0.0 if reference_speed is None else float(reference_speed),
+            1.0 if rate_speed == "V0" else 0.0,
+            float(airplane.rotation),
+            airplane.engine_momentum,
         ],
         dtype=float,
     )
@@ -129,12 +155,66 @@ def body_state_from(x, u, src_state, src_input, wind_index):
 
 
 @register_jitable
-def _loads(X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts):
-    """Signals (α, V, rates, controls…), then C = aero model, then forces and moments."""
-    sig = signals_from_body(X, u, extra_input, consts[6], consts[7])
+def _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra):
+    """Loads F = (X, Y, Z, L, M, N): C = aero model of the signals [2.16], forces and moments
+    [2.14–2.15], thrust moment and engine terms (``engine_loads``). ``idx`` = (thrust,
+    propeller torque, engine momentum input indices or −1, lateral flag, α̇ flag, β̇ flag)."""
     C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-    thrust = u[thrust_index] if thrust_index >= 0 else 0.0
-    return sig, forces_and_moments(C, sig[1], sig[0], thrust, consts)
+    thrust = u[idx[0]] if idx[0] >= 0 else 0.0
+    F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
+    return engine_loads(F, X, u, thrust, idx[1], idx[2], extra)
+
+
+@register_jitable
+def _rate_normaliser(sig, extra, length):
+    """length/(2 V_n): α̇̂ per unit α̇ (length c̄) or β̇̂ per unit β̇ (length b)."""
+    Vn = extra[1] if extra[2] > 0.5 else sig[0]
+    return length / (2.0 * Vn)
+
+
+@register_jitable
+def _body_solution(X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+                   extra):  # fmt: skip
+    """Signals, loads F and body derivatives D at the body state X, with the α̇ and β̇ terms
+    solved in closed form (equations module docstring): D = D0 + α̇ D_α + β̇ D_β."""
+    sig = signals_from_body(X, u, extra_input, consts[6], consts[7], extra[1], extra[2])
+    F = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra)
+    D = rigid_body_derivatives(X, F, consts)
+    if idx[4] == 0 and idx[5] == 0:
+        return sig, F, D
+    F_alpha = np.zeros(6)
+    F_beta = np.zeros(6)
+    D_alpha = np.zeros(9)
+    D_beta = np.zeros(9)
+    # α̇̂ = α̇ c̄/(2V_n), β̇̂ = β̇ b/(2V_n): the signal of a unit rate
+    k_alpha = _rate_normaliser(sig, extra, consts[7])
+    k_beta = _rate_normaliser(sig, extra, consts[6])
+    if idx[4] == 1:
+        sig[ALPHADOT_SIGNAL] = k_alpha
+        F_alpha = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+                         extra) - F  # fmt: skip
+        sig[ALPHADOT_SIGNAL] = 0.0
+        # D is affine in F: the response to the loads of a unit α̇
+        D_alpha = rigid_body_derivatives(X, F + F_alpha, consts) - D
+    if idx[5] == 1:
+        sig[BETADOT_SIGNAL] = k_beta
+        F_beta = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+                        extra) - F  # fmt: skip
+        sig[BETADOT_SIGNAL] = 0.0
+        D_beta = rigid_body_derivatives(X, F + F_beta, consts) - D
+    lateral = idx[3] == 1
+    alpha_dot, beta_dot = solve_rate_terms(
+        alpha_rate(X, D), alpha_rate(X, D_alpha), alpha_rate(X, D_beta),
+        beta_rate(X, D, lateral), beta_rate(X, D_alpha, lateral), beta_rate(X, D_beta, lateral),
+    )  # fmt: skip
+    sig[ALPHADOT_SIGNAL] = alpha_dot * k_alpha
+    sig[BETADOT_SIGNAL] = beta_dot * k_beta
+    # D = D0 + α̇ D_α + β̇ D_β, F likewise
+    return (
+        sig,
+        F + alpha_dot * F_alpha + beta_dot * F_beta,
+        D + alpha_dot * D_alpha + beta_dot * D_beta,
+    )
 
 
 @register_jitable
@@ -161,7 +241,7 @@ def _select(full, index, scale):
 
 
 def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, out_scale,
-                    extra_input, thrust_index, tables, consts):  # fmt: skip
+                    extra_input, idx, tables, consts, extra):  # fmt: skip
     """f and h closures of a body-axis model (6-DOF or decoupled)."""
     tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
     fsig, fpow = tables.factor_signal, tables.factor_power
@@ -171,51 +251,65 @@ def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, ou
     def f(t, x, u, theta):
         # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
         X = body_state_from(x, u, src_state, src_input, wind_index)
-        _, F = _loads(
-            X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts
+        _, _, D = _body_solution(
+            X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
         )
-        return _select(rigid_body_derivatives(X, F, consts), deriv_index, ones)
+        return _select(D, deriv_index, ones)
 
     def h(t, x, u, theta):
         X = body_state_from(x, u, src_state, src_input, wind_index)
-        sig, F = _loads(
-            X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts
+        sig, F, D = _body_solution(
+            X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
         )
-        return _select(body_outputs(X, F, sig, consts), out_index, out_scale)
+        full = body_outputs(X, F, sig, consts, D[3], D[4], D[5])
+        return _select(full, out_index, out_scale)
 
     return f, h
 
 
-def _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts):
+@register_jitable
+def _wind_solution(x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+                   extra):  # fmt: skip
+    """Body state, signals, loads and d(V, α, Θ, q)/dt of the wind-axis form, with the α̇
+    terms solved in closed form: α̇ = D0[1]/(1 − D_α[1])."""
+    X = _wind_body_state(x)
+    sig = signals_from_body(X, u, extra_input, consts[6], consts[7], extra[1], extra[2])
+    F = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra)
+    D = wind_axis_derivatives(x[0], x[1], x[2], x[3], F, consts)
+    if idx[4] == 1:
+        # α̇̂ = α̇ c̄/(2V_n) of a unit α̇
+        k_alpha = _rate_normaliser(sig, extra, consts[7])
+        sig[ALPHADOT_SIGNAL] = k_alpha
+        F_alpha = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+                         extra) - F  # fmt: skip
+        D_alpha = wind_axis_derivatives(x[0], x[1], x[2], x[3], F + F_alpha, consts) - D
+        # α̇ = D0[1] + α̇ D_α[1]  ⇒  α̇ = D0[1]/(1 − D_α[1])
+        alpha_dot = D[1] / (1.0 - D_alpha[1])
+        sig[ALPHADOT_SIGNAL] = alpha_dot * k_alpha
+        F = F + alpha_dot * F_alpha
+        D = D + alpha_dot * D_alpha
+    return X, sig, F, D
+
+
+def _wind_functions(out_index, out_scale, extra_input, idx, tables, consts, extra):
     """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q)."""
     tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
     fsig, fpow = tables.factor_signal, tables.factor_power
     fspl, fknot = tables.factor_spline, tables.factor_knot
 
     def f(t, x, u, theta):
-        _, F = _loads(
-            _wind_body_state(x),
-            u,
-            theta,
-            extra_input,
-            thrust_index,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
+        _, _, _, D = _wind_solution(
+            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
         )
-        return wind_axis_derivatives(x[0], x[1], x[2], x[3], F, consts)
+        return D
 
     def h(t, x, u, theta):
-        X = _wind_body_state(x)
-        sig, F = _loads(
-            X, u, theta, extra_input, thrust_index, tc, tp, fs, fsig, fpow, fspl, fknot, consts
+        X, sig, F, D = _wind_solution(
+            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
         )
-        return _select(body_outputs(X, F, sig, consts), out_index, out_scale)
+        # symmetric flight: ṗ = ṙ = 0, q̇ = M/I_y
+        full = body_outputs(X, F, sig, consts, 0.0, D[3], 0.0)
+        return _select(full, out_index, out_scale)
 
     return f, h
 
@@ -282,6 +376,8 @@ def _build(
     name: str | None,
     accelerometer=None,
     measured: Sequence[str] | None = None,
+    reference_speed: float | None = None,
+    rate_speed: str = "V",
 ) -> StateSpaceModel:
     """The model of ``kind`` (a key of ``_KINDS``): checked arguments, input and output
     names, parameters, then the f and h closures over the numeric tables."""
@@ -291,14 +387,18 @@ def _build(
         raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
     if kind == "alpha_q":
         _check_alpha_q(airplane, aero)
+    _check_reference_speed(aero, reference_speed, rate_speed)
+    _check_rate_terms(kind, aero)
+    _check_airplane(kind, airplane, aero)
     states, default_measured, default_outputs = _KINDS[kind]
     measured = _measured_inputs(kind, default_measured, measured)
     outputs = _output_names(kind, default_outputs, outputs)
     inputs = _input_names(kind, airplane, aero, states, controls, outputs, measured)
     parameters = _model_parameters(aero, parameters)
     f, h = _model_functions(
-        kind, airplane, aero, parameters, states, inputs, outputs, measured, accelerometer
-    )
+        kind, airplane, aero, parameters, states, inputs, outputs, measured, accelerometer,
+        _extra_constants(airplane, reference_speed, rate_speed),
+    )  # fmt: skip
     return StateSpaceModel(
         states=states,
         inputs=inputs,
@@ -309,6 +409,79 @@ def _build(
         x0=tuple(x0) if x0 is not None else (),
         name=name or f"{airplane.name} {kind}",
     )
+
+
+# Which kinds may use the α̇ and β̇ terms: α̇ needs u̇ and ẇ of the model (not measured u,
+# w), β̇ needs v̇ of the model.
+_RATE_TERM_KINDS = {
+    "alphadot_hat": ("6dof", "longitudinal", "wind"),
+    "betadot_hat": ("6dof", "lateral"),
+}
+
+
+def _check_reference_speed(aero: AeroModel, reference_speed, rate_speed) -> None:
+    """V/V0, (V − V0)/V0 and rate_speed = "V0" need the reference speed V0 > 0 (m/s)."""
+    if rate_speed not in ("V", "V0"):
+        raise InputError(
+            f"rate_speed: expected 'V' (p̂ = p b/2V, …) or 'V0' (p̂ = p b/2V0, …), "
+            f"got {describe(rate_speed)}"
+        )
+    if reference_speed is not None and (
+        isinstance(reference_speed, bool)
+        or not isinstance(reference_speed, (int, float))
+        or not math.isfinite(reference_speed)
+        or reference_speed <= 0
+    ):
+        raise InputError(
+            f"reference_speed: expected V0 > 0 in m/s or None, got {describe(reference_speed)}"
+        )
+    users = [s for s in aero.signals if s in ("Vrel", "dVrel")]
+    if rate_speed == "V0":
+        users.append("rate_speed = 'V0'")
+    if users and reference_speed is None:
+        raise InputError(
+            f"reference_speed: {users} need the reference speed V0 (m/s); give reference_speed=V0"
+        )
+
+
+def _check_rate_terms(kind: str, aero: AeroModel) -> None:
+    """α̇̂ and β̇̂ enter linearly (power 1, no spline or abs) and only where the model
+    integrates the motion they differentiate (``_RATE_TERM_KINDS``)."""
+    for coefficient in aero.coefficients:
+        for term in aero.terms(coefficient):
+            for key, power in term.factors:
+                name = key.signal if isinstance(key, (Spline, Abs)) else key
+                if name not in _RATE_TERM_KINDS:
+                    continue
+                if kind not in _RATE_TERM_KINDS[name]:
+                    raise InputError(
+                        f"aero: {coefficient} term {term.label!r}: {name} terms need the "
+                        f"model's own {'α̇' if name == 'alphadot_hat' else 'β̇'}; the models "
+                        f"that have it: {list(_RATE_TERM_KINDS[name])}, this one is {kind!r}"
+                    )
+                if power != 1 or isinstance(key, (Spline, Abs)):
+                    raise InputError(
+                        f"aero: {coefficient} term {term.label!r}: {name} must enter linearly "
+                        "(power 1, no spline or abs), so that the implicit equations are "
+                        "solved in closed form"
+                    )
+
+
+def _check_airplane(kind: str, airplane: Airplane, aero: AeroModel) -> None:
+    """The lateral and 6-DOF models need I_x, I_z and b; terms in p̂, r̂, β̇̂ need b."""
+    if kind in ("6dof", "lateral"):
+        label = "the 6-DOF model" if kind == "6dof" else "the lateral model"
+        airplane.require(("Ix", "Iz", "b"), label)
+    uses_span = [s for s in aero.signals if s in ("phat", "rhat", "betadot_hat")]
+    if uses_span:
+        airplane.require(("b",), f"the aerodynamic terms in {uses_span}")
+    if kind in ("wind", "alpha_q"):
+        for field in ("propeller_torque_input", "engine_momentum_input"):
+            if getattr(airplane, field) is not None:
+                raise AirplaneDataError(
+                    f"airplane.{field}: the {kind} model has no roll or yaw motion for the "
+                    f"engine terms; expected None, got {getattr(airplane, field)!r}"
+                )
 
 
 def _check_alpha_q(airplane: Airplane, aero: AeroModel) -> None:
@@ -340,11 +513,20 @@ def _output_names(
                 f"outputs: the α–q model has the outputs {list(ALPHA_Q_OUTPUTS)}, got {bad}"
             )
     if kind == "wind":
-        bad = [o for o in outputs if o in ("beta", "phi", "ay", "p", "r")]
+        bad = [o for o in outputs if o in ("beta", "phi", "ay", "p", "r", "pdot", "rdot")]
         if bad:
             raise InputError(
                 f"outputs: the wind-axis longitudinal model has no lateral outputs, got {bad}"
             )
+    # the decoupled models integrate only their own axis: ṗ, ṙ (q̇) would be model values
+    # for measured motion
+    other_axis = {"longitudinal": ("pdot", "rdot"), "lateral": ("qdot",)}.get(kind, ())
+    bad = [o for o in outputs if o in other_axis]
+    if bad:
+        raise InputError(
+            f"outputs: the {kind} model takes the other axis's motion as measured inputs and has "
+            f"no output {bad}"
+        )
     return outputs
 
 
@@ -373,10 +555,17 @@ def _input_names(
             f"controls: {clash} are names of standard signals or states; choose other names"
         )
     inputs = controls
-    # thrust acts on u, w and a_x, a_z only: the lateral model takes it only for those outputs
+    # thrust acts on u, w, q and a_x, a_z: the lateral model takes it only for a_x, a_z
     needs_thrust = kind != "lateral" or bool({"ax", "az"} & set(outputs))
     if needs_thrust and airplane.thrust_input is not None and airplane.thrust_input not in inputs:
         inputs = inputs + (airplane.thrust_input,)
+    # engine: the propeller torque acts on p (6-DOF, lateral), the rotor momentum on q and r
+    engine = [airplane.engine_momentum_input]
+    if kind in ("6dof", "lateral"):
+        engine.append(airplane.propeller_torque_input)
+    for channel in engine:
+        if channel is not None and channel not in inputs:
+            inputs = inputs + (channel,)
     return inputs + measured
 
 
@@ -428,6 +617,7 @@ def _model_functions(
     outputs: tuple[str, ...],
     measured: tuple[str, ...],
     accelerometer,
+    extra_consts: np.ndarray,
 ):
     """f and h of the model: the index maps from names to positions, the aerodynamic
     tables and the airplane constants, closed over by ``_wind_functions`` /
@@ -446,7 +636,21 @@ def _model_functions(
     tables = aero.tables(signal_names, parameters)
     consts = _constants(airplane)
     extra_input = np.array(extra, dtype=np.int64)
-    thrust_index = inputs.index(airplane.thrust_input) if airplane.thrust_input in inputs else -1
+    index = lambda name: inputs.index(name) if name in inputs else -1  # noqa: E731
+    signals = set(aero.signals)
+    # thrust, propeller torque, engine momentum input indices (−1: none), lateral flag (β̇
+    # from v̇ alone), and whether the model has α̇ and β̇ terms
+    idx = np.array(
+        [
+            index(airplane.thrust_input),
+            index(airplane.propeller_torque_input),
+            index(airplane.engine_momentum_input),
+            1 if kind == "lateral" else 0,
+            1 if "alphadot_hat" in signals else 0,
+            1 if "betadot_hat" in signals else 0,
+        ],
+        dtype=np.int64,
+    )
     out_index = np.array([OUTPUTS.index(o) for o in outputs], dtype=np.int64)
     # per output: s_a·k for ax, ay, az (Accelerometer.factors), 1 for the others
     accel = Accelerometer.from_value(accelerometer).factors(airplane.g)
@@ -454,7 +658,7 @@ def _model_functions(
         [accel[("ax", "ay", "az").index(o)] if o in ("ax", "ay", "az") else 1.0 for o in outputs]
     )
     if kind == "wind":
-        return _wind_functions(out_index, out_scale, extra_input, thrust_index, tables, consts)
+        return _wind_functions(out_index, out_scale, extra_input, idx, tables, consts, extra_consts)
     src_state = np.array(
         [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
     )
@@ -469,7 +673,7 @@ def _model_functions(
     deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
     return _body_functions(
         src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
-        thrust_index, tables, consts,
+        idx, tables, consts, extra_consts,
     )  # fmt: skip
 
 
@@ -488,10 +692,13 @@ def _model_builder(kind: str, name: str, doc: str):
         name: str | None = None,
         accelerometer: Accelerometer | Mapping[str, str] | str | None = None,
         measured: Sequence[str] | None = None,
+        reference_speed: float | None = None,
+        rate_speed: str = "V",
     ) -> StateSpaceModel:
         return _build(
-            kind, airplane, aero, parameters, controls, outputs, x0, name, accelerometer, measured
-        )
+            kind, airplane, aero, parameters, controls, outputs, x0, name, accelerometer,
+            measured, reference_speed, rate_speed,
+        )  # fmt: skip
 
     build.__name__ = build.__qualname__ = name
     build.__doc__ = doc
@@ -516,6 +723,14 @@ six_dof_model = _model_builder(
             level flight).
         measured: the other axis's measured motion taken as inputs; only the lateral model
             offers a choice (the 6-DOF model has none: None or ``()``).
+        reference_speed: V0, m/s, for the signals Vrel = V/V0 and dVrel = (V − V0)/V0 and
+            for ``rate_speed = "V0"``.
+        rate_speed: "V" (default: p̂ = p b/2V, q̂ = q c̄/2V, r̂, α̇̂ = α̇ c̄/2V, β̇̂ = β̇ b/2V)
+            or "V0" (the same with the constant V0).
+
+    Outputs may include pdot, qdot, rdot (rad/s², the angular accelerations). Terms in
+    alphadot_hat (6-DOF, longitudinal, wind-axis models) and betadot_hat (6-DOF, lateral)
+    are solved in closed form (``flightid.aircraft.equations``).
     """,
 )
 

@@ -164,12 +164,14 @@ def _builtin_model(case: Case) -> StateSpaceModel:
                         f"model.airplane: {exc}") from None  # fmt: skip
     aero_spec = {}
     for coefficient, terms in spec["aero"].items():
-        if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+        # a list of terms, or a table {parameter name = term} naming the parameters
+        listed = list(terms.values()) if isinstance(terms, Mapping) else terms
+        if not isinstance(listed, list) or not all(isinstance(t, str) for t in listed):
             raise CaseError(
                 f"model.aero.{coefficient}: expected a list of terms like ['1', 'beta', "
-                f"'alpha*phat', 'spline1(alpha,0.15)'], got {terms!r}"
+                f"'alpha*phat', 'spline1(alpha,0.15)'] or a table {{name = term}}, got {terms!r}"
             )
-        aero_spec[coefficient] = terms
+        aero_spec[coefficient] = dict(terms) if isinstance(terms, Mapping) else terms
     try:
         aero = aircraft.AeroModel(aero_spec)
     except InputError as exc:
@@ -193,6 +195,10 @@ def _builtin_model(case: Case) -> StateSpaceModel:
             kwargs["accelerometer"] = aircraft.Accelerometer.from_value(spec["accelerometer"])
         except InputError as exc:
             raise CaseError(f"model.{exc}") from None
+    # reference speed V0 (m/s) of Vrel, dVrel and rate_speed = "V0" (docs/aircraft.md)
+    for key in ("reference_speed", "rate_speed"):
+        if key in spec:
+            kwargs[key] = spec[key]
     try:
         return builder(airplane, aero, aero.parameters(), name=spec.get("name"), **kwargs)
     except InputError as exc:

@@ -125,6 +125,8 @@ _MODEL = {
     "name",
     "accelerometer",
     "measured",
+    "reference_speed",
+    "rate_speed",
     "output_delays",
     "delay_convention",
 }

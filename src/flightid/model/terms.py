@@ -11,6 +11,8 @@ factor is a signal or a first-order spline of a signal:
     "spline1(alpha,0.15)"     first-order spline (α − 0.15)₊ = max(α − 0.15, 0)
     "spline1(alpha,0.15)^2"   second-order spline (α − 0.15)₊²
     "phat*spline1(alpha,0.1)" a spline times a signal (e.g. roll damping changing past stall)
+    "abs(de)"                 the absolute value |δe| (e.g. drag that grows with either
+                              deflection: C_D = … + C_D|δe| |δe|)
 
 The spline factor is the usual flight-test form of a nonlinearity that sets in past a knot
 (stall, flow separation): (x − k)₊ = max(x − k, 0) is zero below the knot k and
@@ -22,7 +24,7 @@ Grammar (whitespace ignored):
 
     term    := "1" | factor ("*" factor)*
     factor  := basis [("^" | "**") INTEGER]
-    basis   := NAME | "spline1" "(" NAME "," NUMBER ")"
+    basis   := NAME | "spline1" "(" NAME "," NUMBER ")" | "abs" "(" NAME ")"
     NUMBER  := ["+" | "-"] digits ["." digits] [("e" | "E") ["+" | "-"] digits]
 
 Repeated factors merge (``alpha*alpha`` is ``alpha^2``); a power above ``MAX_POWER`` (64)
@@ -35,7 +37,9 @@ A ``Term`` keeps its factors as ``(key, power)`` pairs; the key is a signal name
 term) and ``Term.identifier`` the NASA-style parameter-name suffix: ``alpha_beta3`` for
 α·β³, and for a spline the signal, ``_s`` and the knot with "." written "p" and "-" written "m":
 ``spline1(alpha,0.15)`` → ``alpha_s0p15``, ``spline1(alpha,-0.05)`` → ``alpha_sm0p05``, a power
-appended after an underscore (``spline1(alpha,0.15)^2`` → ``alpha_s0p15_2``).
+appended after an underscore (``spline1(alpha,0.15)^2`` → ``alpha_s0p15_2``). An
+absolute value ``abs(de)`` (key ``Abs(signal)``) is named ``abs_de``; ``abs(de)*alpha`` →
+``abs_de_alpha``.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ import numpy as np
 
 from flightid.errors import InputError
 
-__all__ = ["Spline", "Term", "TermError", "parse_term", "parse_terms", "evaluate_terms"]
+__all__ = ["Abs", "Spline", "Term", "TermError", "parse_term", "parse_terms", "evaluate_terms"]
 
 
 class TermError(InputError):
@@ -62,7 +66,7 @@ _INT = re.compile(r"[0-9]+")
 # data stay far below it, and larger ones only overflow
 MAX_POWER = 64
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_FUNCTIONS = ("spline1",)
+_FUNCTIONS = ("spline1", "abs")
 
 
 def _knot_text(knot: float) -> str:
@@ -103,13 +107,41 @@ class Spline:
 
 
 @dataclass(frozen=True)
+class Abs:
+    """Absolute value of a signal: |x|.
+
+    Attributes:
+        signal: name of the signal x.
+    """
+
+    signal: str
+
+    @property
+    def label(self) -> str:
+        """Canonical text, e.g. ``"abs(de)"``."""
+        return f"abs({self.signal})"
+
+    @property
+    def identifier(self) -> str:
+        """Parameter-name part, e.g. ``"abs_de"``."""
+        return f"abs_{self.signal}"
+
+    def evaluate(self, x: np.ndarray) -> np.ndarray:
+        # |x|
+        return np.abs(np.asarray(x, dtype=float))
+
+    def __str__(self) -> str:
+        return self.label
+
+
+@dataclass(frozen=True)
 class Term:
     """A product of factor powers; ``factors == ()`` is the constant term.
 
-    ``factors`` holds ``(key, power)`` pairs: key a signal name or a ``Spline``.
+    ``factors`` holds ``(key, power)`` pairs: key a signal name, a ``Spline`` or an ``Abs``.
     """
 
-    factors: tuple[tuple[str | Spline, int], ...]
+    factors: tuple[tuple[str | Spline | Abs, int], ...]
 
     @property
     def is_constant(self) -> bool:
@@ -120,7 +152,7 @@ class Term:
         """Names of the signals the term reads (a spline reads its signal), first-use order."""
         seen: dict[str, None] = {}
         for key, _ in self.factors:
-            seen.setdefault(key.signal if isinstance(key, Spline) else key, None)
+            seen.setdefault(key.signal if isinstance(key, (Spline, Abs)) else key, None)
         return tuple(seen)
 
     @property
@@ -142,7 +174,7 @@ class Term:
             return "0"
         parts = []
         for key, power in self.factors:
-            if isinstance(key, Spline):
+            if isinstance(key, (Spline, Abs)):
                 parts.append(key.identifier if power == 1 else f"{key.identifier}_{power}")
             else:
                 parts.append(key if power == 1 else f"{key}{power}")
@@ -158,14 +190,14 @@ class Term:
             return np.ones(n_samples)
         value = None
         for key, power in self.factors:
-            name = key.signal if isinstance(key, Spline) else key
+            name = key.signal if isinstance(key, (Spline, Abs)) else key
             if name not in signals:
                 raise TermError(
                     f"term {self.label!r}: unknown signal {name!r}; available signals: "
                     f"{sorted(signals)}"
                 )
             x = np.asarray(signals[name], dtype=float)
-            if isinstance(key, Spline):
+            if isinstance(key, (Spline, Abs)):
                 x = key.evaluate(x)
             factor = x**power
             value = factor if value is None else value * factor
@@ -175,8 +207,22 @@ class Term:
         return self.label
 
 
-def _parse_call(text: str, source: str, function: str, position: int) -> tuple[Spline, int]:
-    """Arguments of ``spline1(NAME, NUMBER)`` starting after the '('; returns (basis, end)."""
+def _parse_abs(text: str, source: str, position: int) -> tuple[Abs, int]:
+    """Argument of ``abs(NAME)`` starting after the '('; returns (basis, end)."""
+    match = _NAME.match(source, position)
+    if match is None or match.end() >= len(source) or source[match.end()] != ")":
+        raise TermError(
+            f"term {text!r}: expected a signal name and ')' at position {position} in abs; "
+            "write abs(signal), e.g. abs(de)"
+        )
+    return Abs(match.group()), match.end() + 1
+
+
+def _parse_call(text: str, source: str, function: str, position: int) -> tuple[Spline | Abs, int]:
+    """Arguments of ``spline1(NAME, NUMBER)`` or ``abs(NAME)`` starting after the '(';
+    returns (basis, end)."""
+    if function == "abs":
+        return _parse_abs(text, source, position)
     usage = f"{function}(signal, knot), e.g. {function}(alpha,0.15)"
     match = _NAME.match(source, position)
     if match is None:
@@ -215,8 +261,8 @@ def parse_term(text: str) -> Term:
         return Term(())
     if not source:
         raise TermError("term: empty text; expected e.g. 'alpha', 'alpha*beta' or 'beta^3'")
-    powers: dict[str | Spline, int] = {}
-    order: list[str | Spline] = []
+    powers: dict[str | Spline | Abs, int] = {}
+    order: list[str | Spline | Abs] = []
     position = 0
     while True:
         match = _NAME.match(source, position)
@@ -225,7 +271,7 @@ def parse_term(text: str) -> Term:
                 f"term {text!r}: expected a signal name at position {position} "
                 f"(near {source[position : position + 8]!r})"
             )
-        key: str | Spline = match.group()
+        key: str | Spline | Abs = match.group()
         position = match.end()
         if position < len(source) and source[position] == "(":
             if key not in _FUNCTIONS:
