@@ -32,7 +32,7 @@ from typing import Any
 
 from flightid.cases.checks import CaseError, _known
 from flightid.compat.kinematic import KinematicSpec, kinematic_spec, model_from_spec
-from flightid.errors import InputError
+from flightid.errors import InputError, InputTypeError
 from flightid.model.statespace import DELAY_CONVENTIONS, StateSpaceModel
 
 __all__ = ["KINEMATIC_KEYS", "kinematic_section", "spec_from_case", "kinematic_from_case"]
@@ -75,7 +75,7 @@ def _spec(model: Mapping[str, Any]) -> KinematicSpec:
     arguments = {k: model[k] for k in _ARGUMENTS if k in model}
     try:
         spec = kinematic_spec(delays=tuple(dict.fromkeys(delays.values())), **arguments)
-    except InputError as exc:
+    except (InputError, InputTypeError) as exc:
         raise CaseError(f"model.{exc}") from None
     for output in delays:
         if output not in spec.outputs:
@@ -95,8 +95,7 @@ def kinematic_section(model: Mapping[str, Any]) -> Mapping[str, Any]:
     convention = model.get("delay_convention", "fractional")
     if convention not in DELAY_CONVENTIONS:
         raise CaseError(
-            f"model.delay_convention: expected one of {list(DELAY_CONVENTIONS)}, got "
-            f"{convention!r}"
+            f"model.delay_convention: expected one of {list(DELAY_CONVENTIONS)}, got {convention!r}"
         )
     _spec(model)
     return model

@@ -362,6 +362,8 @@ def _names(value: object, argument: str, allowed: Sequence[str]) -> tuple[str, .
 
 
 def _position(value: object, argument: str) -> tuple[float, float, float]:
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
     if isinstance(value, str) or not isinstance(value, Sequence) or len(value) != 3:
         raise InputError(f"{argument}: expected three numbers (x, y, z) from the CG, got "
                          f"{describe(value)}")  # fmt: skip
@@ -416,10 +418,9 @@ def kinematic_spec(
                 f"outputs: {o!r} is not an integrated state (states {list(states)}); a "
                 "measured attitude or altitude cannot be an output of its own model"
             )
-    try:
-        g = float(g)
-    except (TypeError, ValueError):
-        raise InputTypeError(f"g: expected a number (L/s²), got {describe(g)}") from None
+    if isinstance(g, bool) or not isinstance(g, (int, float)):
+        raise InputTypeError(f"g: expected a number (L/s²), got {describe(g)}")
+    g = float(g)
     if not (math.isfinite(g) and g > 0):
         raise InputError(f"g: expected a positive finite number (L/s²), got {g!r}")
     xa, ya, za = _position(accelerometer_position, "accelerometer_position")

@@ -657,8 +657,9 @@ def _accuracy_section(run) -> str:
 
 
 def write_files(run, directory: Path) -> Path:
-    """Write results.json, estimates.csv, figures and report.html into ``directory`` (which
-    exists); returns the HTML path. ``write_report`` calls this on a temporary folder.
+    """Write results.json, estimates.csv, figures and report.html (and, for a kinematic
+    model, reconstructed_<maneuver>.csv: ``flightid.compat.reconstruct``) into ``directory``
+    (which exists); returns the HTML path. ``write_report`` calls this on a temporary folder.
 
     results.json is strict JSON (``flightid.report.jsonout``: NaN / ±inf become null, listed
     under ``"nonfinite"``). The figures are written to ``figures/`` and embedded in
@@ -671,6 +672,10 @@ def write_files(run, directory: Path) -> Path:
     # results.json (versioned: docs/schema/results.schema.json) and time_histories.csv
     write_results_and_histories(run, directory)
     write_csv(run, directory / "estimates.csv")
+    # a kinematic (flight-path reconstruction) run adds reconstructed_<maneuver>.csv
+    from flightid.compat.reconstruct import write_reconstruction
+
+    write_reconstruction(run, directory)
     figures = render_figures(run) if run.case.output.get("figures", True) else None
     if figures is not None:
         (directory / "figures").mkdir(parents=True, exist_ok=True)
