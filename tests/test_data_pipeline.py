@@ -418,6 +418,28 @@ def test_unknown_names_are_named_when_the_data_are_read():
         )
 
 
+def test_expression_names_resolve_signal_then_constant_then_column_and_stay_data():
+    # columns a, b; a constant named like column b wins over it, $2 is always the column
+    table = _ramp_table()
+    a, b = table.column("a"), table.column("b")
+    data = to_flight_data(
+        table,
+        time="t",
+        constants={"b": 3.0},
+        signals={"s": "a * b + $3"},
+        outputs={"y": "s"},
+    )
+    np.testing.assert_allclose(data.output("y"), a * 3.0 + b, rtol=1e-14)
+    # a dotted name is a column name (flight-log streams), never an attribute access
+    with pytest.raises(ChannelError, match=r"no column named 's0.__class__'"):
+        to_flight_data(
+            table, time="t", signals={"s0": "a", "s": "s0.__class__"}, outputs={"y": "s"}
+        )
+    for text in ("__import__('os')", "a[0] + 1", "a ** 2", "(lambda: 1)()"):
+        with pytest.raises(ChannelError):
+            parse_pipeline(signals={"s": text})
+
+
 def test_constants_take_units_and_lists():
     pipeline = parse_pipeline(
         {

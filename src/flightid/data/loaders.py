@@ -30,6 +30,11 @@ atan2(y, x), sqrt, exp, log (natural), abs, the constant ``pi`` and the time var
 (the time channel in s, as read); they are parsed here, never passed to ``eval``. A value
 outside a function's domain (sqrt of a negative, log of 0, asin of 1.5, ...) is a
 ``ChannelError`` naming the channel and the first row where it happens.
+
+Names in expressions and ``column`` may also be named constants and intermediate signals
+(``[data.constants]``, ``[data.signals]``, ``[[data.steps]]``; ``flightid.data.pipeline``):
+``to_flight_data(..., constants=, signals=, steps=)`` computes them per maneuver before the
+channels, and they are looked up before the file's columns (``$N`` is always column N).
 """
 
 from __future__ import annotations
