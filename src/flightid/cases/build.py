@@ -477,9 +477,15 @@ def build_model(
     base = base_model(case)[0] if base is None else base
     _check_channels(base, maneuvers)
     delays = dict(case.model.get("output_delays", {}))
+    input_delays = dict(case.model.get("input_delays", {}))
     # delay parameters the model does not have: new parameters τ (s), start 0, free, put
-    # after the biases and initial states; [parameters] sets them like any other
-    new_delays = [n for n in dict.fromkeys(delays.values()) if n not in base.parameters]
+    # after the biases and initial states (output delays', then input delays' new names);
+    # [parameters] sets them like any other
+    new_delays = [
+        n
+        for n in dict.fromkeys([*delays.values(), *input_delays.values()])
+        if n not in base.parameters
+    ]
     section = {k: v for k, v in case.parameters.items() if k not in new_delays}
     params = _apply_parameters(base.parameters, section)
     delay_params = (
@@ -539,6 +545,7 @@ def build_model(
             x0=x0,
             name=base.name,
             output_delays=delays or None,
+            input_delays=input_delays or None,
             delay_convention=case.model.get("delay_convention", "fractional"),
             function_parameters=layout if copies else None,
             maneuver_parameters=copies or None,

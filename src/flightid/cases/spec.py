@@ -128,6 +128,7 @@ _MODEL = {
     "reference_speed",
     "rate_speed",
     "output_delays",
+    "input_delays",
     "delay_convention",
 }
 _ESTIMATION = {
@@ -406,6 +407,13 @@ def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
         if not isinstance(parameter, str) or not parameter.isidentifier():
             raise CaseError(
                 f"model.output_delays.{output}: expected a parameter name (the delay in s), "
+                f"got {parameter!r}"
+            )
+    # input_delays = { input = "parameter" }: the model reads that input at t − τ (s)
+    for channel, parameter in _table(model.get("input_delays", {}), "model.input_delays").items():
+        if not isinstance(parameter, str) or not parameter.isidentifier():
+            raise CaseError(
+                f"model.input_delays.{channel}: expected a parameter name (the delay in s), "
                 f"got {parameter!r}"
             )
     if "delay_convention" in model:
