@@ -278,6 +278,35 @@ def test_a_reconstructed_csv_with_unit_headers_feeds_the_steps(tmp_path):
         load_flight_data(path, time="time", steps=steps, outputs={"alpha": "alpha_cg"})
 
 
+def test_the_reconstruction_writer_output_is_read_with_greek_names(tmp_path):
+    # flightid.compat.reconstruct writes `α_rec [rad]`-style headers; a case uses them by name
+    # in column, expr and step roles
+    from flightid.compat.reconstruct import Reconstruction
+
+    m = _motion(7, 30)
+    columns = {"t [s]": np.arange(30) * 0.04, "V_rec [m/s]": m["V"], "α_rec [rad]": m["alpha"]}
+    columns |= {"β_rec [rad]": m["beta"], "p [rad/s]": m["p"], "q [rad/s]": m["q"]}
+    columns["r [rad/s]"] = m["r"]
+    path = Reconstruction("man1", columns).write_csv(tmp_path / "reconstructed_man1.csv")
+    steps = [
+        {
+            "kind": "transfer_air_data",
+            "sensor": list(NB),
+            "signals": {"V": "V_rec", "alpha": "α_rec", "beta": "β_rec"},
+        }
+    ]
+    data = load_flight_data(
+        path,
+        time="t",
+        steps=steps,
+        inputs={"α2": "2 * α_rec"},
+        outputs={"alpha": "alpha_cg"},
+    )
+    np.testing.assert_allclose(data.input("α2"), 2 * m["alpha"], rtol=1e-15)
+    expected = transfer_air_data(m["V"], m["alpha"], m["beta"], m["p"], m["q"], m["r"], NB)[1]
+    np.testing.assert_allclose(data.output("alpha"), expected, rtol=1e-12)
+
+
 # ------------------------------------------------------------------ errors
 
 

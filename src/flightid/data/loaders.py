@@ -432,9 +432,11 @@ def read_table(
 # expressions over columns (no eval)
 # =====================================================================================
 
+# a name starts with a letter of any script (α_rec, as reconstructed-signal files name their
+# columns) or _, and goes on with letters, digits, _ and dots (flight-log stream.field)
 _EXPR_TOKEN = re.compile(
     r"\s*(?:(?P<number>\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)"
-    r"|(?P<column>\$\d+)|(?P<name>[A-Za-z_][A-Za-z0-9_.]*)|(?P<op>[-+*/(),]))"
+    r"|(?P<column>\$\d+)|(?P<name>[^\W\d][\w.]*)|(?P<op>[-+*/(),]))"
 )
 
 
