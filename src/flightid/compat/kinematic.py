@@ -583,8 +583,9 @@ def kinematic_model(
         input_biases: sensors of ``SENSOR_INPUTS`` with a bias parameter b_ax … b_r
             (default all six; start 0).
         input_scales: sensors with a scale-factor parameter f_ax … f_r (default none).
-        output_biases, output_scales: outputs with a bias b_<o> / scale factor f_<o>
-            (default α and β where they are outputs: f_α, b_α, f_β, b_β).
+        output_biases: outputs with a bias b_<o> (default α and β where they are outputs).
+        output_scales: outputs with a scale factor f_<o> (default α and β: the parameters
+            are then f_α, b_α, f_β, b_β).
         bias_convention: "sensor" (m = f·x + b, default) or "correction" (x = m + b).
         scale_convention: "factor" (f, start 1) or "fraction" (f = 1 + λ, λ start 0).
         scale_reference: {sensor: x_ref}: scale about x_ref (default 0).

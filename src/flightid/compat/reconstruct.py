@@ -88,7 +88,9 @@ def reconstruct(
             and parameters must come first, as ``flightid.cases.build`` arranges them).
         maneuvers: the maneuvers the model was fitted to.
         theta: full parameter vector (default: the model's values).
-        method, input_interpolation, compiled: as in ``flightid.simulate``.
+        method: integration method, as in ``flightid.simulate``.
+        input_interpolation: "linear" or "zoh", as in ``flightid.simulate``.
+        compiled: run the compiled kernel.
     """
     theta = model.parameters.values if theta is None else np.asarray(theta, dtype=float)
     if len(model.parameters) < len(spec.parameters) or tuple(
