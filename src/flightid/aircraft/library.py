@@ -10,7 +10,8 @@ Technology Inc. TR 176-1, 1969). Flight condition of the data: sea level, u0 = 1
 
 Longitudinal derivatives (stability axes, per rad): C_L = 0.41, C_D = 0.05, C_Lα = 4.44,
 C_Dα = 0.33, C_mα = −0.683, C_Lq = 3.8, C_mq = −9.96, C_Lδe = 0.355, C_mδe = −0.923
-(C_mα̇ = −4.36 is not used: α̇ is not a signal of these models).
+(C_mα̇ = −4.36 is left out of ``navion_longitudinal_aero``, which the paper's example 3 runs
+without; add the term ``"alphadot_hat"`` with that value to include it).
 """
 
 from __future__ import annotations

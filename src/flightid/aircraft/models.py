@@ -18,7 +18,8 @@ Models (RP-1153 §2.A, METHOD.md §3):
 
 Units: m/s, rad, rad/s; the thrust input (if the airplane names one) in N; controls in the
 units the aerodynamic model's derivatives assume (rad for the paper's examples).
-Outputs are chosen by name from V, alpha, beta, theta, phi, ax, ay, az, p, q, r; the
+Outputs are chosen by name from V, alpha, beta, theta, phi, ax, ay, az, p, q, r, pdot, qdot,
+rdot (docs/aircraft.md says which model has which, and what each includes and omits); the
 accelerations are body-axis specific forces in g units (a_z ≈ −1 g in level flight) unless an
 ``accelerometer`` convention says otherwise (sign per axis, g or m/s², ``Accelerometer``).
 """
