@@ -922,9 +922,10 @@ def to_flight_data(
         stop: see ``start``.
         gaps: ``"error"`` (default) refuses non-uniform time; ``"join"`` treats the rows as
             consecutive samples at the median interval (files holding several segments).
-        constants, signals, steps: ``[data.constants]``, ``[data.signals]`` and
-            ``[[data.steps]]`` (``flightid.data.pipeline``): named numbers, intermediate
-            signals and built-in steps whose names the channels can use.
+        constants: ``[data.constants]`` (``flightid.data.pipeline``): named numbers the
+            signals, steps and channels can use.
+        signals: ``[data.signals]``: named intermediate signals.
+        steps: ``[[data.steps]]``: built-in pre-processing steps making named signals.
         pipeline: an already checked ``flightid.data.pipeline.Pipeline`` instead of
             ``constants``/``signals``/``steps``.
     """
