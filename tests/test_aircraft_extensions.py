@@ -14,6 +14,7 @@ implementation written here:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -37,6 +38,7 @@ from flightid.model.terms import TermError, parse_term
 from flightid.simulate.simulator import simulate
 
 G = 9.80665
+ROOT = Path(__file__).resolve().parents[1]
 
 # --------------------------------------------------------------------------- 6-DOF reference
 SIX_DOF_TERMS = {
@@ -84,9 +86,10 @@ def _reference_coefficients(V, alpha, beta, p, q, r, adot, bdot, de, da, dr, air
     }  # fmt: skip
 
 
-def _reference_6dof(state, controls, airplane, values=SIX_DOF_VALUES):
+def _reference_6dof(state, controls, airplane, values=SIX_DOF_VALUES, lateral=False):
     """Vector form: v̇ = F/m + g n − ω × v, J ω̇ = M − ω × (J ω + h_E), ṅ = n × ω, with
-    α̇, β̇ by fixed-point iteration. Returns (derivative, specific force F/m, ω̇)."""
+    α̇, β̇ by fixed-point iteration (``lateral``: β̇ = v̇ √(u²+w²)/V², the lateral model's
+    rule with u, w measured). Returns (derivative, specific force F/m, ω̇)."""
     de, da, dr, T, Q = controls
     vb, omega, n = state[0:3], state[3:6], state[6:9]
     u, v, w = vb
@@ -119,6 +122,8 @@ def _reference_6dof(state, controls, airplane, values=SIX_DOF_VALUES):
         new_adot = (u * vdot[2] - w * vdot[0]) / (u * u + w * w)
         Vdot = vb @ vdot / V
         new_bdot = (vdot[1] * V - v * Vdot) / (V * V * math.cos(beta))
+        if lateral:
+            new_bdot = vdot[1] * math.hypot(u, w) / V**2
         done = abs(new_adot - adot) + abs(new_bdot - bdot) < 1e-15
         adot, bdot = new_adot, new_bdot
         if done:
@@ -195,6 +200,28 @@ def _fields(airplane):
     import dataclasses
 
     return {f.name: getattr(airplane, f.name) for f in dataclasses.fields(airplane)}
+
+
+def test_lateral_model_with_betadot_matches_the_reference():
+    """The lateral model (u, w, q measured) with C_Yβ̇, C_nβ̇, engine momentum and propeller
+    torque against the reference with the lateral β̇ rule."""
+    airplane = _airplane_6dof()
+    aero = AeroModel({k: SIX_DOF_TERMS[k] for k in ("CY", "Cl", "Cn")})
+    values = {**SIX_DOF_VALUES, "CY_betadot_hat": -3.0, "Cn_betadot_hat": 0.5}
+    chosen = {k: v for k, v in values.items() if k in aero.parameter_names}
+    model = lateral_model(airplane, aero, aero.parameters(chosen), controls=("da", "dr"))
+    assert model.inputs == ("da", "dr", "Q", "u", "w", "q")
+    rng = np.random.default_rng(46)
+    for _ in range(10):
+        x6 = _random_state(rng)
+        da, dr, Q = rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), rng.uniform(0, 900)
+        d, _, _ = _reference_6dof(x6, (0.0, da, dr, 0.0, Q), airplane, values, lateral=True)
+        x = x6[[1, 3, 5, 6, 7, 8]]
+        u = np.array([da, dr, Q, x6[0], x6[2], x6[4]])
+        np.testing.assert_allclose(
+            model.f(0.0, x, u, model.parameters.values), d[[1, 3, 5, 6, 7, 8]], rtol=1e-10,
+            atol=1e-11,
+        )  # fmt: skip
 
 
 # ------------------------------------------------------------- longitudinal body model, α̇
@@ -498,3 +525,33 @@ def test_decoupled_models_refuse_the_other_axis_accelerations():
         longitudinal_model(airplane, AeroModel({"Cm": ["1"]}), outputs=("pdot",))
     with pytest.raises(InputError, match="no output"):
         lateral_model(airplane, AeroModel({"Cl": ["1"]}), outputs=("qdot",))
+
+
+# ------------------------------------------------------------------------- case-file keys
+def _builtin_case(tmp_path, old, new):
+    from flightid.cases import load_case
+
+    text = (ROOT / "examples/cases/hfb320_longitudinal_builtin.toml").read_text()
+    assert old in text
+    path = tmp_path / "case.toml"
+    path.write_text(text.replace(old, new))
+    return load_case(path)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("reference_speed = 104.67", "reference_speed = -1.0", "reference_speed: expected V0"),
+        ('rate_speed = "V0"', 'rate_speed = "U"', "rate_speed: expected 'V'"),
+        ("reference_speed = 104.67", "", "need the reference speed V0"),
+        ('CDa = "alpha" }', "CDa = 1 }", "model.aero.CD: expected a list of terms"),
+        ("Iy = 91388.79", "Ix = 1.0\nIy = 91388.79", "give both or neither"),
+    ],
+)
+def test_case_file_model_keys_named_errors(tmp_path, old, new, message):
+    from flightid.cases.build import base_model
+    from flightid.cases.spec import CaseError
+
+    case = _builtin_case(tmp_path, old, new)
+    with pytest.raises(CaseError, match=message):
+        base_model(case)
