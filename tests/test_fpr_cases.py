@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -19,9 +18,8 @@ import pytest
 import scipy.io
 
 from flightid.cases import load_case, run_case
-from flightid.cases.spec import parse_case
 from flightid.cli.main import main
-from flightid.compat.reconstruct import reconstruction_file_name, write_reconstruction
+from flightid.compat.reconstruct import reconstruction_file_name
 from flightid.data.loaders import load_flight_data
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -142,50 +140,48 @@ def test_cli_json_reports_greek_names(capsys):
 
 
 def test_reconstructed_signals_are_written_and_read_by_a_next_case(tmp_path):
-    """4a with the elevator carried along: reconstructed_<maneuver>.csv holds the corrected
-    inputs (q − b_q), the measured outputs and the reconstruction; an ATTAS short-period case
-    reads α, q and δe from it and converges."""
-    raw = tomllib.loads((CASES / "attas_fpr_biases.toml").read_text(encoding="utf-8"))
-    raw["data"]["inputs"]["de"] = {"column": 22, "unit": "deg", "to": "rad"}
-    case = parse_case(raw, CASES / "attas_fpr_biases.toml")
-    run = run_case(case, DATA)
-    paths = write_reconstruction(run, tmp_path)
-    assert [p.name for p in paths] == [
-        reconstruction_file_name(n) for n in ("fAttasElv1", "fAttasAil1", "fAttasRud1")
-    ]
-    header = paths[0].read_text(encoding="utf-8").splitlines()[0].split(",")
+    """The walk-through of docs/compat.md: `flightid run attas_fpr_biases.toml --out DIR`
+    writes reconstructed_<maneuver>.csv with the corrected inputs (q − b_q), the measured
+    outputs, the reconstruction and the elevator carried along; the shipped next case
+    (examples/fpr_walkthrough) fits the ATTAS short-period model to the corrected Elv1."""
+    out = tmp_path / "fpr"
+    code = main(
+        ["run", str(CASES / "attas_fpr_biases.toml"), "--out", str(out), "--quiet",
+         "--data-dir", str(DATA)]
+    )  # fmt: skip
+    assert code == 0
+    names = [reconstruction_file_name(n) for n in ("fAttasElv1", "fAttasAil1", "fAttasRud1")]
+    assert all((out / n).is_file() for n in names)
+    path = out / names[0]
+    header = path.read_text(encoding="utf-8").splitlines()[0].split(",")
     assert header[:7] == ["t [s]", "ax [m/s^2]", "ay [m/s^2]", "az [m/s^2]", "p [rad/s]",
                           "q [rad/s]", "r [rad/s]"]  # fmt: skip
     assert {"de [rad]", "α [rad]", "α_rec [rad]", "u_rec [m/s]", "α_fit [rad]"} <= set(header)
-    values = dict(zip(run.estimate.names, run.estimate.values, strict=True))
+    document = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    values = {p["name"]: p["value"] for p in document["results"][0]["parameters"]}
     # the corrected q is the raw file column 8 (deg/s) in rad/s minus b_q
     raw_elv1 = scipy.io.loadmat(DATA / "fvsysid/fAttasElv1.mat")["fAttasElv1"]
-    table = np.loadtxt(paths[0], delimiter=",", skiprows=1)
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
     np.testing.assert_allclose(
         table[:, header.index("q [rad/s]")],
         raw_elv1[:, 7] * np.pi / 180 - values["b_q"],
         rtol=1e-12,
         atol=1e-15,
     )
+    np.testing.assert_allclose(table[:, header.index("de [rad]")], raw_elv1[:, 21] * np.pi / 180)
     # α_rec is the model's α without sensor errors; with f_α = 1, b_α = 0 it is α_fit
     np.testing.assert_allclose(
         table[:, header.index("α_rec [rad]")], table[:, header.index("α_fit [rad]")]
     )
-    # a next case reads the file: ATTAS short period (α, q; δe) on the corrected Elv1
-    next_case = {
-        "title": "short period on reconstructed Elv1",
-        "data": {
-            "data_dir": str(tmp_path),
-            "file": paths[0].name,
-            "time": "t",
-            "inputs": {"de": {"column": "de"}},
-            "outputs": {"alpha": {"column": "α"}, "q": {"column": "q"}},
-        },
-        "model": {"module": str(ROOT / "examples/models/attas_short_period.py")},
-        "initial_state": {"default": "measured"},
-        "estimation": {"solver": "mnres", "method": "rk4", "noise": "max"},
-    }
-    follow = run_case(parse_case(next_case, tmp_path / "next.toml"))
+    # step 2 reads the file: the short-period model on the corrected Elv1 signals
+    follow = run_case(
+        load_case(ROOT / "examples/fpr_walkthrough/attas_short_period_reconstructed.toml"), out
+    )
     assert follow.estimate.converged, follow.estimate.message
-    data = load_flight_data(paths[0], time="t", outputs={"q": {"column": "q"}})
+    data = load_flight_data(path, time="t", outputs={"q": {"column": "q"}})
     np.testing.assert_allclose(data.output("q"), table[:, header.index("q [rad/s]")])
+    fitted = dict(zip(follow.estimate.names, follow.estimate.values, strict=True))
+    # the q bias moves only the zero terms; M0 changes by about Mq·b_q (regression values,
+    # flightid's own output at commit 78f364c: 0.47264 on the raw Elv1, 0.46616 on the
+    # corrected signals)
+    assert fitted["M0"] == pytest.approx(0.46616, abs=2e-4)
