@@ -31,9 +31,9 @@ pytestmark = pytest.mark.skipif(
 )
 
 SENSORS = ["b_ax", "b_ay", "b_az", "b_p", "b_q", "b_r"]
-X0 = [f"x0_{s}_{k}" for s in ("u", "v", "w", "φ", "θ", "ψ", "h") for k in (1, 2, 3)]
+X0 = [f"x0_{s}_{k}" for k in (1, 2, 3) for s in ("u", "v", "w", "φ", "θ", "ψ", "h")]
 # free parameters in the order of the estimate, names as CASES.md §4 writes them (the free
-# initial states come state-major, x0_u_1 x0_u_2 x0_u_3 x0_v_1 ..., as for every case)
+# initial states come maneuver-major, x0_u_1 x0_v_1 … x0_h_1 x0_u_2 …, CASES.md §4c's order)
 FREE = {
     "attas_fpr_biases": SENSORS,
     "attas_fpr_segment_biases": [f"{n}_{k}" for k in (1, 2, 3) for n in SENSORS],

@@ -323,7 +323,9 @@ def _initial_states(
     key: str,
     allow_estimate: bool = True,
 ) -> tuple[list[list], list[Parameter]]:
-    """Per-maneuver x0 specifications and the x0 parameters they need."""
+    """Per-maneuver x0 specifications and the x0 parameters they need, in maneuver-major
+    order (maneuver 1's free states in state order, then maneuver 2's …, as CASES.md §4c
+    lists them)."""
     unknown = sorted(set(section) - set(model.states) - {"default"})
     if unknown:
         raise CaseError(
@@ -331,7 +333,7 @@ def _initial_states(
         )
     n_m = len(maneuvers)
     x0 = [[None] * len(model.states) for _ in range(n_m)]
-    extra: list[Parameter] = []
+    extra: list[tuple[int, int, Parameter]] = []  # (maneuver, state, parameter)
     for j, state in enumerate(model.states):
         where = f"{key}.{state}"
         value = section.get(state, section.get("default", "measured"))
@@ -367,11 +369,11 @@ def _initial_states(
         for k, v in enumerate(values):
             if free:
                 name = f"x0_{state}" if n_m == 1 else f"x0_{state}_{k + 1}"
-                extra.append(Parameter(name, v, free=True, scale=spec.get("scale")))
+                extra.append((k, j, Parameter(name, v, free=True, scale=spec.get("scale"))))
                 x0[k][j] = name
             else:
                 x0[k][j] = v
-    return x0, extra
+    return x0, [p for _, _, p in sorted(extra, key=lambda e: (e[0], e[1]))]
 
 
 def _num(value: Any, where: str) -> float:
