@@ -35,6 +35,10 @@ from flightid.regression.pipeline import (
     starting_parameters,
 )
 from flightid.regression.stepwise import StepwiseResult, selected_fit_dict, stepwise
+from flightid.regression.total_least_squares import (
+    TotalLeastSquaresResult,
+    total_least_squares,
+)
 
 __all__ = [
     "StagesRun",
@@ -58,17 +62,44 @@ class TermsFit:
     response: str
     selected: tuple[str, ...]
     fit: LeastSquaresResult
+    parameter_names: tuple[str, ...] = ()  # the case's names of the terms' parameters
 
     @property
     def selected_terms(self) -> list[Term]:
         return [parse_term(label) for label in self.selected]
 
+    @property
+    def method(self) -> str:
+        """The fit's method: "tls" (total least squares) or "ols"."""
+        return "tls" if isinstance(self.fit, TotalLeastSquaresResult) else "ols"
+
     def summary(self) -> str:
-        return f"Least squares for {self.response}\n\n" + self.fit.summary()
+        title = "Total least squares" if self.method == "tls" else "Least squares"
+        text = f"{title} for {self.response}\n\n" + self.fit.summary()
+        if self.parameter_names:
+            pairs = ", ".join(
+                f"{n} = {t}" for n, t in zip(self.parameter_names, self.selected, strict=True)
+            )
+            text += f"\nparameters: {pairs}"
+        return text
 
     def to_dict(self) -> dict:
-        """``selected``, ``parameters`` (name, value, std), ``r2``, ``pse``, ``s2``."""
-        return selected_fit_dict(self.selected, self.fit)
+        """``selected``, ``parameters`` (name, value, std; with ``parameters`` names in the
+        case each row also names its ``term``), ``r2``, ``pse``, ``s2``, ``method`` and, for
+        TLS, ``covariance`` and each parameter's ``std_ols`` and ``std_eiv``."""
+        entry = selected_fit_dict(self.selected, self.fit)
+        entry["method"] = self.method
+        if self.method == "tls":
+            full = self.fit.to_dict()
+            entry["covariance"] = full["covariance"]
+            entry["parameters"] = full["parameters"]
+        if self.parameter_names:
+            for row, name, term in zip(
+                entry["parameters"], self.parameter_names, self.selected, strict=True
+            ):
+                row["term"] = term
+                row["name"] = name
+        return entry
 
 
 RegressionResult = StepwiseResult | TermsFit
@@ -164,15 +195,31 @@ def _stepwise_stage(stage: StageSpec, signals: Mapping[str, np.ndarray]) -> dict
 
 
 def _regression_stage(stage: StageSpec, signals: Mapping[str, np.ndarray]) -> dict:
+    """Least squares (``method = "ols"``) or total least squares (``"tls"``) per
+    coefficient, on exactly its terms."""
     results = {}
-    for name, response, terms, _ in stage.coefficients:
+    for name, response, terms, options in stage.coefficients:
+        where = f"stages[{stage.index}].coefficients.{name}"
+        method = options.get("method", stage.settings.get("method", "ols"))
+        covariance = options.get("covariance", stage.settings.get("covariance"))
+        if method == "ols" and covariance not in (None, "ols"):
+            raise CaseError(
+                f'{where}: covariance = {covariance!r} is for method = "tls"; ordinary '
+                "least squares has the covariance s²(XᵀX)⁻¹"
+            )
         parsed = [parse_term(t) for t in terms]
         labels = tuple(t.label for t in parsed)
         try:
-            fit = least_squares(evaluate_terms(parsed, signals), signals[response], labels)
+            X = evaluate_terms(parsed, signals)
+            if method == "tls":
+                fit = total_least_squares(
+                    X, signals[response], labels, covariance=covariance or "ols"
+                )
+            else:
+                fit = least_squares(X, signals[response], labels)
         except InputError as exc:
-            raise CaseError(f"stages[{stage.index}].coefficients.{name}: {exc}") from None
-        results[name] = TermsFit(name, labels, fit)
+            raise CaseError(f"{where}: {exc}") from None
+        results[name] = TermsFit(name, labels, fit, tuple(options.get("parameters", ())))
     return results
 
 

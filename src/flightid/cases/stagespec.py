@@ -19,7 +19,10 @@ Kinds and their keys:
   ("pse", "final"), forced (terms), max_steps, and ``[stages.coefficients.NAME]`` with
   response, candidates and any of those options for that coefficient alone.
 - ``regression``: ``[stages.coefficients.NAME]`` with response and terms (least squares
-  with statistics on exactly those terms; the constant "1" is a term like any other).
+  with statistics on exactly those terms; the constant "1" is a term like any other);
+  method ("ols" ordinary, "tls" total least squares) and covariance ("ols": s²(XᵀX)⁻¹,
+  "eiv": errors-in-variables sandwich; TLS only) for the stage or per coefficient, and per
+  coefficient ``parameters`` (one name per term, for the reports).
 - ``output_error``: the keys of ``[estimation]``; ``from = "previous"`` after a stepwise or
   regression stage takes the selected terms and their least-squares estimates as the
   structure and start values of ``[model] type = "alpha_q"`` (coefficients CZ and Cm).
@@ -54,6 +57,7 @@ STAGE_KINDS = ("stepwise", "regression", "output_error", "accuracy", "prediction
 LATER_KINDS = ("compatibility", "filter_error")
 REGRESSION_KINDS = ("stepwise", "regression")
 STEPWISE_OPTIONS = ("f_enter", "f_remove", "sigma2_max", "select", "forced", "max_steps")
+REGRESSION_OPTIONS = ("method", "covariance")
 _COMMON = {"kind", "name", "from"}
 _MOVED = ("estimation", "accuracy", "prediction")
 
@@ -93,6 +97,32 @@ _OPTION_CHECKS: dict[str, Callable[[Any, str], Any]] = {
 }
 
 
+def _regression_options(table: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """``method`` ("ols" | "tls") and ``covariance`` ("ols" | "eiv") of a regression stage."""
+    options = {}
+    if "method" in table:
+        options["method"] = _string(table["method"], f"{where}.method", ("ols", "tls"))
+    if "covariance" in table:
+        options["covariance"] = _string(table["covariance"], f"{where}.covariance", ("ols", "eiv"))
+    return options
+
+
+def _parameter_names(value: Any, where: str, terms: tuple[str, ...]) -> tuple[str, ...]:
+    """One distinct, non-empty name per term."""
+    if (
+        not isinstance(value, list)
+        or len(value) != len(terms)
+        or not all(isinstance(n, str) and n.strip() for n in value)
+    ):
+        raise CaseError(
+            f"{where}: expected a list of {len(terms)} names (one per term {list(terms)}), "
+            f"got {value!r}"
+        )
+    if len(set(value)) != len(value):
+        raise CaseError(f"{where}: expected distinct names, got {value!r}")
+    return tuple(value)
+
+
 def _stepwise_options(table: Mapping[str, Any], where: str) -> dict[str, Any]:
     """The options of ``flightid.regression.stepwise`` present in ``table``, checked."""
     return {
@@ -126,7 +156,9 @@ def _terms(value: Any, where: str, channels: set[str]) -> tuple[str, ...]:
 def _coefficients(stage: Mapping[str, Any], where: str, kind: str, channels: set[str]) -> tuple:
     """``[stages.coefficients.NAME]`` tables: (name, response, terms, options) each."""
     terms_key = "candidates" if kind == "stepwise" else "terms"
-    allowed = {"response", terms_key} | (set(STEPWISE_OPTIONS) if kind == "stepwise" else set())
+    allowed = {"response", terms_key} | (
+        set(STEPWISE_OPTIONS) if kind == "stepwise" else {*REGRESSION_OPTIONS, "parameters"}
+    )
     table = _table(stage.get("coefficients", {}), f"{where}.coefficients")
     if not table:
         raise CaseError(f"{where}.coefficients: expected at least one [{where}.coefficients.NAME]")
@@ -144,7 +176,15 @@ def _coefficients(stage: Mapping[str, Any], where: str, kind: str, channels: set
         if terms_key not in entry:
             raise CaseError(f"{key}.{terms_key}: missing (the terms of {name})")
         terms = _terms(entry[terms_key], f"{key}.{terms_key}", channels)
-        result.append((name, response, terms, _stepwise_options(entry, key)))
+        if kind == "stepwise":
+            options = _stepwise_options(entry, key)
+        else:
+            options = _regression_options(entry, key)
+            if "parameters" in entry:
+                options["parameters"] = _parameter_names(
+                    entry["parameters"], f"{key}.parameters", terms
+                )
+        result.append((name, response, terms, options))
     return tuple(result)
 
 
@@ -167,8 +207,10 @@ def _stage_settings(stage: Mapping[str, Any], kind: str, where: str, data: Mappi
     """The stage's own keys, checked by the rules of its kind."""
     settings = {k: v for k, v in stage.items() if k not in _COMMON}
     if kind in REGRESSION_KINDS:
-        allowed = {"coefficients"} | (set(STEPWISE_OPTIONS) if kind == "stepwise" else set())
-        _known(settings, allowed, where)
+        options = STEPWISE_OPTIONS if kind == "stepwise" else REGRESSION_OPTIONS
+        _known(settings, {"coefficients", *options}, where)
+        if kind == "regression":
+            return _regression_options(settings, where)
         return _stepwise_options(settings, where)
     if kind == "output_error":
         estimation_settings(settings, where)

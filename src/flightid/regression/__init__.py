@@ -1,5 +1,6 @@
-"""Model structure determination: least squares with statistics, recursive least squares,
-modified stepwise regression and the equation-error set-up for airplanes (METHOD §4–§5)."""
+"""Model structure determination: least squares with statistics, total least squares,
+recursive least squares, modified stepwise regression and the equation-error set-up for
+airplanes (METHOD §4–§5)."""
 
 from flightid.regression.differentiate import smooth_derivative
 from flightid.regression.equation_error import (
@@ -12,6 +13,11 @@ from flightid.regression.equation_error import (
 from flightid.regression.least_squares import LeastSquaresError, LeastSquaresResult, least_squares
 from flightid.regression.recursive import RecursiveLeastSquares, SlidingWindowLeastSquares
 from flightid.regression.stepwise import Step, StepwiseError, StepwiseResult, stepwise
+from flightid.regression.total_least_squares import (
+    TotalLeastSquaresError,
+    TotalLeastSquaresResult,
+    total_least_squares,
+)
 
 __all__ = [
     "Airframe",
@@ -22,6 +28,8 @@ __all__ = [
     "Step",
     "StepwiseError",
     "StepwiseResult",
+    "TotalLeastSquaresError",
+    "TotalLeastSquaresResult",
     "equation_error_signals",
     "force_coefficients",
     "least_squares",
@@ -29,4 +37,5 @@ __all__ = [
     "nondimensional_rates",
     "smooth_derivative",
     "stepwise",
+    "total_least_squares",
 ]
