@@ -129,7 +129,8 @@ def test_steady_turn_closed_form():
         g=G, accelerometer_position=ACC, airdata_position=BOOM, x0=(V, 0, 0, phi, 0, psi0, h0)
     )
     y = simulate(model, data)
-    expected = np.column_stack([outputs[o] for o in OUTPUTS])
+    assert model.outputs == OUTPUTS[:7]
+    expected = np.column_stack([outputs[o] for o in model.outputs])
     np.testing.assert_allclose(y, expected, rtol=1e-10, atol=1e-9)
 
 
@@ -314,6 +315,10 @@ def test_biases_scale_factors_and_delay_recovered_within_three_sigma():
         ({"output_biases": ("α",), "outputs": ("V",)}, "output_biases: expected names from"),
         ({"scale_reference": {"γ": 1.0}}, "scale_reference: 'γ'"),
         ({"output_delays": {"γ": "τ"}}, "output_delays: 'γ' is not an output"),
+        ({"input_delays": {"de": "τ"}}, "input_delays: 'de' is not an input"),
+        ({"wind": ("W_X",)}, "wind: expected names from ['W_N', 'W_E', 'W_D']"),
+        ({"wind": "W_N"}, "wind: expected a list"),
+        ({"outputs": ("V", "x_N")}, "'x_N' is not an integrated state"),
     ],
 )
 def test_named_errors(arguments, message):
@@ -338,6 +343,11 @@ def _case(model: dict) -> dict:
         ({"output_delays": {"α": "1τ"}}, "model.output_delays.α: expected a parameter name"),
         ({"delay_convention": "book"}, "model.delay_convention: expected one of"),
         ({"g": "9.8"}, "model.g:"),
+        ({"wind": ["N"]}, "model.wind: expected names from"),
+        ({"states": ["u", "x"]}, "model.states: expected names from"),
+        ({"input_delays": {"de": "τ"}}, "model.input_delays.de: not an input"),
+        ({"input_delays": {"q": "1τ"}}, "model.input_delays.q: expected a parameter name"),
+        ({"input_delays": ["q"]}, "model.input_delays: expected a table"),
     ],
 )
 def test_case_file_errors_name_the_key(tmp_path, model, message):
@@ -347,7 +357,8 @@ def test_case_file_errors_name_the_key(tmp_path, model, message):
 
 
 def test_quantity_names():
-    assert QUANTITIES == ("u", "v", "w", "φ", "θ", "ψ", "h")
+    assert QUANTITIES == ("u", "v", "w", "φ", "θ", "ψ", "h", "x_N", "y_E")
+    assert kinematic_spec().states == QUANTITIES[:7]
     spec = kinematic_spec(accelerometer_position=ACC)
     assert spec.inputs[6:9] == ("pdot", "qdot", "rdot")
     assert kinematic_spec().inputs == ("ax", "ay", "az", "p", "q", "r")
@@ -408,3 +419,233 @@ def test_reconstruction_inverts_the_sensor_model():
         # corrected α: delay undone (z(t + dt) = z_{k+1}), bias of this maneuver, factor
         np.testing.assert_allclose(cols["α [rad]"][:-1], block[:-1, 1], atol=1e-12)
         np.testing.assert_allclose(cols["α_fit [rad]"], data[k].output("α"), atol=1e-12)
+
+
+# ------------------------------------------------------------------ positions, ground speeds, wind
+
+
+def _steady_climbing_turn_in_wind(n: int, dt: float):
+    """A steady climbing turn relative to the air mass in a constant wind, in closed form
+    (independent of the model code): attitude φ, θ constant, ψ = ψ0 + Ω t, the air-relative
+    body velocity V_a = (u_a, v_a, w_a) constant, so the body rates ω = (−Ω sθ, Ω sφ cθ,
+    Ω cφ cθ) and the specific force a = ω × V_a − Rᵀ(0, 0, g) are constant (the wind drops
+    out of it); the inertial velocity in body axes is V_a + Rᵀ W, in NED R V_a + W, and the
+    position its integral: with c = R_y(θ) R_x(φ) V_a,
+    x_N = x_N0 + (c_x (sin ψ − sin ψ0) + c_y (cos ψ − cos ψ0))/Ω + W_N t,
+    y_E = y_E0 + (c_y (sin ψ − sin ψ0) − c_x (cos ψ − cos ψ0))/Ω + W_E t,
+    h = h0 − (c_z + W_D) t."""
+    phi, theta, psi0, Omega = 0.35, 0.08, 0.4, 0.06
+    v_air = np.array([110.0, 1.5, 6.0])
+    wind = np.array([8.0, -5.0, 0.7])  # W_N, W_E, W_D (m/s)
+    h0, xn0, ye0 = 2500.0, 100.0, -300.0
+    st, ct, sf, cf = math.sin(theta), math.cos(theta), math.sin(phi), math.cos(phi)
+    omega = np.array([-Omega * st, Omega * sf * ct, Omega * cf * ct])
+    t = np.arange(n) * dt
+    psi = psi0 + Omega * t
+    R0 = _euler_matrix(phi, theta, psi0)
+    a = np.cross(omega, v_air) - R0.T @ np.array([0.0, 0.0, G])
+    c = _euler_matrix(phi, theta, 0.0) @ v_air
+    vn = c[0] * np.cos(psi) - c[1] * np.sin(psi) + wind[0]
+    ve = c[0] * np.sin(psi) + c[1] * np.cos(psi) + wind[1]
+    vd = np.full(n, c[2] + wind[2])
+    x0_vel = v_air + R0.T @ wind  # inertial body velocity at t = 0
+    boom = v_air + np.cross(omega, BOOM)
+    truth = {
+        "V": np.full(n, np.linalg.norm(v_air)),
+        "α": np.full(n, math.atan2(boom[2], boom[0])),
+        "β": np.full(n, math.atan2(boom[1], boom[0])),
+        "φ": np.full(n, phi),
+        "θ": np.full(n, theta),
+        "ψ": psi,
+        "h": h0 - (c[2] + wind[2]) * t,
+        "x_N": xn0
+        + (c[0] * (np.sin(psi) - math.sin(psi0)) + c[1] * (np.cos(psi) - math.cos(psi0))) / Omega
+        + wind[0] * t,
+        "y_E": ye0
+        + (c[1] * (np.sin(psi) - math.sin(psi0)) - c[0] * (np.cos(psi) - math.cos(psi0))) / Omega
+        + wind[1] * t,
+        "V_N": vn,
+        "V_E": ve,
+        "V_D": vd,
+        "V_G": np.hypot(vn, ve),
+        "χ": np.arctan2(ve, vn),
+    }
+    inputs = {k: np.full(n, v) for k, v in zip(("ax", "ay", "az"), a, strict=True)}
+    inputs |= {k: np.full(n, v) for k, v in zip(("p", "q", "r"), omega, strict=True)}
+    x0 = (*x0_vel, phi, theta, psi0, h0, xn0, ye0)
+    return t, inputs, truth, x0, wind
+
+
+def test_steady_climbing_turn_in_constant_wind_closed_form():
+    """All nine states and fourteen outputs against the closed form: the air data see the
+    air-relative velocity (constant), the ground speeds and positions the inertial one."""
+    n, dt = 1001, 0.02
+    t, inputs, truth, x0, wind = _steady_climbing_turn_in_wind(n, dt)
+    model = kinematic_model(
+        g=G,
+        states=QUANTITIES,
+        outputs=OUTPUTS,
+        airdata_position=BOOM,
+        wind=("W_N", "W_E", "W_D"),
+        input_biases=(),
+        output_biases=(),
+        output_scales=(),
+        x0=x0,
+    )
+    assert model.parameters.names == ["W_N", "W_E", "W_D"]
+    assert model.inputs == ("ax", "ay", "az", "p", "q", "r")
+    theta = np.array(wind)
+    data = FlightData(t, inputs, {o: np.zeros(n) for o in OUTPUTS})
+    y = simulate(model, data, theta)
+    for j, name in enumerate(OUTPUTS):
+        scale = max(1.0, float(np.max(np.abs(truth[name]))))
+        np.testing.assert_allclose(y[:, j], truth[name], rtol=0, atol=1e-9 * scale, err_msg=name)
+    # the wind makes the difference: without it the air data vary with the heading
+    still = simulate(model, data, np.zeros(3))
+    assert np.ptp(still[:, 0]) > 10.0 and np.ptp(still[:, 1]) > 0.003
+    # a model without wind gives the same numbers as one whose wind is zero
+    plain = kinematic_model(
+        g=G, states=QUANTITIES, outputs=OUTPUTS, airdata_position=BOOM, input_biases=(),
+        output_biases=(), output_scales=(), x0=x0,
+    )  # fmt: skip
+    np.testing.assert_array_equal(simulate(plain, data, np.zeros(0)), still)
+
+
+def test_positions_and_wind_in_a_decoupled_model():
+    """Positions need the attitude and the velocity: measured when not integrated. With wind
+    the air data need φ, θ, ψ too (a measured ψ for a longitudinal model)."""
+    spec = kinematic_spec(states=("u", "w", "θ", "x_N"), outputs=("V", "α", "x_N", "V_N"))
+    assert spec.inputs[6:] == ("v", "φ", "ψ")
+    lon = kinematic_spec(states=("u", "w", "θ"), outputs=("V", "α"), wind=("W_N", "W_E"))
+    assert lon.inputs[6:] == ("v", "φ", "ψ")
+    assert [p.name for p in lon.parameters][-2:] == ["W_N", "W_E"]
+    assert lon.parameters["W_N"].unit == "m/s"
+    assert kinematic_spec(states=("u", "w", "θ"), outputs=("V", "α")).inputs[6:] == ("v", "φ")
+
+
+def test_wind_recovered_within_three_sigma():
+    """Simulated air data and GPS-type ground speeds and positions in a turn (heading through
+    2.4 rad) with a constant wind and sensor biases (seeded noise): MNR recovers W_N, W_E,
+    W_D and the six input biases within 3 CR bounds."""
+    n, dt = 1200, 0.05
+    rng = np.random.default_rng(31)
+    t, inputs, _, x0, _ = _steady_climbing_turn_in_wind(n, dt)
+    for name, amplitude in (("ax", 0.3), ("ay", 0.2), ("az", 0.5), ("p", 0.02), ("q", 0.01),
+                            ("r", 0.01)):  # fmt: skip
+        for _ in range(2):
+            frequency, phase = rng.uniform(0.05, 0.4), rng.uniform(0, 2 * np.pi)
+            inputs[name] = inputs[name] + amplitude * np.sin(2 * np.pi * frequency * t + phase)
+    outputs = ("V", "α", "β", "φ", "θ", "ψ", "h", "x_N", "y_E", "V_N", "V_E", "V_D")
+    model = kinematic_model(
+        g=G,
+        states=QUANTITIES,
+        outputs=outputs,
+        wind=("W_N", "W_E", "W_D"),
+        output_biases=(),
+        output_scales=(),
+        x0=x0,
+    )
+    true = {"b_ax": 0.05, "b_ay": -0.03, "b_az": 0.08, "b_p": 0.001, "b_q": 0.002,
+            "b_r": -0.001, "W_N": 6.0, "W_E": -4.0, "W_D": 0.5}  # fmt: skip
+    data = FlightData(t, inputs, {o: np.zeros(n) for o in outputs})
+    y = simulate(model, data, model.parameters.with_values(true).values)
+    noise = np.array([0.2, 0.002, 0.002, 0.003, 0.002, 0.002, 2.0, 3.0, 3.0, 0.1, 0.1, 0.1])
+    noisy = y + rng.normal(0, 1, y.shape) * noise
+    measured = FlightData(t, inputs, {o: noisy[:, j] for j, o in enumerate(outputs)})
+    result = estimate(model, measured, solver=MNR(), noise="max")
+    assert result.converged
+    for name, value in true.items():
+        i = result.names.index(name)
+        assert abs(result.values[i] - value) < 3 * result.std[i], (name, result.values[i], value)
+    for name in ("W_N", "W_E"):
+        i = result.names.index(name)
+        assert result.std[i] < 0.2 and abs(result.values[i]) > 10 * result.std[i]
+
+
+def test_input_delay_shifts_the_input():
+    """input_delays = {q: τ_q} with τ = 3 samples (fractional rule): the same as the
+    undelayed model fed q shifted by three samples (the first sample held)."""
+    dt, n, k = 0.04, 200, 3
+    rng = np.random.default_rng(9)
+    t, signals = _maneuver_inputs(rng, n, dt)
+    x0 = (129.0, -0.5, 5.0, 0.02, 0.03, 0.22, 4800.0)
+    delayed = kinematic_model(g=G, input_delays={"q": "τ_q"}, x0=x0)
+    assert delayed.parameters.names[-1] == "τ_q" and delayed.input_delays == {"q": "τ_q"}
+    plain = kinematic_model(g=G, x0=x0)
+    data = FlightData(t, signals, {o: np.zeros(n) for o in plain.outputs})
+    shifted = dict(signals)
+    shifted["q"] = np.concatenate([np.full(k, signals["q"][0]), signals["q"][:-k]])
+    data_shifted = FlightData(t, shifted, {o: np.zeros(n) for o in plain.outputs})
+    theta = delayed.parameters.with_values({"τ_q": k * dt, "b_q": 0.002}).values
+    np.testing.assert_allclose(
+        simulate(delayed, data, theta),
+        simulate(plain, data_shifted, theta[:-1]),
+        rtol=1e-12,
+        atol=1e-9,
+    )
+    assert not np.allclose(simulate(delayed, data, theta), simulate(plain, data, theta[:-1]))
+
+
+def test_case_file_wind_positions_and_input_delays(tmp_path):
+    """[model] wind, positions, ground-speed outputs and input_delays in a case file give
+    the model of the Python API (same parameters, same simulation)."""
+    from flightid.cases.build import build_model
+
+    raw = _case(
+        {
+            "states": ["u", "v", "w", "φ", "θ", "ψ", "h", "x_N", "y_E"],
+            "outputs": ["V", "α", "β", "x_N", "y_E", "V_N", "V_E", "V_D"],
+            "wind": ["W_N", "W_E"],
+            "input_delays": {"q": "τ_q"},
+        }
+    )
+    raw["initial_state"] = dict(
+        zip(QUANTITIES, (110.0, 1.0, 6.0, 0.3, 0.08, 0.4, 2500.0, 0.0, 0.0), strict=True)
+    )
+    raw["parameters"] = {"W_N": 6.0, "W_E": -4.0, "τ_q": 0.04}
+    case = parse_case(raw, tmp_path / "case.toml")
+    n, dt = 300, 0.04
+    t, signals = _maneuver_inputs(np.random.default_rng(4), n, dt)
+    data = FlightData(t, {k: signals[k] for k in ("ax", "ay", "az", "p", "q", "r")},
+                      {o: np.zeros(n) for o in raw["model"]["outputs"]})  # fmt: skip
+    model, maneuvers = build_model(case, [data])
+    assert model.input_delays == {"q": "τ_q"}
+    assert model.parameters.names[-3:] == ["W_N", "W_E", "τ_q"]
+    python = kinematic_model(
+        states=QUANTITIES,
+        outputs=raw["model"]["outputs"],
+        wind=("W_N", "W_E"),
+        input_delays={"q": "τ_q"},
+        x0=tuple(raw["initial_state"].values()),
+    )
+    assert python.parameters.names == model.parameters.names
+    theta = python.parameters.with_values(raw["parameters"]).values
+    np.testing.assert_array_equal(model.parameters.values, theta)
+    np.testing.assert_allclose(simulate(model, maneuvers), simulate(python, data, theta),
+                               rtol=1e-13, atol=1e-9)  # fmt: skip
+
+
+def test_reconstruction_with_wind_and_positions():
+    """The reconstructed signals of a model with wind and positions: x_N_rec … χ_rec and the
+    air-relative V_rec, α_rec of the closed-form climbing turn; a model without them writes
+    no ground columns."""
+    from flightid.compat.kinematic import model_from_spec
+    from flightid.compat.reconstruct import reconstruct
+
+    n, dt = 501, 0.02
+    t, inputs, truth, x0, wind = _steady_climbing_turn_in_wind(n, dt)
+    spec = kinematic_spec(g=G, states=QUANTITIES, outputs=("V", "α", "V_N", "x_N"),
+                          airdata_position=BOOM, wind=("W_N", "W_E", "W_D"))  # fmt: skip
+    model = model_from_spec(spec, x0=x0)
+    data = FlightData(t, inputs, {o: truth[o] for o in model.outputs})
+    theta = model.parameters.with_values(dict(zip(("W_N", "W_E", "W_D"), wind, strict=True)))
+    (rec,) = reconstruct(spec, model, [data], theta.values)
+    for name in ("V", "α", "β", "x_N", "y_E", "V_E", "V_G", "χ"):
+        unit = spec.unit(name)
+        np.testing.assert_allclose(rec.columns[f"{name}_rec [{unit}]"], truth[name],
+                                   rtol=1e-10, atol=1e-8, err_msg=name)  # fmt: skip
+    assert rec.columns["x_N_rec [m]"] is not None and spec.unit("W_N") == "m/s"
+    (plain,) = reconstruct(kinematic_spec(g=G), kinematic_model(g=G, x0=x0[:7]), [
+        FlightData(t, inputs, {o: np.zeros(n) for o in ("V", "α", "β", "φ", "θ", "ψ", "h")})
+    ])  # fmt: skip
+    assert not any(k.startswith(("x_N", "V_N", "χ")) for k in plain.columns)

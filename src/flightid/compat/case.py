@@ -2,8 +2,10 @@
 
     [model]
     type = "kinematic"
-    states = ["u", "v", "w", "φ", "θ", "ψ", "h"]     # integrated (default all seven)
-    outputs = ["V", "α", "β", "φ", "θ", "ψ", "h"]    # default V, α, β and the states' own
+    states = ["u", "v", "w", "φ", "θ", "ψ", "h"]     # integrated (default these seven;
+                                                      # also "x_N", "y_E": positions)
+    outputs = ["V", "α", "β", "φ", "θ", "ψ", "h"]    # default V, α, β and the states' own;
+                                                      # also V_N V_E V_D V_G χ (ground speeds)
     g = 9.80                                          # L/s²
     accelerometer_position = [-1.010, 0.886, 0.103]   # L from the CG (adds pdot qdot rdot)
     airdata_position = [13.080, -0.010, -0.027]       # L from the CG
@@ -16,9 +18,11 @@
     bias_convention = "sensor"                        # m = f·x + b; "correction": x = m + b
     scale_convention = "factor"                       # f; "fraction": f = 1 + λ
     scale_reference = { "α" = 0.35 }                  # scale about a constant (default 0)
+    wind = ["W_N", "W_E"]                             # constant-wind parameters (L/s)
     names = { b_ax = "ax_bias" }                      # report parameters under other names
     length_unit = "m"                                 # or "ft" (labels and units)
     output_delays = { "α" = "τ_α" }                   # delay parameters, after the sensors'
+    input_delays = { q = "τ_q" }                      # the model reads q(t − τ_q)
     delay_convention = "two_sample"
 
 Every parameter starts free (biases and λ at 0, f at 1, delays at 0 s); [parameters] sets
@@ -54,27 +58,36 @@ _ARGUMENTS = (
     "bias_convention",
     "scale_convention",
     "scale_reference",
+    "wind",
     "names",
     "length_unit",
 )
-KINEMATIC_KEYS = frozenset({"type", "name", "output_delays", "delay_convention", *_ARGUMENTS})
+KINEMATIC_KEYS = frozenset(
+    {"type", "name", "output_delays", "input_delays", "delay_convention", *_ARGUMENTS}
+)
+
+
+def _delay_table(model: Mapping[str, Any], key: str, what: str) -> dict[str, str]:
+    delays = model.get(key, {})
+    if not isinstance(delays, Mapping):
+        raise CaseError(f"model.{key}: expected a table {{{what} = 'parameter'}}, got {delays!r}")
+    for channel, parameter in delays.items():
+        if not isinstance(parameter, str) or not parameter.isidentifier():
+            raise CaseError(
+                f"model.{key}.{channel}: expected a parameter name (the delay in s), "
+                f"got {parameter!r}"
+            )
+    return dict(delays)
 
 
 def _spec(model: Mapping[str, Any]) -> KinematicSpec:
-    delays = model.get("output_delays", {})
-    if not isinstance(delays, Mapping):
-        raise CaseError(
-            f"model.output_delays: expected a table {{output = 'parameter'}}, got {delays!r}"
-        )
-    for output, parameter in delays.items():
-        if not isinstance(parameter, str) or not parameter.isidentifier():
-            raise CaseError(
-                f"model.output_delays.{output}: expected a parameter name (the delay in s), "
-                f"got {parameter!r}"
-            )
+    delays = _delay_table(model, "output_delays", "output")
+    input_delays = _delay_table(model, "input_delays", "input")
     arguments = {k: model[k] for k in _ARGUMENTS if k in model}
+    # the delay parameters after the sensors' (and wind's): output delays', then input delays'
+    names = tuple(dict.fromkeys([*delays.values(), *input_delays.values()]))
     try:
-        spec = kinematic_spec(delays=tuple(dict.fromkeys(delays.values())), **arguments)
+        spec = kinematic_spec(delays=names, **arguments)
     except (InputError, InputTypeError) as exc:
         raise CaseError(f"model.{exc}") from None
     for output in delays:
@@ -82,6 +95,12 @@ def _spec(model: Mapping[str, Any]) -> KinematicSpec:
             raise CaseError(
                 f"model.output_delays.{output}: not an output of the kinematic model; its "
                 f"outputs: {list(spec.outputs)}"
+            )
+    for channel in input_delays:
+        if channel not in spec.inputs:
+            raise CaseError(
+                f"model.input_delays.{channel}: not an input of the kinematic model; its "
+                f"inputs: {list(spec.inputs)}"
             )
     return spec
 
@@ -113,5 +132,6 @@ def kinematic_from_case(case) -> StateSpaceModel:
         spec,
         name=case.model.get("name", "kinematic"),
         output_delays=dict(case.model.get("output_delays", {})) or None,
+        input_delays=dict(case.model.get("input_delays", {})) or None,
         delay_convention=case.model.get("delay_convention", "fractional"),
     )

@@ -8,7 +8,7 @@ Klein & Morelli ch. 10).
 Kinematic quantities (units: L is the length unit of the data, m or ft; angles in rad)::
 
     u, v, w  body-axis velocity at the CG (L/s)     φ, θ, ψ  Euler angles (rad)
-    h        altitude (L)
+    h        altitude (L)                            x_N, y_E  position north, east (L)
 
 Each is an integrated state, or a measured input channel of the same name (a decoupled
 model: e.g. longitudinal u, w, θ with v and φ measured).
@@ -30,6 +30,10 @@ x_ref is 0 unless ``scale_reference`` gives a constant (SIDPAC scales the change
 first sample: x_ref = the model output there). Inputs are corrected by inverting the model,
 x = (m − x_ref ∓ b)/f + x_ref; the angular accelerations are never corrected.
 
+u, v, w are the inertial (ground-relative) velocity; with a constant wind (W_N, W_E, W_D) in
+the north-east-down frame (parameters ``wind``, L/s) the air data see the air-relative
+velocity, the ground speeds and positions the inertial one. Without wind both are the same.
+
 State equations (g gravity, L/s²; (x_A, y_A, z_A) accelerometer position from the CG)::
 
     a_xCG = a_x' + x_A(q² + r²) − y_A(p q − ṙ) − z_A(p r + q̇)
@@ -42,14 +46,23 @@ State equations (g gravity, L/s²; (x_A, y_A, z_A) accelerometer position from t
     θ̇ = q cos φ − r sin φ
     ψ̇ = (q sin φ + r cos φ) / cos θ
     ḣ = u sin θ − v sin φ cos θ − w cos φ cos θ
+    (V_N, V_E, V_D) = R·(u, v, w),  R = R_z(ψ) R_y(θ) R_x(φ) (body → north-east-down):
+    V_N = u cθ cψ + v (sφ sθ cψ − cφ sψ) + w (cφ sθ cψ + sφ sψ)
+    V_E = u cθ sψ + v (sφ sθ sψ + cφ cψ) + w (cφ sθ sψ − sφ cψ)
+    V_D = −u sθ + v sφ cθ + w cφ cθ                               (ḣ = −V_D)
+    ẋ_N = V_N,  ẏ_E = V_E
 
 Observation equations (air-data boom at (x_NB, y_NB, z_NB) from the CG)::
 
-    u_NB = u − r y_NB + q z_NB,  v_NB = v − p z_NB + r x_NB,  w_NB = w − q x_NB + p y_NB
-    V = √(u² + v² + w²)  (velocity_at = "cg", default)  or  √(u_NB² + v_NB² + w_NB²) ("airdata")
+    (u_a, v_a, w_a) = (u, v, w) − Rᵀ·(W_N, W_E, W_D)      air-relative (= u, v, w without wind)
+    u_NB = u_a − r y_NB + q z_NB,  v_NB = v_a − p z_NB + r x_NB,  w_NB = w_a − q x_NB + p y_NB
+    V = √(u_a² + v_a² + w_a²)  (velocity_at = "cg", default)  or  √(u_NB² + v_NB² + w_NB²)
+        ("airdata")
     α = atan2(w_NB, u_NB)
     β = atan2(v_NB, u_NB)  (beta = "atan2", default)  or  asin(v_NB / V_NB)  ("asin", SIDPAC)
-    φ, θ, ψ, h: the states
+    φ, θ, ψ, h, x_N, y_E: the states
+    V_N, V_E, V_D as above (inertial, at the CG)
+    V_G = √(V_N² + V_E²)  (horizontal ground speed),  χ = atan2(V_E, V_N)  (track, rad)
 
 and each output passes through its sensor model. Output time delays are applied by the
 simulator to the whole output (``output_delays``); because the delay weights sum to one, a
@@ -73,7 +86,10 @@ from flightid.model.statespace import DELAY_CONVENTIONS, StateSpaceModel
 
 __all__ = [
     "QUANTITIES",
+    "DEFAULT_STATES",
     "OUTPUTS",
+    "GROUND_OUTPUTS",
+    "WIND",
     "SENSOR_INPUTS",
     "RATE_DERIVATIVES",
     "KinematicSpec",
@@ -82,9 +98,15 @@ __all__ = [
 ]
 
 # the kinematic quantities, in the order of the full vector X inside f and h
-QUANTITIES = ("u", "v", "w", "φ", "θ", "ψ", "h")
+QUANTITIES = ("u", "v", "w", "φ", "θ", "ψ", "h", "x_N", "y_E")
+# the default integrated states (positions only when asked for)
+DEFAULT_STATES = QUANTITIES[:7]
 # the outputs, in the order of the full output vector inside h
-OUTPUTS = ("V", "α", "β", "φ", "θ", "ψ", "h")
+OUTPUTS = ("V", "α", "β", "φ", "θ", "ψ", "h", "x_N", "y_E", "V_N", "V_E", "V_D", "V_G", "χ")
+# outputs of the ground-speed / position extension (inertial velocity, positions)
+GROUND_OUTPUTS = OUTPUTS[7:]
+# constant-wind parameters (north, east, down; L/s), in the order of the wind vector
+WIND = ("W_N", "W_E", "W_D")
 # measured inputs driving the model, and the angular accelerations of the transfer terms
 SENSOR_INPUTS = ("ax", "ay", "az", "p", "q", "r")
 RATE_DERIVATIVES = ("pdot", "qdot", "rdot")
@@ -97,7 +119,10 @@ _STATE_NEEDS = {
     "θ": ("φ",),
     "ψ": ("φ", "θ"),
     "h": ("u", "v", "w", "φ", "θ"),
+    "x_N": ("u", "v", "w", "φ", "θ", "ψ"),
+    "y_E": ("u", "v", "w", "φ", "θ", "ψ"),
 }
+_GROUND_NEEDS = ("u", "v", "w", "φ", "θ", "ψ")
 _OUTPUT_NEEDS = {
     "V": ("u", "v", "w"),
     "α": ("u", "v", "w"),
@@ -106,7 +131,12 @@ _OUTPUT_NEEDS = {
     "θ": ("θ",),
     "ψ": ("ψ",),
     "h": ("h",),
+    "x_N": ("x_N",),
+    "y_E": ("y_E",),
+    **dict.fromkeys(("V_N", "V_E", "V_D", "V_G", "χ"), _GROUND_NEEDS),
 }
+# air-data outputs: with wind they read the attitude as well (Rᵀ·W)
+_AIR_OUTPUTS = ("V", "α", "β")
 # parameter-name suffix of each input sensor (b_ax, f_p, ...)
 _INPUT_SUFFIX = dict(zip(SENSOR_INPUTS, SENSOR_INPUTS, strict=True))
 BIAS_CONVENTIONS = ("sensor", "correction")
@@ -117,6 +147,11 @@ LENGTH_UNITS = ("m", "ft")
 # constants table layout (_C_*: index into ``consts``)
 _C_G, _C_XA, _C_YA, _C_ZA, _C_XN, _C_YN, _C_ZN = 0, 1, 2, 3, 4, 5, 6
 _C_SIGN, _C_SCALE0, _C_VBOOM, _C_ASIN, _C_PDOT = 7, 8, 9, 10, 11
+# 1.0 when the model has wind parameters (else the air data read u, v, w unchanged)
+_C_WIND = 12
+# 1.0 when positions are integrated or ground speeds are outputs (else they are not computed)
+_C_GROUND = 13
+_NQ, _NO = len(QUANTITIES), len(OUTPUTS)
 
 
 # ------------------------------------------------------------------------------ equations
@@ -124,10 +159,10 @@ _C_SIGN, _C_SCALE0, _C_VBOOM, _C_ASIN, _C_PDOT = 7, 8, 9, 10, 11
 
 @register_jitable
 def full_quantities(x, u, src_state, src_input):
-    """X = (u, v, w, φ, θ, ψ, h): each from the state (``src_state[i] ≥ 0``) or a measured
-    input (``src_input[i] ≥ 0``), else 0."""
-    X = np.zeros(7)
-    for i in range(7):
+    """X = (u, v, w, φ, θ, ψ, h, x_N, y_E): each from the state (``src_state[i] ≥ 0``) or a
+    measured input (``src_input[i] ≥ 0``), else 0."""
+    X = np.zeros(_NQ)
+    for i in range(_NQ):
         if src_state[i] >= 0:
             X[i] = x[src_state[i]]
         elif src_input[i] >= 0:
@@ -158,7 +193,7 @@ def corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts):
 
 @register_jitable
 def kinematic_derivatives(X, c, u, consts):
-    """dX/dt of the seven kinematic quantities from the corrected inputs ``c``."""
+    """dX/dt of the nine kinematic quantities from the corrected inputs ``c``."""
     ax, ay, az, p, q, r = c[0], c[1], c[2], c[3], c[4], c[5]
     k = int(consts[_C_PDOT])
     pd = u[k] if k >= 0 else 0.0
@@ -171,7 +206,7 @@ def kinematic_derivatives(X, c, u, consts):
     azcg = az - xa * (p * r - qd) - ya * (q * r + pd) + za * (p * p + q * q)
     uu, v, w, phi, th = X[0], X[1], X[2], X[3], X[4]
     sphi, cphi, sth, cth = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
-    d = np.empty(7)
+    d = np.empty(_NQ)
     # u̇ = a_xCG − g sin θ + r v − q w
     d[0] = axcg - g * sth + r * v - q * w
     # v̇ = a_yCG + g sin φ cos θ + p w − r u
@@ -186,38 +221,96 @@ def kinematic_derivatives(X, c, u, consts):
     d[5] = (q * sphi + r * cphi) / cth
     # ḣ = u sin θ − v sin φ cos θ − w cos φ cos θ
     d[6] = uu * sth - v * sphi * cth - w * cphi * cth
+    d[7] = 0.0
+    d[8] = 0.0
+    if consts[_C_GROUND] > 0.5:
+        # ẋ_N = V_N, ẏ_E = V_E: (V_N, V_E, V_D) = R·(u, v, w)
+        g_n, g_e, _ = ground_velocity(X)
+        d[7] = g_n
+        d[8] = g_e
     return d
 
 
 @register_jitable
-def true_outputs(X, c, consts):
-    """(V, α, β, φ, θ, ψ, h) without sensor errors; α, β (and V with velocity_at =
-    "airdata") at the air-data boom, from the corrected rates in ``c``."""
+def ground_velocity(X):
+    """(V_N, V_E, V_D) = R·(u, v, w), R = R_z(ψ) R_y(θ) R_x(φ) body → north-east-down."""
+    uu, v, w = X[0], X[1], X[2]
+    sf, cf = math.sin(X[3]), math.cos(X[3])
+    st, ct = math.sin(X[4]), math.cos(X[4])
+    sp, cp = math.sin(X[5]), math.cos(X[5])
+    # V_N = u cθ cψ + v (sφ sθ cψ − cφ sψ) + w (cφ sθ cψ + sφ sψ)
+    vn = uu * ct * cp + v * (sf * st * cp - cf * sp) + w * (cf * st * cp + sf * sp)
+    # V_E = u cθ sψ + v (sφ sθ sψ + cφ cψ) + w (cφ sθ sψ − sφ cψ)
+    ve = uu * ct * sp + v * (sf * st * sp + cf * cp) + w * (cf * st * sp - sf * cp)
+    # V_D = −u sθ + v sφ cθ + w cφ cθ
+    vd = -uu * st + v * sf * ct + w * cf * ct
+    return vn, ve, vd
+
+
+@register_jitable
+def body_wind(X, theta, wind):
+    """(W_x, W_y, W_z) = Rᵀ·(W_N, W_E, W_D): the constant wind in body axes (0 for a
+    component without a parameter)."""
+    wn = theta[wind[0]] if wind[0] >= 0 else 0.0
+    we = theta[wind[1]] if wind[1] >= 0 else 0.0
+    wd = theta[wind[2]] if wind[2] >= 0 else 0.0
+    sf, cf = math.sin(X[3]), math.cos(X[3])
+    st, ct = math.sin(X[4]), math.cos(X[4])
+    sp, cp = math.sin(X[5]), math.cos(X[5])
+    # W_x = W_N cθ cψ + W_E cθ sψ − W_D sθ
+    wx = wn * ct * cp + we * ct * sp - wd * st
+    # W_y = W_N (sφ sθ cψ − cφ sψ) + W_E (sφ sθ sψ + cφ cψ) + W_D sφ cθ
+    wy = wn * (sf * st * cp - cf * sp) + we * (sf * st * sp + cf * cp) + wd * sf * ct
+    # W_z = W_N (cφ sθ cψ + sφ sψ) + W_E (cφ sθ sψ − sφ cψ) + W_D cφ cθ
+    wz = wn * (cf * st * cp + sf * sp) + we * (cf * st * sp - sf * cp) + wd * cf * ct
+    return wx, wy, wz
+
+
+@register_jitable
+def true_outputs(X, c, theta, wind, consts):
+    """The outputs (``OUTPUTS``) without sensor errors; α, β (and V with velocity_at =
+    "airdata") at the air-data boom, from the corrected rates in ``c`` and the air-relative
+    velocity (inertial minus the wind ``theta[wind]`` in body axes)."""
     p, q, r = c[3], c[4], c[5]
     xn, yn, zn = consts[_C_XN], consts[_C_YN], consts[_C_ZN]
     uu, v, w = X[0], X[1], X[2]
+    if consts[_C_WIND] > 0.5:
+        # (u_a, v_a, w_a) = (u, v, w) − Rᵀ·(W_N, W_E, W_D)
+        wx, wy, wz = body_wind(X, theta, wind)
+        uu, v, w = uu - wx, v - wy, w - wz
     # velocity at the boom: V_NB = V_CG + ω × r_NB
     unb = uu - r * yn + q * zn
     vnb = v - p * zn + r * xn
     wnb = w - q * xn + p * yn
     vboom = math.sqrt(unb * unb + vnb * vnb + wnb * wnb)
-    y = np.empty(7)
-    # V = √(u² + v² + w²) at the CG, or at the boom
+    y = np.empty(_NO)
+    # V = √(u_a² + v_a² + w_a²) at the CG, or at the boom
     y[0] = vboom if consts[_C_VBOOM] > 0.5 else math.sqrt(uu * uu + v * v + w * w)
     # α = atan2(w_NB, u_NB)
     y[1] = math.atan2(wnb, unb)
     # β = atan2(v_NB, u_NB), or asin(v_NB / V_NB)
     y[2] = math.asin(vnb / vboom) if consts[_C_ASIN] > 0.5 else math.atan2(vnb, unb)
-    for i in range(3, 7):
+    # φ θ ψ h x_N y_E: the kinematic quantities
+    for i in range(3, 9):
         y[i] = X[i]
+    for i in range(9, _NO):
+        y[i] = 0.0
+    if consts[_C_GROUND] > 0.5:
+        vn, ve, vd = ground_velocity(X)
+        y[9] = vn
+        y[10] = ve
+        y[11] = vd
+        # V_G = √(V_N² + V_E²), χ = atan2(V_E, V_N)
+        y[12] = math.sqrt(vn * vn + ve * ve)
+        y[13] = math.atan2(ve, vn)
     return y
 
 
 @register_jitable
 def sensor_outputs(y, theta, out_bias, out_scale, out_ref, consts):
-    """m = f·(y − y_ref) + y_ref + s·b for each of the seven outputs."""
-    m = np.empty(7)
-    for i in range(7):
+    """m = f·(y − y_ref) + y_ref + s·b for each output of ``OUTPUTS``."""
+    m = np.empty(_NO)
+    for i in range(_NO):
         b = theta[out_bias[i]] if out_bias[i] >= 0 else 0.0
         f = _sensor_scale(theta, out_scale[i], consts)
         # m = f·(y − y_ref) + y_ref + s·b
@@ -239,6 +332,7 @@ class KinematicSpec:
         outputs: the output channels.
         parameters: the sensor parameters and delays, in model order.
         length_unit: "m" or "ft" (labels only).
+        wind: θ indices of the wind parameters W_N, W_E, W_D (−1: none).
     """
 
     states: tuple[str, ...]
@@ -256,6 +350,7 @@ class KinematicSpec:
     out_bias: np.ndarray
     out_scale: np.ndarray
     out_ref: np.ndarray
+    wind: np.ndarray
     consts: np.ndarray
 
     def functions(self):
@@ -264,7 +359,7 @@ class KinematicSpec:
         deriv_index, out_index = self.deriv_index, self.out_index
         in_bias, in_scale, in_ref = self.in_bias, self.in_scale, self.in_ref
         out_bias, out_scale, out_ref = self.out_bias, self.out_scale, self.out_ref
-        consts = self.consts
+        wind, consts = self.wind, self.consts
         n_x, n_y = deriv_index.shape[0], out_index.shape[0]
 
         def f(t, x, u, theta):
@@ -279,7 +374,7 @@ class KinematicSpec:
         def h(t, x, u, theta):
             X = full_quantities(x, u, src_state, src_input)
             c = corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts)
-            y_true = true_outputs(X, c, consts)
+            y_true = true_outputs(X, c, theta, wind, consts)
             m = sensor_outputs(y_true, theta, out_bias, out_scale, out_ref, consts)
             y = np.empty(n_y)
             for i in range(n_y):
@@ -289,24 +384,24 @@ class KinematicSpec:
         return f, h
 
     def reconstruction_function(self):
-        """h_rec(t, x, u, θ) = (states, true outputs (all seven), corrected inputs (six));
-        names in ``reconstruction_names``."""
+        """h_rec(t, x, u, θ) = (states, true outputs (all of ``OUTPUTS``), corrected inputs
+        (six)); names in ``reconstruction_names``."""
         src_state, src_input = self.src_state, self.src_input
         in_bias, in_scale, in_ref = self.in_bias, self.in_scale, self.in_ref
-        consts = self.consts
+        wind, consts = self.wind, self.consts
         n_x = len(self.states)
 
         def h_rec(t, x, u, theta):
             X = full_quantities(x, u, src_state, src_input)
             c = corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts)
-            y = true_outputs(X, c, consts)
-            out = np.empty(n_x + 13)
+            y = true_outputs(X, c, theta, wind, consts)
+            out = np.empty(n_x + _NO + 6)
             for i in range(n_x):
                 out[i] = x[i]
-            for i in range(7):
+            for i in range(_NO):
                 out[n_x + i] = y[i]
             for i in range(6):
-                out[n_x + 7 + i] = c[i]
+                out[n_x + _NO + i] = c[i]
             return out
 
         return h_rec
@@ -314,6 +409,16 @@ class KinematicSpec:
     @property
     def reconstruction_names(self) -> tuple[str, ...]:
         return (*self.states, *OUTPUTS, *SENSOR_INPUTS)
+
+    @property
+    def has_wind(self) -> bool:
+        """True when the model has wind parameters."""
+        return bool(self.consts[_C_WIND] > 0.5)
+
+    @property
+    def has_ground(self) -> bool:
+        """True when positions are integrated or ground speeds are outputs."""
+        return bool(self.consts[_C_GROUND] > 0.5)
 
     def unit(self, name: str) -> str:
         """Unit of a kinematic quantity, output or input channel of the model."""
@@ -335,9 +440,9 @@ class KinematicSpec:
 
 def _unit(L: str, name: str) -> str:
     """Unit of a kinematic quantity, output or input channel (L: the length unit)."""
-    if name in ("u", "v", "w", "V"):
+    if name in ("u", "v", "w", "V", "V_N", "V_E", "V_D", "V_G", *WIND):
         return f"{L}/s"
-    if name == "h":
+    if name in ("h", "x_N", "y_E"):
         return L
     if name in ("ax", "ay", "az"):
         return f"{L}/s^2"
@@ -383,7 +488,7 @@ def _choice(value: object, argument: str, allowed: Sequence[str]) -> str:
 
 def kinematic_spec(
     *,
-    states: Sequence[str] = QUANTITIES,
+    states: Sequence[str] = DEFAULT_STATES,
     outputs: Sequence[str] | None = None,
     g: float = 9.80665,
     accelerometer_position: Sequence[float] = (0.0, 0.0, 0.0),
@@ -397,6 +502,7 @@ def kinematic_spec(
     bias_convention: str = "sensor",
     scale_convention: str = "factor",
     scale_reference: Mapping[str, float] | None = None,
+    wind: Sequence[str] = (),
     delays: Sequence[str] = (),
     names: Mapping[str, str] | None = None,
     length_unit: str = "m",
@@ -407,17 +513,18 @@ def kinematic_spec(
         raise InputError("states: expected at least one integrated kinematic quantity")
     if outputs is None:
         outputs = tuple(
-            o for o in OUTPUTS if o in ("V", "α", "β") or o in states
+            o for o in OUTPUTS if o in _AIR_OUTPUTS or o in states
         )  # every output the states give
     outputs = _names(outputs, "outputs", OUTPUTS)
     if not outputs:
         raise InputError("outputs: expected at least one output")
     for o in outputs:
-        if o not in ("V", "α", "β") and o not in states:
+        if o in QUANTITIES and o not in states:
             raise InputError(
                 f"outputs: {o!r} is not an integrated state (states {list(states)}); a "
-                "measured attitude or altitude cannot be an output of its own model"
+                "measured attitude, altitude or position cannot be an output of its own model"
             )
+    wind = _names(wind, "wind", WIND)
     if isinstance(g, bool) or not isinstance(g, (int, float)):
         raise InputTypeError(f"g: expected a number (L/s²), got {describe(g)}")
     g = float(g)
@@ -455,6 +562,10 @@ def kinematic_spec(
     needed = {q for s in states for q in _STATE_NEEDS[s]} | {
         q for o in outputs for q in _OUTPUT_NEEDS[o]
     }
+    if wind and any(o in _AIR_OUTPUTS for o in outputs):
+        # the air data read the wind in body axes, Rᵀ·W: the attitude
+        needed |= {"φ", "θ", "ψ"}
+    ground = bool({"x_N", "y_E"} & set(states)) or any(o in GROUND_OUTPUTS for o in outputs)
     measured = tuple(q for q in QUANTITIES if q in needed and q not in states)
     transfer = any(v != 0.0 for v in (xa, ya, za))
     inputs = (*SENSOR_INPUTS, *(RATE_DERIVATIVES if transfer else ()), *measured)
@@ -464,8 +575,8 @@ def kinematic_spec(
     scale_start = 1.0 if scale_convention == "factor" else 0.0
     in_bias = -np.ones(6, dtype=np.int64)
     in_scale = -np.ones(6, dtype=np.int64)
-    out_bias = -np.ones(7, dtype=np.int64)
-    out_scale = -np.ones(7, dtype=np.int64)
+    out_bias = -np.ones(len(OUTPUTS), dtype=np.int64)
+    out_scale = -np.ones(len(OUTPUTS), dtype=np.int64)
     # (default name, start value, unit) of each parameter
     defaults: list[tuple[str, float, str]] = []
 
@@ -485,6 +596,10 @@ def kinematic_spec(
             out_scale[i] = add(f"f_{o}", scale_start, "")
         if o in output_biases:
             out_bias[i] = add(f"b_{o}", 0.0, _unit(L, o))
+    wind_index = -np.ones(3, dtype=np.int64)
+    for i, component in enumerate(WIND):
+        if component in wind:
+            wind_index[i] = add(component, 0.0, _unit(L, component))
     for name in delays:
         add(name, 0.0, "s")
     default_names = [d[0] for d in defaults]
@@ -500,8 +615,8 @@ def kinematic_spec(
     except InputError as exc:
         raise InputError(f"names: {exc}") from None
 
-    src_state = -np.ones(7, dtype=np.int64)
-    src_input = -np.ones(7, dtype=np.int64)
+    src_state = -np.ones(len(QUANTITIES), dtype=np.int64)
+    src_input = -np.ones(len(QUANTITIES), dtype=np.int64)
     for i, q in enumerate(QUANTITIES):
         if q in states:
             src_state[i] = states.index(q)
@@ -521,6 +636,8 @@ def kinematic_spec(
             1.0 if velocity_at == "airdata" else 0.0,
             1.0 if beta == "asin" else 0.0,
             float(len(SENSOR_INPUTS)) if transfer else -1.0,
+            1.0 if wind else 0.0,
+            1.0 if ground else 0.0,
         ]
     )
     return KinematicSpec(
@@ -539,13 +656,14 @@ def kinematic_spec(
         out_bias=out_bias,
         out_scale=out_scale,
         out_ref=np.array([float(reference.get(o, 0.0)) for o in OUTPUTS]),
+        wind=wind_index,
         consts=consts,
     )
 
 
 def kinematic_model(
     *,
-    states: Sequence[str] = QUANTITIES,
+    states: Sequence[str] = DEFAULT_STATES,
     outputs: Sequence[str] | None = None,
     g: float = 9.80665,
     accelerometer_position: Sequence[float] = (0.0, 0.0, 0.0),
@@ -559,7 +677,9 @@ def kinematic_model(
     bias_convention: str = "sensor",
     scale_convention: str = "factor",
     scale_reference: Mapping[str, float] | None = None,
+    wind: Sequence[str] = (),
     output_delays: Mapping[str, str] | None = None,
+    input_delays: Mapping[str, str] | None = None,
     delay_convention: str = "fractional",
     names: Mapping[str, str] | None = None,
     length_unit: str = "m",
@@ -570,10 +690,13 @@ def kinematic_model(
 
     Args:
         states: integrated kinematic quantities from ``QUANTITIES`` (u v w φ θ ψ h, the
-            default); the others the equations need become measured input channels of the
-            same name (e.g. ``("u", "w", "θ")`` takes v and φ as inputs).
-        outputs: from ``OUTPUTS`` (V α β φ θ ψ h); default V, α, β and the integrated
-            φ, θ, ψ, h. φ, θ, ψ, h must be states to be outputs.
+            default, and the positions x_N, y_E); the others the equations need become
+            measured input channels of the same name (e.g. ``("u", "w", "θ")`` takes v and φ
+            as inputs).
+        outputs: from ``OUTPUTS`` (V α β φ θ ψ h x_N y_E V_N V_E V_D V_G χ); default V, α,
+            β and the integrated φ, θ, ψ, h, x_N, y_E, which must be states to be outputs.
+            V_N V_E V_D (ground-speed components), V_G (horizontal ground speed) and χ
+            (track, atan2(V_E, V_N), in (−π, π]) are inertial, at the CG.
         g: gravity, L/s² (9.80 in CASES.md §4; 32.174 ft/s² for SIDPAC's files).
         accelerometer_position: (x_A, y_A, z_A) from the CG, L, body axes; away from the CG
             the model takes the inputs pdot, qdot, rdot (rad/s²) for the transfer terms.
@@ -589,8 +712,14 @@ def kinematic_model(
         bias_convention: "sensor" (m = f·x + b, default) or "correction" (x = m + b).
         scale_convention: "factor" (f, start 1) or "fraction" (f = 1 + λ, λ start 0).
         scale_reference: {sensor: x_ref}: scale about x_ref (default 0).
+        wind: constant-wind components from ``WIND`` (W_N W_E W_D, L/s, start 0) with a
+            parameter, added after the output sensors' parameters; the air data (V, α, β)
+            then use the air-relative velocity (u, v, w) − Rᵀ·W, the ground speeds and
+            positions the inertial (u, v, w). Default none (no wind).
         output_delays: {output: delay parameter name}; the delay parameters (s, start 0)
-            are added after the sensor parameters.
+            are added after the sensor (and wind) parameters.
+        input_delays: {input channel: delay parameter name}: the model reads the input at
+            t − τ (``StateSpaceModel``); parameters after the output delays'.
         delay_convention: "fractional" or "two_sample" (``StateSpaceModel``).
         names: {default parameter name: name}: report the parameters under other names
             (e.g. SIDPAC's {"b_ax": "ax_bias"}).
@@ -608,6 +737,7 @@ def kinematic_model(
     for output in delays:
         if output not in OUTPUTS:
             raise InputError(f"output_delays: {output!r} is not an output {list(OUTPUTS)}")
+    in_delays = dict(input_delays or {})
     delay_convention = _choice(delay_convention, "delay_convention", DELAY_CONVENTIONS)
     spec = kinematic_spec(
         states=states,
@@ -624,12 +754,13 @@ def kinematic_model(
         bias_convention=bias_convention,
         scale_convention=scale_convention,
         scale_reference=scale_reference,
-        delays=tuple(dict.fromkeys(delays.values())),
+        wind=wind,
+        delays=tuple(dict.fromkeys([*delays.values(), *in_delays.values()])),
         names=names,
         length_unit=length_unit,
     )
     return model_from_spec(spec, x0=x0, name=name, output_delays=delays,
-                           delay_convention=delay_convention)  # fmt: skip
+                           input_delays=in_delays, delay_convention=delay_convention)  # fmt: skip
 
 
 def model_from_spec(
@@ -638,6 +769,7 @@ def model_from_spec(
     x0=None,
     name: str = "kinematic",
     output_delays: Mapping[str, str] | None = None,
+    input_delays: Mapping[str, str] | None = None,
     delay_convention: str = "fractional",
 ) -> StateSpaceModel:
     """The ``StateSpaceModel`` of ``spec``."""
@@ -646,6 +778,11 @@ def model_from_spec(
         if output not in spec.outputs:
             raise InputError(
                 f"output_delays: {output!r} is not an output of the model {list(spec.outputs)}"
+            )
+    for channel in input_delays or {}:
+        if channel not in spec.inputs:
+            raise InputError(
+                f"input_delays: {channel!r} is not an input of the model {list(spec.inputs)}"
             )
     return StateSpaceModel(
         states=spec.states,
@@ -657,5 +794,6 @@ def model_from_spec(
         x0=tuple(x0) if x0 is not None else (0.0,) * len(spec.states),
         name=name,
         output_delays=dict(output_delays) if output_delays else None,
+        input_delays=dict(input_delays) if input_delays else None,
         delay_convention=delay_convention,
     )

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flightid.compat.kinematic import OUTPUTS, SENSOR_INPUTS, KinematicSpec
+from flightid.compat.kinematic import GROUND_OUTPUTS, OUTPUTS, SENSOR_INPUTS, KinematicSpec
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputError
 from flightid.model.statespace import StateSpaceModel
@@ -59,9 +59,19 @@ class Reconstruction:
 
 
 def _output_computable(spec: KinematicSpec, output: str) -> bool:
-    """True when every kinematic quantity ``output`` reads is integrated or measured."""
+    """True when every kinematic quantity ``output`` reads is integrated or measured (the
+    ground speeds and positions only in a model that has them)."""
     available = set(spec.states) | set(spec.inputs)
-    needs = ("u", "v", "w") if output in ("V", "α", "β") else (output,)
+    if output in GROUND_OUTPUTS and not spec.has_ground:
+        return False
+    if output in ("V", "α", "β"):
+        needs: tuple[str, ...] = (
+            ("u", "v", "w", "φ", "θ", "ψ") if spec.has_wind else ("u", "v", "w")
+        )
+    elif output in GROUND_OUTPUTS[2:]:
+        needs = ("u", "v", "w", "φ", "θ", "ψ")
+    else:
+        needs = (output,)
     return all(q in available for q in needs)
 
 
@@ -101,15 +111,15 @@ def reconstruct(
             f"got inputs {list(model.inputs)}"
         )
     names = spec.reconstruction_names
-    # the same model (states, x0, wrappers, per-maneuver parameters) with h returning the
-    # states, the error-free outputs and the corrected inputs, undelayed
+    # the same model (states, x0, wrappers, per-maneuver parameters, input delays) with h
+    # returning the states, the error-free outputs and the corrected inputs, the outputs
+    # undelayed; an input delay stays: the integration and the corrected inputs are those
+    # of the fit (the inputs as the model read them, u(t − τ))
     changes = {
         "h": spec.reconstruction_function(),
         "outputs": tuple(f"rec_{i}" for i in range(len(names))),
         "output_delays": None,
     }
-    if any(f.name == "input_delays" for f in dataclasses.fields(model)):
-        changes["input_delays"] = None
     auxiliary = dataclasses.replace(model, **changes)
     rec = simulate(
         auxiliary,
@@ -142,7 +152,7 @@ def reconstruct(
         unit = spec.unit
         columns: dict[str, np.ndarray] = {"t [s]": np.asarray(maneuver.time, dtype=float)}
         for j, name in enumerate(SENSOR_INPUTS):
-            columns[f"{name} [{unit(name)}]"] = block[:, n_x + 7 + j]
+            columns[f"{name} [{unit(name)}]"] = block[:, n_x + len(OUTPUTS) + j]
         for name in spec.inputs[len(SENSOR_INPUTS) :]:
             columns[f"{name} [{unit(name)}]"] = np.asarray(maneuver.channel(name), dtype=float)
         # further input channels of the case (controls ...), carried along as measured
@@ -157,7 +167,7 @@ def reconstruct(
                 z = _undelay(maneuver.time, z, float(delays[name]))
             columns[f"{name} [{unit(name)}]"] = spec.invert_output(name, z, theta_f)
         for j, name in enumerate(spec.states):
-            if name in ("u", "v", "w"):
+            if name in ("u", "v", "w"):  # (x_N, y_E come as x_N_rec, y_E_rec below)
                 columns[f"{name}_rec [{unit(name)}]"] = block[:, j]
         for j, name in enumerate(OUTPUTS):
             if _output_computable(spec, name):
