@@ -74,6 +74,7 @@ def load_maneuvers(
                 start=spec.start,
                 stop=spec.stop,
                 gaps=spec.gaps,
+                dt=spec.dt,
                 constants=case.data.get("constants"),
                 signals=case.data.get("signals"),
                 steps=case.data.get("steps"),

@@ -103,6 +103,7 @@ _DATA = {
     "variable",
     "time",
     "gaps",
+    "dt",
     "file",
     "files",
     "maneuvers",
@@ -114,7 +115,7 @@ _DATA = {
     "signals",
     "steps",
 }
-_MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps"}
+_MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps", "dt"}
 _MODEL = {
     "module",
     "type",
@@ -181,6 +182,7 @@ class ManeuverSpec:
     variable: str | None = None
     format: str = "auto"
     gaps: str = "error"
+    dt: float | None = None  # s: regenerate time as t_0 + k·dt (None: the stored times)
 
 
 @dataclass(frozen=True)
@@ -289,6 +291,9 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
         file = _string(item["file"], f"{where}.file")
         start = item.get("start", defaults.get("start"))
         stop = item.get("stop", defaults.get("stop"))
+        dt = item.get("dt", defaults.get("dt"))
+        if dt is not None and _number(dt, f"{where}.dt") <= 0:
+            raise CaseError(f"{where}.dt: expected a positive sampling interval (s), got {dt!r}")
         result.append(
             ManeuverSpec(
                 file=file,
@@ -308,6 +313,7 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
                     f"{where}.gaps",
                     ("error", "join"),
                 ),
+                dt=None if dt is None else float(dt),
             )
         )
     names = [m.name for m in result]

@@ -907,6 +907,7 @@ def to_flight_data(
     signals: Mapping[str, Any] | None = None,
     steps: Sequence[Any] | None = None,
     pipeline: Any = None,
+    dt: float | None = None,
 ) -> FlightData:
     """Build ``FlightData`` from a table and channel specifications.
 
@@ -928,6 +929,10 @@ def to_flight_data(
         steps: ``[[data.steps]]``: built-in pre-processing steps making named signals.
         pipeline: an already checked ``flightid.data.pipeline.Pipeline`` instead of
             ``constants``/``signals``/``steps``.
+        dt: the sampling interval (s): replaces the stored times of the kept rows by
+            t_k = t_0 + k·dt (t_0 the first kept stored time; CASES.md §0) — for files whose
+            stamps jitter. Must lie within 10 % of the median stored interval. The time
+            variable of expressions sees the regenerated times. Default: the stored times.
     """
     from flightid.data.pipeline import parse_pipeline
 
@@ -953,10 +958,30 @@ def to_flight_data(
         )
     t = t_all[keep]
     stored = t
+    given_dt = dt
     dt = np.diff(t)
     if gaps not in ("error", "join"):
         raise InputError(f"gaps: expected 'error' or 'join', got {gaps!r}")
-    if gaps == "join" and np.all(dt > 0):
+    if given_dt is not None:
+        if (
+            isinstance(given_dt, bool)
+            or not isinstance(given_dt, (int, float))
+            or not (math.isfinite(given_dt) and given_dt > 0)
+        ):
+            raise InputError(f"dt: expected a positive number of seconds, got {given_dt!r}")
+        median = float(np.median(dt))
+        if not abs(median - given_dt) <= 0.1 * given_dt:
+            raise InputError(
+                f"dt: {given_dt:g} s is not within 10 % of the median stored interval of "
+                f"{table.source}, {median:.6g} s"
+            )
+        # t_k = t_0 + k·dt (CASES.md §0): the rows are consecutive samples at the given dt;
+        # expressions' time variable sees the same regenerated times (row i: t_0 + (i − i_0)·dt)
+        i0 = int(np.argmax(keep))
+        t = t[0] + np.arange(t.shape[0]) * float(given_dt)
+        t_all = t[0] + (np.arange(t_all.shape[0]) - i0) * float(given_dt)
+        dt = np.diff(t)
+    elif gaps == "join" and np.all(dt > 0):
         # Rows are taken as consecutive samples: t_k = t_0 + k·Δt with Δt the median interval
         # (how the reference tools treat files that hold several recording segments).
         t = t[0] + np.arange(t.shape[0]) * float(np.median(dt))
@@ -1019,6 +1044,7 @@ def load_flight_data(
     constants: Mapping[str, Any] | None = None,
     signals: Mapping[str, Any] | None = None,
     steps: Sequence[Any] | None = None,
+    dt: float | None = None,
 ) -> FlightData:
     """``read_table`` then ``to_flight_data``; the maneuver name defaults to the file stem."""
     table = read_table(path, format, variable=variable)
@@ -1034,4 +1060,5 @@ def load_flight_data(
         start=start,
         stop=stop,
         gaps=gaps,
+        dt=dt,
     )
