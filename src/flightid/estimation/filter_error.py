@@ -1,0 +1,630 @@
+"""The filter error method: maximum likelihood with process noise (Jategaonkar ch. 5).
+
+Model (CASES.md §1b):
+
+    ẋ(t) = f(x, u, θ) + F w(t),   F = diag(F_11, …) (parameters),  w: unit white noise
+    z_k  = g(x_k, u_k, θ) + v_k
+
+A steady-state Kalman filter runs in every evaluation (a *filter pass*):
+
+    ỹ_k = g(x̃_k, u_k)                  x̃_1 = x0 (each maneuver restarts at its x0)
+    e_k = z_k − ỹ_k                     (innovation)
+    x̂_k = x̃_k + K e_k                   (correction)
+    x̃_{k+1} = RK4 of ẋ = f(x, u) from x̂_k over [t_k, t_{k+1}]   (prediction)
+
+with K = P Cᵀ R⁻¹ and P the stabilising solution of A P + P Aᵀ − (1/Δt) P CᵀR⁻¹C P + FFᵀ = 0
+(``flightid.filtering.kalman``), A = ∂f/∂x and C = ∂g/∂x by central differences (Δx = 1e-4)
+at the linearisation point (x0 of the first maneuver, u_1: the reference's choice; for a
+linear model the point does not matter). R is the weighting, the innovations' covariance.
+
+``FilterErrorProblem`` is an ``OutputErrorProblem`` whose "outputs" are the filtered
+predictions ỹ and whose residuals are the innovations: for a given weighting R (held in the
+problem as ``gain_r``, used for the gain and the cost), the negative log-likelihood is
+Σ eᵀR⁻¹e + const, and every piece of output-error machinery — MNR and MNRES, the halving
+search, the Gauss–Newton step and the central-difference confirmation — runs on it
+unchanged. One filter pass is one equivalent evaluation.
+
+The constraint diag(KC) ≤ 1 (a larger element would mean a negative measurement-noise
+variance, R − CPCᵀ) is enforced by the problem: a θ that violates it gives no filter pass
+(it is reported like a diverged simulation, cost +∞), so the step control keeps every
+accepted iterate feasible. The reference schedule (``relaxation="reference"``) instead
+corrects each Gauss–Newton step with the linearised constraint, as CASES.md §1b describes.
+
+R and F are both estimated. The estimate the book defines is the fixed point where θ (system
+parameters and F) is Gauss–Newton-optimal under the weighting R and R equals the innovations'
+covariance, R = diag((1/N) Σ e_k e_kᵀ). ``relaxation="fixed_point"`` (default) reaches it
+directly: converge θ with R held (a well-posed ML problem: R fixed, gain and cost consistent),
+set R to the innovations' covariance, repeat until R moves by less than ``r_rtol``. No step
+of it needs the book's heuristic F compensation, which only tries to keep K unchanged across
+an R update so that a single schedule of steps converges; both schedules stop at the same
+fixed point (tests/test_filter_error.py, docs/turbulence.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flightid.data.flightdata import FlightData
+from flightid.errors import EstimationError, InputError, InputTypeError, describe
+from flightid.estimation.confirm import confirm_convergence
+from flightid.estimation.convergence import Convergence
+from flightid.estimation.driver import _covariance
+from flightid.estimation.gauss_newton import information_matrix
+from flightid.estimation.objective import Objective
+from flightid.estimation.problem import OutputErrorProblem
+from flightid.estimation.result import Estimate
+from flightid.estimation.solvers import MNR, MNRES
+from flightid.filtering.kalman import RiccatiError, linearise, steady_state_gain
+from flightid.model.check import check_model
+from flightid.model.statespace import StateSpaceModel
+from flightid.simulate.kernels import RK4, make_step
+from flightid.simulate.simulator import SimulationBatch
+
+__all__ = [
+    "FilterErrorProblem",
+    "FilterPoint",
+    "estimate_filter_error",
+    "RELAXATIONS",
+    "LINEARISATIONS",
+    "process_noise_name",
+]
+
+RELAXATIONS = ("fixed_point", "reference")
+LINEARISATIONS = ("start",)
+_METHODS = {"euler": 0, "rk4": RK4}
+# diag(KC) may exceed 1 by this much before a θ counts as infeasible (round-off)
+KC_TOLERANCE = 1e-9
+
+
+def process_noise_name(state_index: int) -> str:
+    """Default name of the process-noise element on state number ``state_index`` (0-based):
+    F11, F22, … (the reference's names)."""
+    return f"F{state_index + 1}{state_index + 1}"
+
+
+def _filter_source(f: Callable, h: Callable, jit: Callable = lambda fn: fn) -> Callable:
+    """The filter-pass loop over a batch, closed over the model functions."""
+    step = jit(make_step(f))
+
+    def kernel(thetas, x0s, gains, t, u, z, method, interpolation, n_outputs, y_out, flag):
+        n_batch = thetas.shape[0]
+        n_samples = t.shape[0]
+        for b in range(n_batch):
+            theta = thetas[b]
+            gain = gains[b]
+            x = x0s[b].copy()
+            flag[b] = -1
+            for k in range(n_samples):
+                # ỹ_k = g(x̃_k, u_k)
+                y = h(t[k], x, u[k], theta)
+                finite = True
+                for j in range(n_outputs):
+                    y_out[b, k, j] = y[j]
+                    if not math.isfinite(y[j]):
+                        finite = False
+                for i in range(x.shape[0]):
+                    if not math.isfinite(x[i]):
+                        finite = False
+                if not finite:
+                    flag[b] = k
+                    for kk in range(k, n_samples):
+                        for j in range(n_outputs):
+                            y_out[b, kk, j] = np.nan
+                    break
+                if k == n_samples - 1:
+                    break
+                # x̂_k = x̃_k + K (z_k − ỹ_k)
+                corrected = x.copy()
+                for i in range(x.shape[0]):
+                    for j in range(n_outputs):
+                        corrected[i] += gain[i, j] * (z[k, j] - y[j])
+                # x̃_{k+1}: the state equation integrated from x̂_k
+                x = step(t, u, k, corrected, theta, method, interpolation)
+
+    return kernel
+
+
+_FILTER_KERNELS: dict[tuple, tuple] = {}
+
+
+def _filter_kernel(f: Callable, h: Callable, compiled: bool) -> Callable:
+    key = (id(f), id(h), compiled)
+    entry = _FILTER_KERNELS.get(key)
+    if entry is not None and entry[0] is f and entry[1] is h:
+        return entry[2]
+    py_f = getattr(f, "py_func", f)
+    py_h = getattr(h, "py_func", h)
+    if compiled:
+        import numba
+
+        from flightid.simulate.cache import cached_njit
+
+        jit_f = f if hasattr(f, "py_func") else numba.njit(f)
+        jit_h = h if hasattr(h, "py_func") else numba.njit(h)
+        kernel = cached_njit(_filter_source(jit_f, jit_h, numba.njit))
+    else:
+        kernel = _filter_source(py_f, py_h)
+    _FILTER_KERNELS[key] = (f, h, kernel)
+    return kernel
+
+
+@dataclass(frozen=True)
+class FilterPoint:
+    """The steady-state filter at one full parameter vector."""
+
+    gain: np.ndarray  # K (n_x × n_o)
+    covariance: np.ndarray  # P (n_x × n_x)
+    a: np.ndarray  # A = ∂f/∂x at the linearisation point
+    c: np.ndarray  # C = ∂g/∂x there
+    kc: np.ndarray  # diag(KC) (n_x,)
+
+
+class FilterErrorProblem(OutputErrorProblem):
+    """Output-error interface over filter passes: outputs are the filtered predictions ỹ.
+
+    Args:
+        model: the state-space model; its parameters include the process-noise elements.
+        data: one maneuver or a list (all with the same sampling interval).
+        process_noise: {state name: parameter name}: F = diag over those states (F_ii = the
+            parameter's value; states not named get no process noise).
+        method: ``"rk4"`` or ``"euler"``.
+        compiled: run the numba filter kernel.
+        input_interpolation: ``"linear"`` or ``"zoh"`` (as ``OutputErrorProblem``).
+        linearisation: where A and C are taken: ``"start"`` — x0 of the first maneuver and
+            its first input sample u_1 (the reference's fixed point).
+        gain_r: the weighting R (n_o,) for gain and cost (default: ones; the estimator sets it).
+        linearisation_step: Δx of the central differences for A and C (absolute).
+    """
+
+    def __init__(
+        self,
+        model: StateSpaceModel,
+        data: FlightData | Sequence[FlightData],
+        process_noise: Mapping[str, str],
+        method: str = "rk4",
+        compiled: bool = True,
+        input_interpolation: str = "linear",
+        linearisation: str = "start",
+        gain_r: np.ndarray | None = None,
+        linearisation_step: float = 1e-4,
+    ) -> None:
+        super().__init__(
+            model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
+        )
+        if not model.has_states:
+            raise InputError("model: the filter error method needs a model with states")
+        if model.output_delays or model.input_delays:
+            raise InputError(
+                "model: time delays (output_delays / input_delays) are not supported by the "
+                "filter error method; estimate them by output error first and fix them"
+            )
+        if linearisation not in LINEARISATIONS:
+            raise InputError(
+                f"linearisation: expected one of {list(LINEARISATIONS)}, got {linearisation!r}"
+            )
+        if not isinstance(process_noise, Mapping) or not process_noise:
+            raise InputError(
+                "process_noise: expected {state: parameter name} for at least one state, "
+                f"got {process_noise!r}"
+            )
+        names = model.parameters.names
+        self.noise_states: list[int] = []
+        self.noise_parameters: list[int] = []
+        for state, parameter in process_noise.items():
+            if state not in model.states:
+                raise InputError(
+                    f"process_noise: {state!r} is not a state of the model {list(model.states)}"
+                )
+            if parameter not in names:
+                raise InputError(
+                    f"process_noise.{state}: {parameter!r} is not a parameter of the model"
+                )
+            self.noise_states.append(model.states.index(state))
+            self.noise_parameters.append(names.index(parameter))
+        self.process_noise = dict(process_noise)
+        self.linearisation = linearisation
+        self.linearisation_step = float(linearisation_step)
+        steps = [np.diff(m.time) for m in self.maneuvers if m.n_samples > 1]
+        dt = float(np.mean(steps[0])) if steps else 0.0
+        if not dt > 0 or any(not np.allclose(s, dt, rtol=1e-6, atol=0) for s in steps):
+            raise InputError(
+                "data: the filter error method needs one uniform sampling interval over all "
+                f"maneuvers; got intervals {sorted({float(np.round(s.mean(), 9)) for s in steps})}"
+            )
+        self.dt = dt
+        n_o = len(model.outputs)
+        self.gain_r = np.ones(n_o) if gain_r is None else np.asarray(gain_r, dtype=float)
+        self.filter_passes = 0
+        self._method = _METHODS[method]
+        self._interpolation = 0 if input_interpolation == "linear" else 1
+        self._times, self._inputs, self._measured = [], [], []
+        for maneuver in self.maneuvers:
+            self._times.append(np.ascontiguousarray(maneuver.time, dtype=float))
+            u = (
+                np.column_stack([maneuver.channel(n) for n in model.inputs])
+                if model.inputs
+                else np.zeros((maneuver.n_samples, 0))
+            )
+            self._inputs.append(np.ascontiguousarray(u, dtype=float))
+            self._measured.append(
+                np.ascontiguousarray(np.column_stack([maneuver.output(n) for n in model.outputs]))
+            )
+        self._x0_maps = [
+            model.initial_state_maps(i if model.per_maneuver_x0 else 0)
+            for i in range(len(self.maneuvers))
+        ]
+        self._theta_maps = [
+            model.function_theta_map(i) if model.substitutes_parameters else None
+            for i in range(len(self.maneuvers))
+        ]
+        self._kernel = _filter_kernel(model.f, model.h, compiled and self.simulator.compiled)
+
+    # ------------------------------------------------------------------ accounting
+    @property
+    def evaluations(self) -> int:
+        """Filter passes so far (plus plain simulations): the equivalent evaluations."""
+        return self.filter_passes + self.simulator.evaluations
+
+    # ------------------------------------------------------------------ the filter
+    def _f_theta(self, full: np.ndarray, maneuver: int) -> np.ndarray:
+        theta_map = self._theta_maps[maneuver]
+        return full if theta_map is None else full[theta_map]
+
+    def _x0(self, full: np.ndarray, maneuver: int) -> np.ndarray:
+        constants, index = self._x0_maps[maneuver]
+        x0 = constants.copy()
+        mask = index >= 0
+        x0[mask] = full[index[mask]]
+        return x0
+
+    def f_matrix(self, full: np.ndarray) -> np.ndarray:
+        """F (n_x × n_x), diagonal, from the process-noise parameters of ``full``."""
+        f_matrix = np.zeros((len(self.model.states), len(self.model.states)))
+        for state, parameter in zip(self.noise_states, self.noise_parameters, strict=True):
+            f_matrix[state, state] = full[parameter]
+        return f_matrix
+
+    def linearisation_point(self, full: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """(t, x, u) of the gain's linearisation: x0 and u_1 of the first maneuver."""
+        return float(self._times[0][0]), self._x0(full, 0), self._inputs[0][0]
+
+    def filter_point(self, full: np.ndarray, r_diag: np.ndarray | None = None) -> FilterPoint:
+        """A, C, P, K and diag(KC) at the full parameter vector ``full``.
+
+        Raises:
+            RiccatiError: no stabilising solution of the Riccati equation.
+        """
+        r_diag = self.gain_r if r_diag is None else np.asarray(r_diag, dtype=float)
+        t0, x, u = self.linearisation_point(full)
+        theta = self._f_theta(full, 0)
+        a, c = linearise(self.model.f, self.model.h, t0, x, u, theta, self.linearisation_step)
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(c))):
+            raise RiccatiError("the linearised system (A, C) is not finite")
+        k, p = steady_state_gain(a, c, self.f_matrix(full), r_diag, self.dt)
+        # diag(KC)
+        kc = np.einsum("ij,ji->i", k, c)
+        return FilterPoint(k, p, a, c, kc)
+
+    def run(self, theta_free_batch: np.ndarray, check_kc: bool = True) -> SimulationBatch:
+        """Filter passes for a batch (B, n_f) of free-parameter vectors: B evaluations.
+
+        A row whose Riccati equation has no stabilising solution, or whose gain violates
+        diag(KC) ≤ 1 (``check_kc``), is flagged like a diverged simulation (NaN outputs).
+        """
+        full = self.full_theta(np.atleast_2d(theta_free_batch))
+        n_batch = full.shape[0]
+        n_x, n_o = len(self.model.states), len(self.model.outputs)
+        gains = np.zeros((n_batch, n_x, n_o))
+        diverged = np.zeros(n_batch, dtype=bool)
+        messages = [""] * n_batch
+        for b in range(n_batch):
+            try:
+                point = self.filter_point(full[b])
+            except RiccatiError as exc:
+                diverged[b], messages[b] = True, f"no steady-state gain: {exc}"
+                continue
+            if check_kc and np.any(point.kc > 1.0 + KC_TOLERANCE):
+                diverged[b] = True
+                messages[b] = (
+                    f"the gain violates diag(KC) ≤ 1 (diag(KC) = "
+                    f"{np.array2string(point.kc, precision=4)})"
+                )
+                continue
+            gains[b] = point.gain
+        outputs = np.full((n_batch, self.n_samples, n_o), np.nan)
+        rows = np.flatnonzero(~diverged)
+        start = 0
+        for i, (t, u, z) in enumerate(zip(self._times, self._inputs, self._measured, strict=True)):
+            stop = start + t.shape[0]
+            if rows.size:
+                x0s = np.ascontiguousarray(np.array([self._x0(full[b], i) for b in rows]))
+                thetas = np.ascontiguousarray(np.array([self._f_theta(full[b], i) for b in rows]))
+                block = np.empty((rows.size, t.shape[0], n_o))
+                flag = np.empty(rows.size, dtype=np.int64)
+                self._kernel(
+                    thetas,
+                    x0s,
+                    np.ascontiguousarray(gains[rows]),
+                    t,
+                    u,
+                    z,
+                    self._method,
+                    self._interpolation,
+                    n_o,
+                    block,
+                    flag,
+                )
+                outputs[rows, start:stop] = block
+                for r, b in enumerate(rows):
+                    if flag[r] >= 0 and not diverged[b]:
+                        diverged[b] = True
+                        messages[b] = (
+                            f"filter pass diverged in maneuver {i} at t = {t[flag[r]]:.4g} s "
+                            f"(sample {int(flag[r])})"
+                        )
+            start = stop
+        outputs[diverged] = np.nan
+        self.filter_passes += n_batch
+        return SimulationBatch(outputs, diverged, tuple(messages))
+
+    def simulate(self, theta_free: np.ndarray) -> np.ndarray:
+        """Plain simulation (K = 0, no process noise) at ``theta_free``: outputs (N, n_o)."""
+        full = self.full_theta(np.asarray(theta_free, dtype=float)[None, :])
+        batch = self.simulator.run(full)
+        self._raise_if_diverged(batch, "simulation at the start values (K = 0)")
+        return batch.outputs[0]
+
+    def sensitivities_from_equations(self, theta_free, relative_step=1e-7):
+        raise EstimationError(
+            "the filter error method takes its sensitivities from finite differences of "
+            "filter passes (MNR) or from MNRES's surface; sensitivities = 'equations' is for "
+            "output error"
+        )
+
+
+# ---------------------------------------------------------------------- the estimator
+
+
+@dataclass
+class _Trace:
+    """Histories over all cycles."""
+
+    costs: list[float] = field(default_factory=list)
+    evaluations: list[int] = field(default_factory=list)
+    r_updates: list[int] = field(default_factory=list)
+    iterations: int = 0
+    cycles: int = 0
+
+
+def _check_solver(solver):
+    solver = MNR() if solver is None else solver
+    if not isinstance(solver, (MNR, MNRES)):
+        raise InputTypeError(
+            f"solver: the filter error method runs with MNR() or MNRES(), got {describe(solver)}"
+        )
+    if isinstance(solver, MNR) and solver.sensitivities != "differences":
+        raise InputError(
+            "solver: MNR(sensitivities='equations') is for output error; the filter error "
+            "method uses finite differences of filter passes"
+        )
+    return solver
+
+
+def _fixed_point(
+    problem: FilterErrorProblem,
+    solver: MNR | MNRES,
+    r_start: np.ndarray,
+    convergence: Convergence,
+    r_rtol: float,
+    max_cycles: int,
+    progress: Callable[[int, int, float], None] | None,
+    trace: _Trace,
+):
+    """Converge θ with R held, set R to the innovations' covariance, repeat."""
+    theta = problem.theta_start
+    r_diag = np.array(r_start, dtype=float)
+    # R consistent with the start values: R = R̂(e(θ₀; R)), a few filter passes
+    for _ in range(50):
+        problem.gain_r = r_diag.copy()
+        batch = problem.run(theta[None, :], check_kc=False)
+        if batch.diverged[0]:
+            break
+        r_new = problem.noise_covariance(batch.outputs[0])
+        change = float(np.max(np.abs(r_new - r_diag) / r_diag))
+        r_diag = r_new
+        print("start R", r_diag, change)
+        if change <= r_rtol:
+            break
+    confirmation = objective = None
+    message = ""
+    converged = False
+    for cycle in range(1, max_cycles + 1):
+        problem.gain_r = r_diag.copy()
+        objective = Objective(problem, r_diag, "fixed", convergence, progress)
+        objective.start_evaluations = 0  # count from the first filter pass of the run
+        outcome = solver.minimize(objective, theta)
+        confirmation = confirm_convergence(
+            objective, outcome, "fixed", fallback=isinstance(solver, MNRES)
+        )
+        trace.iterations += outcome.iterations + confirmation.passes
+        trace.r_updates.append(len(trace.costs))
+        trace.costs.extend(objective.cost_history)
+        trace.evaluations.extend(objective.evaluation_history)
+        trace.cycles = cycle
+        final = confirmation.outcome
+        theta = final.theta
+        r_new = problem.noise_covariance(final.outputs)
+        # largest relative change of an innovation variance: R has settled when ≤ r_rtol
+        change = float(np.max(np.abs(r_new - r_diag) / r_diag))
+        if not final.converged:
+            message = f"cycle {cycle} (R held) did not converge: {final.message}"
+            break
+        if change <= r_rtol:
+            converged = True
+            message = (
+                f"converged: θ Gauss–Newton-optimal under R, and R equal to the innovations' "
+                f"covariance within {change:.2g} (relative; tolerance {r_rtol:g}) after "
+                f"{cycle} cycle{'s' if cycle > 1 else ''} of R updates"
+            )
+            break
+        r_diag = r_new
+    else:
+        message = f"R did not settle within {max_cycles} cycles (last relative change {change:.3g})"
+    return objective, confirmation, converged, message
+
+
+def estimate_filter_error(
+    model: StateSpaceModel,
+    data: FlightData | Sequence[FlightData],
+    process_noise: Mapping[str, str],
+    solver: MNR | MNRES | None = None,
+    *,
+    relaxation: str = "fixed_point",
+    method: str = "rk4",
+    input_interpolation: str = "linear",
+    linearisation: str = "start",
+    convergence: Convergence | None = None,
+    r_rtol: float = 1e-4,
+    max_cycles: int = 30,
+    compiled: bool = True,
+    progress: Callable[[int, int, float], None] | None = None,
+) -> Estimate:
+    """Filter-error maximum-likelihood estimate (system parameters and F elements).
+
+    Args:
+        model: the model; its parameters include the process-noise elements (e.g. F11).
+        data: one maneuver or a list (same sampling interval).
+        process_noise: {state: parameter name} of the diagonal F.
+        solver: ``MNR()`` (default) or ``MNRES()``; for ``relaxation="reference"`` only the
+            finite-difference settings of the reference apply (see ``reference_relaxation``).
+        relaxation: ``"fixed_point"`` (converge θ under R, update R, repeat until R settles)
+            or ``"reference"`` (the reference tool's schedule: R₀ for 3 steps, then an R update
+            with F compensation after every step; CASES.md §1b).
+        method, input_interpolation: integration as in ``estimate``.
+        linearisation: where A and C are taken (``"start"``: x0, u_1).
+        convergence: the solver's stopping rules (default ``Convergence()``).
+        r_rtol: ``fixed_point``: R has settled when no variance changes by more than this
+            fraction in a cycle.
+        max_cycles: ``fixed_point``: R updates at most.
+        compiled: numba filter kernel.
+        progress: called after every accepted pass with (pass, filter passes, cost).
+
+    Returns:
+        An ``Estimate``: ``predicted`` are the filtered outputs ỹ, ``residuals`` the
+        innovations, ``r_diag`` the final weighting R (the innovations' covariance),
+        ``cost`` = Σ eᵀR⁻¹e under it, ``equivalent_evaluations`` the filter passes of the
+        optimiser, the Cramér–Rao bounds √diag(M⁻¹) with M from central-difference
+        sensitivities of the filtered outputs at θ̂; ``noise_policy`` is
+        ``"filter_error/<relaxation>"`` and the message gives det R.
+    """
+    if not isinstance(model, StateSpaceModel):
+        raise InputTypeError(f"model: expected a StateSpaceModel, got {describe(model)}")
+    if relaxation not in RELAXATIONS:
+        raise InputError(f"relaxation: expected one of {list(RELAXATIONS)}, got {relaxation!r}")
+    solver = _check_solver(solver)
+    convergence = Convergence() if convergence is None else convergence
+    if not isinstance(convergence, Convergence):
+        raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
+    started = _time.perf_counter()
+    check_model(model, data, method=method)
+    problem = FilterErrorProblem(
+        model,
+        data,
+        process_noise,
+        method=method,
+        compiled=compiled,
+        input_interpolation=input_interpolation,
+        linearisation=linearisation,
+    )
+    # R₀: one pass with K = 0 (a plain simulation) at the start values
+    r_start = problem.noise_covariance(problem.simulate(problem.theta_start))
+    trace = _Trace()
+    if relaxation == "reference":
+        from flightid.estimation.filter_reference import reference_relaxation
+
+        run = reference_relaxation(problem, r_start, progress)
+        theta, outputs, r_diag = run.theta, run.outputs, run.r_diag
+        g, converged, message = run.sensitivities, run.converged, run.message
+        trace.costs, trace.evaluations = run.cost_history, run.evaluation_history
+        trace.iterations, trace.cycles, trace.r_updates = run.iterations, run.r_updates, []
+        optimizer_evaluations = problem.evaluations
+        accuracy_evaluations = 0
+        status = "converged" if converged else "max_iterations"
+        sigma = float("nan")
+        solver_name, settings = "mnr", {"relative_step": 1e-4, "schedule": "reference"}
+    else:
+        objective, confirmation, converged, message = _fixed_point(
+            problem, solver, r_start, convergence, r_rtol, max_cycles, progress, trace
+        )
+        outcome = confirmation.outcome
+        theta, outputs, r_diag = outcome.theta, outcome.outputs, objective.r_diag
+        g = confirmation.sensitivities
+        accuracy_evaluations = confirmation.sensitivity_evaluations
+        optimizer_evaluations = problem.evaluations - accuracy_evaluations
+        status = "converged" if converged else outcome.status
+        if not converged and status == "converged":
+            status = "max_iterations"
+        sigma = confirmation.sigma
+        solver_name, settings = solver.name, solver.settings()
+    full = problem.full_theta(theta)
+    point = problem.filter_point(full, r_diag)
+    det_r = float(np.prod(problem.noise_covariance(outputs)))
+    message += (
+        f"; det R = {det_r:.6g} (innovations), max diag(KC) = {float(np.max(point.kc)):.4g}, "
+        f"{problem.evaluations} filter passes"
+    )
+    if np.any(point.kc > 1.0 - 1e-3):
+        message += "; the constraint diag(KC) ≤ 1 is active"
+    m = information_matrix(g, r_diag)
+    covariance, std_free, undetermined = _covariance(m, np.zeros(problem.n_free, dtype=bool))
+    if undetermined:
+        names = [problem.free_names[j] for j in undetermined]
+        message += f"; the information matrix is singular: {names} cannot be determined"
+    std = np.full(full.shape, np.nan)
+    std[problem.free_index] = std_free
+    estimated_model = model.with_parameters(model.parameters.with_values(full))
+    return Estimate(
+        names=tuple(model.parameters.names),
+        values=full,
+        initial=problem.theta_start_full,
+        free=problem.free_mask,
+        std=std,
+        covariance=covariance,
+        information_matrix=m,
+        sensitivities=g,
+        r_diag=np.asarray(r_diag, dtype=float),
+        cost=float(problem.cost(outputs, r_diag)),
+        cost_history=tuple(trace.costs),
+        evaluation_history=tuple(trace.evaluations),
+        noise_update_passes=tuple(trace.r_updates[1:]),
+        equivalent_evaluations=int(optimizer_evaluations),
+        accuracy_evaluations=int(accuracy_evaluations),
+        iterations=int(trace.iterations),
+        noise_cycles=int(trace.cycles),
+        converged=bool(converged),
+        status=status,
+        message=message,
+        time=problem.time,
+        measured=problem.measured,
+        predicted=outputs,
+        residuals=problem.residuals(outputs),
+        maneuver_index=problem.maneuver_index,
+        output_names=tuple(model.outputs),
+        output_units=tuple(
+            next((m.units[n] for m in problem.maneuvers if m.units.get(n)), "")
+            for n in model.outputs
+        ),
+        solver=solver_name,
+        solver_settings=settings,
+        noise_policy=f"filter_error/{relaxation}",
+        method=method,
+        input_interpolation=input_interpolation,
+        wall_time_s=_time.perf_counter() - started,
+        model=estimated_model,
+        optimality_sigma=sigma,
+    )
