@@ -103,6 +103,23 @@ def base_model(case: Case, data_dir: Path | None = None) -> tuple[StateSpaceMode
         from flightid.compat.case import kinematic_from_case
 
         return kinematic_from_case(case), "built-in kinematic model (flight-path reconstruction)"
+    if spec.get("type") == "linear":
+        from flightid.model.linear import linear_model
+
+        try:
+            model = linear_model(
+                spec["states"],
+                spec["inputs"],
+                spec["outputs"],
+                spec["parameters"],
+                spec["derivatives"],
+                spec["output_equations"],
+                constants=spec.get("constants", {}),
+                name=spec.get("name", "linear"),
+            )
+        except InputError as exc:
+            raise CaseError(f"model: {exc}") from None
+        return model, "linear model declared by terms"
     if "module" in spec:
         path = Path(spec["module"])
         path = path if path.is_absolute() else case.directory / path

@@ -44,6 +44,7 @@ from flightid.cases.build import (
     unbiased_model,
 )
 from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
+from flightid.cases.unstable import apply_unstable_options
 from flightid.data.flightdata import FlightData
 from flightid.errors import SimulationError
 from flightid.estimation import Estimate, estimate
@@ -225,6 +226,8 @@ def prepare_case(
             f"prediction: not available with parameters per maneuver "
             f"{list(model.maneuver_parameters)} (a predicted maneuver has no copy of its own)"
         )
+    # stabilizing gain, eigenvalue shift, multiple shooting (docs/unstable.md)
+    model, maneuvers = apply_unstable_options(case, model, maneuvers)
     return Prepared(case, directory, model, tuple(maneuvers), tuple(prediction), base, description)
 
 

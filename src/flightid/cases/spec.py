@@ -141,6 +141,10 @@ _ESTIMATION = {
     "convergence",
     "compiled",
     "input_interpolation",
+    "stabilizing_gain",
+    "eigenvalue_shift",
+    "shooting_intervals",
+    "shooting_weight",
 }
 _ACCURACY = {
     "confidence",
@@ -169,6 +173,21 @@ AIRCRAFT_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof"
 # "kinematic": flight-path reconstruction (flightid.compat)
 MODEL_TYPES = (*AIRCRAFT_TYPES, "alpha_q", "kinematic")
 _ALPHA_Q_MODEL = {"type", "name", "constants", "aero"}
+# [model] type = "linear": a linear model declared by term tables (flightid.model.linear)
+_LINEAR_MODEL = {
+    "type",
+    "name",
+    "states",
+    "inputs",
+    "outputs",
+    "constants",
+    "parameters",
+    "derivatives",
+    "output_equations",
+    "output_delays",
+    "input_delays",
+    "delay_convention",
+}
 
 
 @dataclass(frozen=True)
@@ -392,6 +411,8 @@ def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
     model = _table(raw["model"], "model")
     if model.get("type") == "alpha_q":
         return _alpha_q_section(model)
+    if model.get("type") == "linear":
+        return _linear_section(model)
     if model.get("type") == "kinematic":
         from flightid.compat.case import kinematic_section
 
@@ -435,6 +456,35 @@ def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
             if key not in model:
                 raise CaseError(f"model.{key}: missing; a built-in airplane model needs it")
             _table(model[key], f"model.{key}")
+    return model
+
+
+def _linear_section(model: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``[model] type = "linear"``: states, inputs, outputs (lists of names), parameters
+    ({name = start value}), constants ({name = number}), derivatives ({state = [terms]}),
+    output_equations ({output = [terms]}); the terms are read by ``flightid.model.linear``."""
+    _known(model, _LINEAR_MODEL, "model")
+    for key in ("states", "inputs", "outputs", "parameters", "derivatives", "output_equations"):
+        if key not in model:
+            raise CaseError(f"model.{key}: missing; a linear model declared by terms needs it")
+    for key in ("states", "inputs", "outputs"):
+        _names(model[key], f"model.{key}")
+    for key in ("parameters", "constants"):
+        for name, value in _table(model.get(key, {}), f"model.{key}").items():
+            _number(value, f"model.{key}.{name}")
+    for key in ("derivatives", "output_equations"):
+        for name, terms in _table(model[key], f"model.{key}").items():
+            if isinstance(terms, str):
+                continue
+            if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+                raise CaseError(
+                    f"model.{key}.{name}: expected a list of terms such as ['Zw*w', 'u0*q'], "
+                    f"got {terms!r}"
+                )
+    if "name" in model:
+        _string(model["name"], "model.name")
+    if "delay_convention" in model:
+        _string(model["delay_convention"], "model.delay_convention", DELAY_CONVENTIONS)
     return model
 
 
@@ -568,6 +618,30 @@ def estimation_settings(estimation: Mapping[str, Any], key: str = "estimation") 
         f"{key}.input_interpolation",
         INPUT_INTERPOLATIONS,
     )
+    _unstable_settings(estimation, key)
+
+
+def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:
+    """The unstable-aircraft options (docs/unstable.md): ``stabilizing_gain`` ({state =
+    {output = gain}}), ``eigenvalue_shift`` (σ, 1/s), ``shooting_intervals`` (whole number
+    ≥ 2) and ``shooting_weight`` (> 0); names are checked with the model (cases.run)."""
+    if "stabilizing_gain" in estimation:
+        gain = _table(estimation["stabilizing_gain"], f"{key}.stabilizing_gain")
+        for state, row in gain.items():
+            for output, value in _table(row, f"{key}.stabilizing_gain.{state}").items():
+                _number(value, f"{key}.stabilizing_gain.{state}.{output}")
+    if "eigenvalue_shift" in estimation:
+        _number(estimation["eigenvalue_shift"], f"{key}.eigenvalue_shift")
+    if "shooting_intervals" in estimation:
+        _integer(estimation["shooting_intervals"], f"{key}.shooting_intervals", 2)
+    if "shooting_weight" in estimation:
+        if "shooting_intervals" not in estimation:
+            raise CaseError(f"{key}.shooting_weight: only used with shooting_intervals")
+        if _number(estimation["shooting_weight"], f"{key}.shooting_weight") <= 0:
+            raise CaseError(
+                f"{key}.shooting_weight: expected a positive number, got "
+                f"{estimation['shooting_weight']!r}"
+            )
 
 
 def _accuracy_methods(accuracy: Mapping[str, Any], key: str) -> None:

@@ -284,7 +284,7 @@ def estimate(
         std=std,
         covariance=covariance,
         information_matrix=m,
-        sensitivities=g,
+        sensitivities=g[: problem.n_data],
         r_diag=objective.r_diag,
         cost=float(objective.costs_of(outcome.outputs)[0]),
         cost_history=tuple(objective.cost_history),
@@ -298,9 +298,10 @@ def estimate(
         status=status,
         message=message,
         time=problem.time,
-        measured=problem.measured,
-        predicted=outcome.outputs,
-        residuals=problem.residuals(outcome.outputs),
+        # the data rows (multiple shooting appends continuity-defect rows after them)
+        measured=problem.measured[: problem.n_data],
+        predicted=outcome.outputs[: problem.n_data],
+        residuals=problem.residuals(outcome.outputs)[: problem.n_data],
         maneuver_index=problem.maneuver_index,
         output_names=tuple(model.outputs),
         # the outputs' units from the data's channel units (the first maneuver that has one)

@@ -9,6 +9,12 @@ Residuals and cost (RP-1153 §6):
 The estimation works on the vector of *free* parameters in their own units; ``typical``
 (from each parameter's ``scale``, or its start value) scales them for the linear algebra and
 sets the floor of the relative convergence tests.
+
+Multiple shooting (``flightid.model.unstable.with_multiple_shooting``): the simulator returns
+continuity defects d beside the outputs; they enter as extra rows after the N data rows,
+measured 0 and "simulated" −√w·d in the column of the output that weights the state, so the
+cost and the Gauss–Newton step of every solver see J = Σ νᵀR⁻¹ν + Σ w d²/R_s unchanged in
+form. ``n_data`` is N; R̂ comes from the data rows only.
 """
 
 from __future__ import annotations
@@ -105,6 +111,18 @@ class OutputErrorProblem:
         # noise-free data do not give a zero variance; documented in docs/method.md.
         spread = np.var(self.measured, axis=0)
         self.r_floor = np.maximum(1e-12 * spread, 1e-30)
+        # data rows; multiple shooting appends one row per continuity defect (module docstring)
+        self.n_data = int(self.measured.shape[0])
+        n_defects = self.simulator.n_defects
+        if n_defects:
+            names = getattr(model, "shooting_outputs", ())
+            n_states = len(model.states)
+            # the defect of state s goes to the column of the output that weights it
+            self._defect_columns = np.array(
+                [model.outputs.index(names[c % n_states]) for c in range(n_defects)]
+            )
+            self._defect_scale = float(np.sqrt(model.shooting_weight))
+            self.measured = np.vstack([self.measured, np.zeros((n_defects, self.n_outputs))])
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -173,7 +191,7 @@ class OutputErrorProblem:
         """
         full = self.full_theta(np.atleast_2d(theta_free_batch))
         try:
-            return self.simulator.run(full)
+            return self._with_defect_rows(self.simulator.run(full))
         except FlightIdError:
             raise
         except Exception as exc:
@@ -185,6 +203,17 @@ class OutputErrorProblem:
                 f"the model functions f/h raised {type(exc).__name__}: {exc} while simulating "
                 f"at parameter values ({values}){' (first of the batch)' if len(full) > 1 else ''}"
             ) from exc
+
+    def _with_defect_rows(self, batch: SimulationBatch) -> SimulationBatch:
+        """The outputs with the multiple-shooting defect rows appended (none: unchanged)."""
+        if batch.defects is None:
+            return batch
+        n_batch, n_defects = batch.defects.shape
+        rows = np.zeros((n_batch, n_defects, self.n_outputs))
+        # row c: −√w·d_c in the column of its state's output, so ν = z − y = √w·d_c
+        rows[:, np.arange(n_defects), self._defect_columns] = -self._defect_scale * batch.defects
+        outputs = np.concatenate([batch.outputs, rows], axis=1)
+        return SimulationBatch(outputs, batch.diverged, batch.messages, batch.defects)
 
     def outputs(self, theta_free_batch: np.ndarray) -> np.ndarray:
         """Model outputs (B, N, n_o); NaN rows where a trajectory diverged."""
@@ -202,8 +231,9 @@ class OutputErrorProblem:
         return np.where(np.isfinite(cost), cost, np.inf)
 
     def noise_covariance(self, outputs: np.ndarray) -> np.ndarray:
-        """R̂ diagonal [3.45] from the residuals of (N, n_o) outputs."""
-        return estimate_noise_covariance(self.residuals(outputs), self.r_floor)
+        """R̂ diagonal [3.45] from the residuals of (N, n_o) outputs (data rows only)."""
+        nu = self.residuals(outputs)[..., : self.n_data, :]
+        return estimate_noise_covariance(nu, self.r_floor)
 
     def sensitivities(
         self,
@@ -286,6 +316,9 @@ class OutputErrorProblem:
             (G of shape (N, n_o, n_f), outputs of shape (N, n_o)).
         """
         theta_free = np.asarray(theta_free, dtype=float)
+        if self.simulator.n_defects:
+            # multiple shooting: the defect rows have no sensitivity equations; differences
+            return self.sensitivities(theta_free)
         steps = relative_step * self.magnitude(theta_free)
         outputs, g = self.simulator.run_with_sensitivities(
             self.full_theta(theta_free), self.free_index, steps, relative_step

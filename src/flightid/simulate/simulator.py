@@ -8,6 +8,13 @@ Per maneuver k the simulator hands f and h the θ of the model's function layout
 the full θ, and the inputs of that maneuver — delayed per batch row where the model has
 ``input_delays`` (``delayed_inputs``); output delays act on the finished outputs
 (``apply_output_delays``).
+
+Unstable-aircraft options (``flightid.model.unstable``, docs/unstable.md) are read from the
+model: a ``stabilizing_gain`` S (n_s × n_o) corrects the state at every sample,
+x_k ← x_k + S (z_k − y_k), with z the maneuver's measured outputs; ``shooting`` splits each
+maneuver into intervals that start from their own initial-state parameters, and ``run``
+returns the continuity defects x_end(interval m) − x0(interval m + 1) beside the outputs
+(``SimulationBatch.defects``). Both run through ``flightid.simulate.feedback``.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ import numpy as np
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputError, SimulationError
 from flightid.model.statespace import StateSpaceModel
+from flightid.simulate.feedback import make_feedback_kernel
 from flightid.simulate.kernels import EULER, INTERPOLATIONS, RK4, make_kernel
 
 __all__ = [
@@ -150,12 +158,15 @@ class SimulationBatch:
     """Outputs of a batch: ``outputs`` (B, N_total, n_o) and per-trajectory divergence.
 
     ``diverged[b]`` is True if trajectory b produced a non-finite state or output; its
-    outputs from that sample on are NaN and ``messages[b]`` says where.
+    outputs from that sample on are NaN and ``messages[b]`` says where. ``defects`` (B, E):
+    with multiple shooting, the continuity defects x_end(interval m) − x0(interval m + 1),
+    maneuver by maneuver, boundary by boundary, state by state (None without shooting).
     """
 
     outputs: np.ndarray
     diverged: np.ndarray
     messages: tuple[str, ...]
+    defects: np.ndarray | None = None
 
 
 def _as_data_list(data: FlightData | Sequence[FlightData]) -> list[FlightData]:
@@ -240,7 +251,74 @@ class Simulator:
             for i in range(len(self.maneuvers))
         ]
         self._kernel, self.compiled = self._get_kernel(compiled)
+        self._setup_feedback()
         self.evaluations = 0
+
+    # --------------------------------------------------------------------- feedback
+    def _setup_feedback(self) -> None:
+        """The stabilizing gain, measured outputs and shooting intervals of the model
+        (``flightid.model.unstable``), checked against the maneuvers."""
+        model = self.model
+        gain = getattr(model, "stabilizing_gain", None)
+        shooting = getattr(model, "shooting", None)
+        self.feedback = gain is not None or shooting is not None
+        n_s, n_o = len(model.states), len(model.outputs)
+        self._gain = np.zeros((0, 0))
+        self._measured = [np.zeros((t.shape[0], 0)) for t in self._times]
+        if gain is not None:
+            gain = np.ascontiguousarray(gain, dtype=float)
+            if gain.shape != (n_s, n_o):
+                raise InputError(
+                    f"stabilizing_gain: expected a {n_s} × {n_o} matrix (states "
+                    f"{list(model.states)} × outputs {list(model.outputs)}), got {gain.shape}"
+                )
+            if model.output_delay_maps():
+                raise InputError(
+                    "stabilizing_gain: not available with output delays (the correction "
+                    "uses the undelayed output of h)"
+                )
+            self._gain = gain
+            self._measured = []
+            for i, maneuver in enumerate(self.maneuvers):
+                missing = [n for n in model.outputs if n not in maneuver.output_names]
+                if missing:
+                    raise InputError(
+                        f"data[{i}] ({maneuver.name or 'unnamed'}): the stabilized simulation "
+                        f"needs the measured outputs {missing}; outputs "
+                        f"{list(maneuver.output_names)}"
+                    )
+                self._measured.append(
+                    np.ascontiguousarray(
+                        np.column_stack([maneuver.output(n) for n in model.outputs]), dtype=float
+                    )
+                )
+        # per maneuver: [(first sample, parameter index per state)] of intervals 2, 3, ...
+        self._intervals: list[list[tuple[int, np.ndarray]]] = [[] for _ in self._times]
+        if shooting is not None:
+            if len(shooting) != len(self._times):
+                raise InputError(
+                    f"shooting: intervals for {len(shooting)} maneuvers, but "
+                    f"{len(self._times)} were given"
+                )
+            names = model.parameters.names
+            for i, (intervals, t) in enumerate(zip(shooting, self._times, strict=True)):
+                previous = 0
+                for start, states in intervals:
+                    if not previous < start < t.shape[0] - 1 or len(states) != n_s:
+                        raise InputError(
+                            f"shooting[{i}]: an interval starts at sample {start}; expected "
+                            f"increasing samples inside the maneuver (1 … {t.shape[0] - 2}) "
+                            f"with one parameter per state"
+                        )
+                    previous = start
+                    index = np.array([names.index(n) for n in states], dtype=np.int64)
+                    self._intervals[i].append((int(start), index))
+        self.n_defects = n_s * sum(len(v) for v in self._intervals)
+        if self.feedback:
+            self._feedback_kernel = self._memo(
+                ("feedback", self.compiled),
+                lambda: make_feedback_kernel(self.model.f, self.model.h, self.compiled),
+            )
 
     # --------------------------------------------------------------------- kernels
     def _memo(self, kind: tuple, build):
@@ -315,6 +393,8 @@ class Simulator:
         n_params = len(self.model.parameters)
         if thetas.ndim != 2 or thetas.shape[1] != n_params:
             raise InputError(f"thetas: expected shape (batch, {n_params}), got {thetas.shape}")
+        if self.feedback:
+            return self._run_feedback(thetas)
         n_batch = thetas.shape[0]
         n_out = len(self.model.outputs)
         outputs = np.empty((n_batch, self.n_samples, n_out))
@@ -365,6 +445,80 @@ class Simulator:
         self.evaluations += n_batch
         return SimulationBatch(outputs, diverged, tuple(messages))
 
+    def _run_feedback(self, thetas: np.ndarray) -> SimulationBatch:
+        """``run`` with the state correction and/or shooting intervals (module docstring).
+
+        Interval m of a maneuver covers samples [s_m, s_{m+1}); it is integrated one sample
+        further, to s_{m+1}, for its end state; the defect is x_end − x0(interval m + 1).
+        """
+        n_batch = thetas.shape[0]
+        n_out = len(self.model.outputs)
+        n_states = len(self.model.states)
+        outputs = np.empty((n_batch, self.n_samples, n_out))
+        defects = np.zeros((n_batch, self.n_defects))
+        diverged = np.zeros(n_batch, dtype=bool)
+        messages = [""] * n_batch
+        start, column = 0, 0
+        stabilize = self._gain.shape[0] > 0
+        for i, (t, u, (constants, index), theta_map) in enumerate(
+            zip(self._times, self._inputs, self._x0_maps, self._theta_maps, strict=True)
+        ):
+            n = t.shape[0]
+            x0s = np.repeat(constants[None, :], n_batch, axis=0)
+            mask = index >= 0
+            x0s[:, mask] = thetas[:, index[mask]]
+            f_thetas = thetas if theta_map is None else thetas[:, theta_map]
+            firsts = [0] + [s for s, _ in self._intervals[i]]
+            lasts = firsts[1:] + [n]
+            block = np.empty((n_batch, n, n_out))
+            for rows, u_rows in self._input_groups(t, u, thetas):
+                for m, (first, last) in enumerate(zip(firsts, lasts, strict=True)):
+                    # interval m: samples [first, last), integrated to `last` for x_end
+                    stop = min(last + 1, n)
+                    x0 = x0s[rows] if m == 0 else thetas[rows][:, self._intervals[i][m - 1][1]]
+                    y = np.empty((rows.size, stop - first, n_out))
+                    flag = np.empty(rows.size, dtype=np.int64)
+                    x_end = np.empty((rows.size, n_states))
+                    self._feedback_kernel(
+                        np.ascontiguousarray(f_thetas[rows]),
+                        np.ascontiguousarray(x0),
+                        t[first:stop],
+                        np.ascontiguousarray(u_rows[first:stop]),
+                        _METHODS[self.method],
+                        self._interpolation,
+                        n_out,
+                        y,
+                        flag,
+                        self._measured[i][first:stop] if stabilize else self._measured[i],
+                        self._gain,
+                        x_end,
+                    )
+                    block[rows, first:last] = y[:, : last - first]
+                    for r, b in enumerate(rows):
+                        if flag[r] >= 0 and not diverged[b]:
+                            k = first + int(flag[r])
+                            diverged[b] = True
+                            messages[b] = (
+                                f"simulation diverged in maneuver {i} at t = {t[k]:.4g} s "
+                                f"(sample {k}): non-finite state or output"
+                            )
+                    if m < len(firsts) - 1:
+                        nxt = self._intervals[i][m][1]
+                        c = column + m * n_states
+                        # continuity defect d = x_end(interval m) − x0(interval m + 1)
+                        defects[rows, c : c + n_states] = x_end - thetas[rows][:, nxt]
+            outputs[:, start : start + n] = block
+            start += n
+            column += n_states * len(self._intervals[i])
+        apply_output_delays(self.model, self._times, thetas, outputs)
+        self.evaluations += n_batch
+        return SimulationBatch(
+            outputs,
+            diverged,
+            tuple(messages),
+            defects if self.n_defects else None,
+        )
+
     def _input_groups(self, t: np.ndarray, u: np.ndarray, thetas: np.ndarray):
         """(rows, inputs) pairs: the batch rows that share one set of input delays, and that
         maneuver's inputs delayed by them (all rows and ``u`` itself without input delays)."""
@@ -395,12 +549,25 @@ class Simulator:
         central differences, ``_input_delay_columns``). Raises ``SimulationError`` if the
         trajectory becomes non-finite.
         """
+        from flightid.simulate.feedback import make_feedback_sensitivity_kernel
         from flightid.simulate.sensitivity import make_sensitivity_kernel
 
-        kernel = self._memo(
-            ("sensitivity", self.compiled),
-            lambda: make_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
-        )
+        if self.n_defects:
+            raise SimulationError(
+                "sensitivity equations: not available with multiple shooting; use finite "
+                "differences (OutputErrorProblem.sensitivities_from_equations falls back)"
+            )
+        stabilize = self._gain.shape[0] > 0
+        if stabilize:
+            kernel = self._memo(
+                ("feedback-sensitivity", self.compiled),
+                lambda: make_feedback_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
+            )
+        else:
+            kernel = self._memo(
+                ("sensitivity", self.compiled),
+                lambda: make_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
+            )
         theta = np.ascontiguousarray(theta, dtype=float)
         free_index = np.ascontiguousarray(free_index, dtype=np.int64)
         n_out = len(self.model.outputs)
@@ -421,7 +588,7 @@ class Simulator:
             f_theta, f_free = self._function_free(theta, free_index, theta_map)
             y_block = np.empty((t.shape[0], n_out))
             g_block = np.empty((t.shape[0], n_out, free_index.size))
-            flag = kernel(
+            arguments = (
                 f_theta,
                 x0,
                 s0,
@@ -436,6 +603,9 @@ class Simulator:
                 y_block,
                 g_block,
             )
+            # the stabilized kernel also takes the measured outputs and the gain
+            extra = (self._measured[i], self._gain) if stabilize else ()
+            flag = kernel(*arguments, *extra)
             if flag >= 0:
                 raise SimulationError(
                     f"simulation diverged in maneuver {i} at t = {t[flag]:.4g} s "
