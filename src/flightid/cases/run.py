@@ -124,6 +124,16 @@ class Prediction:
         }
 
 
+def _whiteness_entry(result) -> dict | None:
+    """``estimate_whiteness(result).to_dict()``; None for a record too short for any lag."""
+    from flightid.accuracy.whiteness import WhitenessError, estimate_whiteness
+
+    try:
+        return estimate_whiteness(result).to_dict()
+    except WhitenessError:
+        return None
+
+
 @dataclass(frozen=True)
 class CaseRun:
     """Everything a run produced."""
@@ -159,6 +169,8 @@ class CaseRun:
             {"name": m.name, "samples": m.n_samples, "dt": m.dt} for m in self.maneuvers
         ]
         entry["prediction"] = [p.to_dict() for p in self.predictions]
+        # residual autocorrelation and Ljung–Box test per output (flightid.accuracy.whiteness)
+        entry["whiteness"] = _whiteness_entry(self.estimate)
         return entry
 
 

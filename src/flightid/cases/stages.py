@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from flightid.accuracy.whiteness import Whiteness, WhitenessError, residual_whiteness
 from flightid.cases.build import alpha_q_base, load_maneuvers, resolve_data_dir
 from flightid.cases.checks import CaseError
 from flightid.cases.run import CaseRun, Prepared, prepare_case, run_case
@@ -122,6 +123,21 @@ class StagesRun:
     regressions: tuple[tuple[StageSpec, Mapping[str, RegressionResult]], ...]
     output_error: CaseRun | None = None
     pipeline: PipelineResult | None = None
+    maneuver_index: np.ndarray | None = None  # (N,) maneuver of each regression sample
+    dt: float | None = None  # s, sample interval of the first maneuver
+
+    def whiteness(self, result: RegressionResult) -> Whiteness | None:
+        """Residual whiteness of one regression fit (``flightid.accuracy.whiteness``; lags
+        never pair samples of different maneuvers); None for a record too short."""
+        try:
+            return residual_whiteness(
+                result.fit.residuals,
+                (result.response,),
+                maneuver_index=self.maneuver_index,
+                dt=self.dt,
+            )
+        except WhitenessError:
+            return None
 
     @property
     def estimate(self):
@@ -129,16 +145,22 @@ class StagesRun:
 
     def stages_dict(self) -> list[dict]:
         """One entry per stage: ``kind``, ``name`` and, for regression stages,
-        ``coefficients`` ({name: result.to_dict()}); the output-error stage adds ``start``
-        (the values it started from) when it took them from the stage before."""
+        ``coefficients`` ({name: result.to_dict() with ``whiteness``, the residual
+        autocorrelation and Ljung–Box test}); the output-error stage adds ``start`` (the values
+        it started from) when it took them from the stage before."""
         entries = []
         regressions = {stage.index: results for stage, results in self.regressions}
         for stage in self.case.stages:
             entry: dict[str, Any] = {"kind": stage.kind, "name": stage.name}
             if stage.index in regressions:
-                entry["coefficients"] = {
-                    n: r.to_dict() for n, r in regressions[stage.index].items()
-                }
+                coefficients = {}
+                for n, r in regressions[stage.index].items():
+                    whiteness = self.whiteness(r)
+                    coefficients[n] = {
+                        **r.to_dict(),
+                        "whiteness": None if whiteness is None else whiteness.to_dict(),
+                    }
+                entry["coefficients"] = coefficients
             if stage.kind == "output_error" and self.pipeline is not None:
                 entry["start"] = {p.name: float(p.value) for p in self.pipeline.start}
             entries.append(entry)
@@ -261,14 +283,19 @@ def run_stages(
     """
     say = progress or (lambda message: None)
     directory = _data_directory(case, data_dir)
-    signals = stage_signals(load_maneuvers(case, directory))
+    maneuvers = load_maneuvers(case, directory)
+    signals = stage_signals(maneuvers)
+    samples = dict(
+        maneuver_index=np.concatenate([np.full(m.n_samples, k) for k, m in enumerate(maneuvers)]),
+        dt=float(maneuvers[0].dt),
+    )
     regressions: list[tuple[StageSpec, Mapping[str, RegressionResult]]] = []
     for stage in case.stages:
         if stage.kind in ("stepwise", "regression"):
             regressions.append((stage, run_regression_stage(stage, signals, say)))
     oe_stage = _output_error_stage(case)
     if oe_stage is None:
-        return StagesRun(case, directory, tuple(regressions))
+        return StagesRun(case, directory, tuple(regressions), **samples)
     base, structure, start = None, None, None
     if oe_stage.source == "previous":
         results = regressions[-1][1]
@@ -280,7 +307,7 @@ def run_stages(
     pipeline = None
     if structure is not None:
         pipeline = PipelineResult(regressions[-1][1], structure, start, base[0], run.estimate)
-    return StagesRun(case, directory, tuple(regressions), run, pipeline)
+    return StagesRun(case, directory, tuple(regressions), run, pipeline, **samples)
 
 
 def _data_directory(case: Case, data_dir: str | Path | None) -> Path:

@@ -162,7 +162,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_stages(case, args: argparse.Namespace, folder) -> int:
     """A case with regression stages (``flightid.cases.stages``): print the stages' results,
-    and write the output-error stage's files plus ``stages.json`` into the result folder."""
+    and write the output-error stage's files plus ``stages.json`` and ``stages.html`` (the
+    fits with their residual whiteness, ``flightid.report.stages_report``) into the result
+    folder."""
     import json
 
     from flightid.cases.run import stderr_progress
@@ -193,8 +195,12 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
                 json.dumps(json.loads(dumps({"stages": run.stages_dict()})), indent=2) + "\n",
                 encoding="utf-8",
             )
+            # stages.html: the regression fits and their residual whiteness
+            from flightid.report.stages_report import write_stages_files
+
+            page = write_stages_files(run, directory, case.output.get("figures", True))
             if run.output_error is None:
-                return directory / "stages.json"
+                return page
             from flightid.report.html import write_files
 
             return write_files(run.output_error, directory)

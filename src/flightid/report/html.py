@@ -414,15 +414,29 @@ def _squared(unit: str) -> str:
 
 
 def _outputs_table(run, units: dict[str, str], rho_band) -> str:
+    from flightid.accuracy.whiteness import WhitenessError, estimate_whiteness
     from flightid.report.diagnostics import log_det_r, theil_u
 
     est = run.estimate
     rho, band = rho_band
     u = theil_u(est.measured, est.predicted)
+    try:
+        # Ljung–Box test per output, as in results.json (flightid.accuracy.whiteness)
+        whiteness = estimate_whiteness(est)
+    except WhitenessError:
+        whiteness = None
     rows = []
     for j, name in enumerate(est.output_names):
         unit = units.get(name)
         outside = int(np.sum(np.abs(rho[1:, j]) > band))
+        if whiteness is None:
+            test = "—"
+        else:
+            verdict = "white" if whiteness.white[j] else "<span class='bad'>coloured</span>"
+            test = (
+                f"{_fmt(float(whiteness.ljung_box[j]), 4)} (p = "
+                f"{_fmt(float(whiteness.p_value[j]), 2)}, {verdict})"
+            )
         rows.append(
             [
                 html.escape(name),
@@ -432,8 +446,10 @@ def _outputs_table(run, units: dict[str, str], rho_band) -> str:
                 _fmt(u[j], 3),
                 _fmt(float(rho[1, j]) if rho.shape[0] > 1 else None, 3),
                 f"{outside} of {rho.shape[0] - 1}",
+                test,
             ]
         )
+    lb_lags = "m" if whiteness is None else str(whiteness.ljung_box_lags)
     det, log_det = log_det_r(est.r_diag)
     squared = " · ".join(_squared(units.get(n) or "?") for n in est.output_names)
     return (
@@ -446,6 +462,7 @@ def _outputs_table(run, units: dict[str, str], rho_band) -> str:
                 "Theil U [–]",
                 "ρ(1) [–]",
                 f"lags outside ±1.96/√N = ±{band:.3g}",
+                f"Ljung–Box Q({lb_lags}) [–]",
             ],
             rows,
         )
@@ -459,7 +476,9 @@ def _outputs_table(run, units: dict[str, str], rho_band) -> str:
         )
         + "<p class='small'>Theil inequality coefficient U = √(Σν²/N) / (√(Σz²/N) + "
         "√(Σy²/N)): 0 is a perfect fit, below about 0.3 is usually taken as good "
-        "agreement. ρ(k): normalised residual autocorrelation.</p>"
+        "agreement. ρ(k): normalised residual autocorrelation. Ljung–Box "
+        "Q = N(N+2) Σ_{k=1..m} ρ(k)²/(N − M k), χ²(m) for white residuals (M maneuvers); "
+        "“coloured” when p < 0.05 (<code>flightid.accuracy.whiteness</code>).</p>"
     )
 
 
