@@ -4,7 +4,7 @@ names; the F-18 estimates agree with SIDPAC's own results stored in the files; t
 reconstructed signals are written and read back by a next case.
 
 Run times (one core, incl. compilation): 4a ≈ 4 s, 4b ≈ 7 s, 4c ≈ 9 s, F-18 lon ≈ 5 s,
-F-18 lat ≈ 6 s; all in the default suite.
+F-18 lat ≈ 6 s, F-18 dcmp lon ≈ 4 s; all in the default suite.
 """
 
 from __future__ import annotations
@@ -41,6 +41,17 @@ FREE = {
     # the files' p_names: "ax bias", "az bias", "q bias", "alf scf", "the scf" ...
     "f18harv_compat_lon": ["ax_bias", "az_bias", "q_bias", "alf_scf", "the_scf"],
     "f18harv_compat_lat": ["ay_bias", "p_bias", "r_bias", "bta_scf", "phi_scf", "psi_scf"],
+    # no reference names in the file (no p_names): those of compat_lon, and the free x0
+    "f18harv_dcmp_lon": [
+        "ax_bias",
+        "az_bias",
+        "q_bias",
+        "alf_scf",
+        "the_scf",
+        "x0_u",
+        "x0_w",
+        "x0_θ",
+    ],
 }
 _RUNS: dict[str, object] = {}
 
@@ -186,3 +197,32 @@ def test_reconstructed_signals_are_written_and_read_by_a_next_case(tmp_path):
     # flightid's own output at commit 78f364c: 0.47264 on the raw Elv1, 0.46616 on the
     # corrected signals)
     assert fitted["M0"] == pytest.approx(0.46616, abs=2e-4)
+
+
+def test_f18_dcmp_time_regenerated_and_regression_values():
+    """dcmp_lon_example.mat: the jittery stored stamps (0.01953/0.02148 s) are replaced by
+    t_0 + k·0.02 s ([data] dt), which is the file's own `t` vector (0, 0.02, … 14 s) shifted
+    to the first stamp. The file holds no SIDPAC results: the estimates are regression values
+    (flightid's own output when the case was added, after commit 882e585), tolerance 0.05 CR
+    bounds."""
+    run = _run("f18harv_dcmp_lon")
+    stored = scipy.io.loadmat(DATA / "sidpac_f18harv/dcmp_lon_example.mat")
+    raw_t = stored["fdata_153b"][:, 0]
+    assert set(np.round(np.diff(raw_t), 5)) == {0.01953, 0.02148}
+    (maneuver,) = run.maneuvers
+    np.testing.assert_allclose(maneuver.time - raw_t[0], stored["t"].ravel(), rtol=0, atol=1e-9)
+    est = run.estimate
+    values = dict(zip(est.names, est.values, strict=True))
+    std = dict(zip(est.names, est.std, strict=True))
+    expected = {
+        "ax_bias": -0.685336,
+        "az_bias": -0.406982,
+        "q_bias": 0.000264532,
+        "alf_scf": 0.105079,
+        "the_scf": 0.0541344,
+        "x0_u": 316.18977,
+        "x0_w": 115.72847,
+        "x0_θ": 0.2598399,
+    }
+    for name, value in expected.items():
+        assert abs(values[name] - value) < 0.05 * std[name], (name, values[name])
