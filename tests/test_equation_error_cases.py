@@ -121,3 +121,42 @@ def test_tls_case_is_the_svd_of_the_composite_matrix(regressions, capsys):
     ols = np.linalg.lstsq(X, ys["qdot"], rcond=None)[0]
     assert np.max(np.abs(expected["qdot"][0] / ols - 1)) > 1e-5
     assert np.all(np.abs(expected["qdot"][0] - ols) < expected["qdot"][1])
+
+
+def _variant(tmp_path: Path, old: str, new: str) -> Path:
+    text = (ROOT / "examples/cases/unstab_sp_equation_error_tls.toml").read_text("utf-8")
+    assert old in text
+    path = tmp_path / "case.toml"
+    path.write_text(
+        text.replace(old, new).replace("[data]\n", f"[data]\ndata_dir = '{DATA}'\n", 1),
+        encoding="utf-8",
+    )
+    return path
+
+
+def test_covariance_eiv_reports_the_sandwich_sigma(tmp_path, capsys):
+    path = _variant(tmp_path, 'method = "tls"', 'method = "tls"\ncovariance = "eiv"')
+    assert main(["run", str(path), "--json", "--quiet"]) == 0
+    entry = json.loads(capsys.readouterr().out)["stages"][0]["coefficients"]["qdot"]
+    assert entry["covariance"] == "eiv"
+    for row in entry["parameters"]:
+        assert row["std"] == pytest.approx(row["std_eiv"]) and row["std"] != row["std_ols"]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('method = "tls"', 'method = "wls"', "stages\\[0\\].method: expected one of"),
+        ('method = "tls"', 'method = "ols"\ncovariance = "eiv"', 'is for method = "tls"'),
+        ('["Mw", "Mq", "Mδe"]', '["Mw", "Mq"]', "coefficients.qdot.parameters: expected a list"),
+        ('["Mw", "Mq", "Mδe"]', '["Mw", "Mw", "Mq"]', "expected distinct names"),
+        ('method = "tls"', 'method = "tls"\nf_enter = 4', "f_enter"),
+    ],
+)
+def test_stage_option_errors_name_the_key(tmp_path, capsys, old, new, message):
+    from flightid.cases import load_case
+    from flightid.cases.checks import CaseError
+    from flightid.cases.stages import run_stages
+
+    with pytest.raises(CaseError, match=message):
+        run_stages(load_case(_variant(tmp_path, old, new)))

@@ -81,6 +81,10 @@ def test_lags_never_pair_samples_of_different_maneuvers():
     joined = residual_whiteness(nu, max_lag=10)
     assert joined.rho[5, 0] < w.rho[5, 0]
     assert w.n_maneuvers == 2
+    # Ljung–Box with M = 2 maneuvers: N − M k products at lag k
+    m = w.ljung_box_lags
+    q = 200 * 202 * np.sum(w.rho[1 : m + 1, 0] ** 2 / (200 - 2 * np.arange(1, m + 1)))
+    assert w.ljung_box[0] == pytest.approx(q, rel=1e-12)
 
 
 def test_json_entry_and_summary():

@@ -1,6 +1,7 @@
 """Accuracy of output-error estimates (RP-1153 §5): intervals from the information matrix at a
 confidence level, Cramér–Rao bounds corrected for coloured residuals, Beale's nonlinearity
-measure, and likelihood-region limits by random search and by profile likelihood.
+measure, likelihood-region limits by random search and by profile likelihood, and the
+whiteness of any estimator's residuals (autocorrelation band, Ljung–Box).
 
 Entry point: ``assess(estimate, data, level=0.95, methods=("cr", "profile"))``; JSON:
 ``accuracy_json(estimate, result)``.
@@ -21,6 +22,7 @@ from flightid.accuracy.profile import ProfileCurve, ProfileLimits, profile_curve
 from flightid.accuracy.result import AccuracyResult, accuracy_json
 from flightid.accuracy.search import SearchLimits, random_search
 from flightid.accuracy.slices import CostSlice, cost_slice
+from flightid.accuracy.whiteness import Whiteness, estimate_whiteness, residual_whiteness
 
 __all__ = [
     "METHODS",
@@ -32,6 +34,7 @@ __all__ = [
     "ProfileCurve",
     "ProfileLimits",
     "SearchLimits",
+    "Whiteness",
     "accuracy_json",
     "assess",
     "beale_factor",
@@ -42,6 +45,7 @@ __all__ = [
     "correlation_warnings",
     "cost_slice",
     "ellipsoid_intervals",
+    "estimate_whiteness",
     "polish_minimum",
     "problem_for",
     "profile_curve",
@@ -49,4 +53,5 @@ __all__ = [
     "random_search",
     "region_contour",
     "residual_variance_factor",
+    "residual_whiteness",
 ]
