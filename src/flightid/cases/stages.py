@@ -173,8 +173,14 @@ class StagesRun:
         return {"results": results, "stages": self.stages_dict()}
 
     def summary(self) -> str:
-        """Regression results, the regression-vs-ML table and the estimate summary."""
-        parts = [r.summary() for _, results in self.regressions for r in results.values()]
+        """Regression results (each with its residual whiteness), the regression-vs-ML table
+        and the estimate summary."""
+        parts = []
+        for _, results in self.regressions:
+            for result in results.values():
+                whiteness = self.whiteness(result)
+                tail = "" if whiteness is None else "\n" + whiteness.summary()
+                parts.append(result.summary() + tail)
         if self.pipeline is not None:
             parts.append("Regression → output error\n" + self.pipeline.comparison())
         return "\n\n".join(parts)

@@ -10,6 +10,10 @@ maneuvers, ``flightid.accuracy.coloured.residual_autocovariance``):
 
     ρ_o(k) = R̂_ν,oo(k) / R̂_ν,oo(0),   white-noise band ±1.96/√N
 
+(the fraction of lags outside the band and the Ljung–Box test of the same ρ, for any
+estimator's residuals, are ``flightid.accuracy.whiteness``; the report's outputs table shows
+them beside these numbers)
+
 Coloured-residual σ: the sandwich covariance of ``flightid.accuracy.coloured_covariance``
 (automatic lag) scaled by N·n_o/(N·n_o − n_p) exactly as ``flightid.accuracy.assess`` does;
 it is compared with the Cramér–Rao σ scaled by the residual factor s [5.30], s·σ_j, so that
