@@ -649,3 +649,24 @@ def test_reconstruction_with_wind_and_positions():
         FlightData(t, inputs, {o: np.zeros(n) for o in ("V", "α", "β", "φ", "θ", "ψ", "h")})
     ])  # fmt: skip
     assert not any(k.startswith(("x_N", "V_N", "χ")) for k in plain.columns)
+
+
+def test_reconstruction_keeps_input_delays():
+    """With input_delays = {q: τ_q} the reconstructed q column is the input as the model read
+    it, q_m(t − τ) − b_q (τ = two samples: q shifted by two samples, the first held), and the
+    integration is that of the fit (α_rec = α_fit with f_α = 1, b_α = 0)."""
+    from flightid.compat.kinematic import model_from_spec
+    from flightid.compat.reconstruct import reconstruct
+
+    dt, n, k = 0.04, 150, 2
+    t, signals = _maneuver_inputs(np.random.default_rng(11), n, dt)
+    x0 = (129.0, -0.5, 5.0, 0.02, 0.03, 0.22, 4800.0)
+    spec = kinematic_spec(g=G, delays=("τ_q",))
+    model = model_from_spec(spec, x0=x0, input_delays={"q": "τ_q"})
+    theta = model.parameters.with_values({"τ_q": k * dt, "b_q": 0.003}).values
+    data = FlightData(t, signals, {o: np.zeros(n) for o in model.outputs})
+    (rec,) = reconstruct(spec, model, [data], theta)
+    q = signals["q"]
+    expected = np.concatenate([np.full(k, q[0]), q[:-k]]) - 0.003
+    np.testing.assert_allclose(rec.columns["q [rad/s]"], expected, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(rec.columns["α_rec [rad]"], rec.columns["α_fit [rad]"], atol=1e-15)
