@@ -16,6 +16,7 @@ import pytest
 from flightid.data import FlightData
 from flightid.errors import InputError
 from flightid.estimation import MNR, MNRES, OutputErrorProblem, estimate
+from flightid.estimation.shooting import estimate_multiple_shooting
 from flightid.model import Parameters, StateSpaceModel
 from flightid.model.linear import LinearTermError, linear_model
 from flightid.model.unstable import (
@@ -241,7 +242,9 @@ def test_shooting_defects_and_interval_outputs_from_plain_simulations():
 def test_multiple_shooting_recovers_the_ordinary_output_error_optimum():
     data = _data(noise=1.0, seed=6)
     ordinary = estimate(_model(dict(TRUE, Mw=0.2)), data, solver=MNR())
-    shooting = estimate(with_multiple_shooting(_model(START), data, 5, 1e6), data, solver=MNR())
+    model = with_multiple_shooting(_model(START), data, 5)  # weights 1, 10³, 10⁶ in turn
+    assert model.shooting_schedule == (1.0, 1e3) and model.shooting_weight == 1e6
+    shooting = estimate_multiple_shooting(model, data, solver=MNR())
     assert shooting.converged and ordinary.converged
     for name in ("Zw", "Zδe", "Mw", "Mq", "Mδe"):
         i, j = ordinary.names.index(name), shooting.names.index(name)
@@ -249,6 +252,8 @@ def test_multiple_shooting_recovers_the_ordinary_output_error_optimum():
         assert abs(shooting.values[j] - ordinary.values[i]) < 0.05 * ordinary.std[i], name
         assert abs(shooting.values[j] - TRUE[name]) < 3 * shooting.std[j], name
     assert shooting.residuals.shape == ordinary.residuals.shape  # defect rows not reported
+    assert "w = 1: converged" in shooting.message and "w = 1e+06" in shooting.message
+    np.testing.assert_array_equal(shooting.initial, model.parameters.values)
 
 
 def test_shooting_refuses_states_without_an_output_and_too_many_intervals():
@@ -265,6 +270,8 @@ def test_shooting_refuses_states_without_an_output_and_too_many_intervals():
         with_multiple_shooting(hidden, data, 3)
     with pytest.raises(InputError, match="fewer than 2 samples"):
         with_multiple_shooting(_model(), data, 200)
+    with pytest.raises(InputError, match="increasing list"):
+        with_multiple_shooting(_model(), data, 3, [1e6, 1.0])
 
 
 # ---------------------------------------------------------------- linear term models

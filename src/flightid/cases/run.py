@@ -47,8 +47,9 @@ from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.cases.unstable import apply_unstable_options
 from flightid.data.flightdata import FlightData
 from flightid.errors import SimulationError
-from flightid.estimation import Estimate, estimate
+from flightid.estimation import Estimate
 from flightid.estimation.problem import OutputErrorProblem
+from flightid.estimation.shooting import estimate_multiple_shooting
 from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate import simulate
@@ -430,7 +431,7 @@ def run_case(
             progress(f"estimating: pass {passes}, {evaluations} simulations, cost {cost:.6g}")
 
     with _heartbeat(progress, "estimating", heartbeat_s):
-        result = estimate(
+        result = estimate_multiple_shooting(
             model,
             list(prepared.maneuvers),
             solver=build_solver(case),

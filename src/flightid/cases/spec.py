@@ -624,7 +624,8 @@ def estimation_settings(estimation: Mapping[str, Any], key: str = "estimation") 
 def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:
     """The unstable-aircraft options (docs/unstable.md): ``stabilizing_gain`` ({state =
     {output = gain}}), ``eigenvalue_shift`` (σ, 1/s), ``shooting_intervals`` (whole number
-    ≥ 2) and ``shooting_weight`` (> 0); names are checked with the model (cases.run)."""
+    ≥ 2) and ``shooting_weight`` (> 0, or an increasing list: a continuation); names are
+    checked with the model (cases.run)."""
     if "stabilizing_gain" in estimation:
         gain = _table(estimation["stabilizing_gain"], f"{key}.stabilizing_gain")
         for state, row in gain.items():
@@ -637,10 +638,14 @@ def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:
     if "shooting_weight" in estimation:
         if "shooting_intervals" not in estimation:
             raise CaseError(f"{key}.shooting_weight: only used with shooting_intervals")
-        if _number(estimation["shooting_weight"], f"{key}.shooting_weight") <= 0:
+        weights = estimation["shooting_weight"]
+        weights = weights if isinstance(weights, list) else [weights]
+        values = [_number(w, f"{key}.shooting_weight") for w in weights]
+        increasing = all(b > a for a, b in zip(values, values[1:], strict=False))
+        if not values or min(values) <= 0 or not increasing:
             raise CaseError(
-                f"{key}.shooting_weight: expected a positive number, got "
-                f"{estimation['shooting_weight']!r}"
+                f"{key}.shooting_weight: expected a positive number or an increasing list of "
+                f"them, got {estimation['shooting_weight']!r}"
             )
 
 

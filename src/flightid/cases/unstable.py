@@ -4,7 +4,8 @@
     stabilizing_gain = { w = { w = 0.05 } }   # x_k ← x_k + S (z_k − y_k), S[state, output]
     eigenvalue_shift = 0.7                     # σ (1/s): data × e^(−σt), f − σx
     shooting_intervals = 10                    # multiple shooting: intervals per maneuver
-    shooting_weight = 1e4                      # defect weight, in samples (default 1e6)
+    shooting_weight = [1, 1e3, 1e6]            # defect weights in samples, used in turn
+                                               # (continuation; the default), or one number
 
 They combine (applied in this order: eigenvalue shift, stabilizing gain, shooting); each
 error is a ``CaseError`` naming the key.
@@ -20,7 +21,7 @@ from flightid.data.flightdata import FlightData
 from flightid.errors import InputError
 from flightid.model.statespace import StateSpaceModel
 from flightid.model.unstable import (
-    DEFAULT_SHOOTING_WEIGHT,
+    DEFAULT_SHOOTING_WEIGHTS,
     exponentially_weighted,
     with_eigenvalue_shift,
     with_multiple_shooting,
@@ -60,7 +61,7 @@ def apply_unstable_options(
                 model,
                 maneuvers,
                 int(settings["shooting_intervals"]),
-                float(settings.get("shooting_weight", DEFAULT_SHOOTING_WEIGHT)),
+                settings.get("shooting_weight", DEFAULT_SHOOTING_WEIGHTS),
             )
     except InputError as exc:
         raise CaseError(f"{key}: {exc}") from None

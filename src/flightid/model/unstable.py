@@ -37,7 +37,10 @@ enforced by weighted defect residuals: the defect d of state s counts in the cos
 so a defect of one noise standard deviation costs as much as w samples; with w = 10⁶ the
 defects at the optimum are ~10⁻³ of the noise level and the estimates those of ordinary
 output error, while far from the optimum each interval's error grows only over its own
-length. ``flightid.estimation.problem.OutputErrorProblem`` appends the defect rows; R is
+length. The weights (1, 10³, 10⁶) are used in turn by default (a continuation, each stage
+started from the one before; ``flightid.estimation.shooting``): a single large weight from
+the start ties the intervals together at once and can land where open-loop output error
+lands. ``flightid.estimation.problem.OutputErrorProblem`` appends the defect rows; R is
 estimated from the data rows only.
 """
 
@@ -64,10 +67,13 @@ __all__ = [
     "with_multiple_shooting",
     "shooting_starts",
     "DEFAULT_SHOOTING_WEIGHT",
+    "DEFAULT_SHOOTING_WEIGHTS",
 ]
 
-# defect weight: a continuity defect of one noise σ costs as much as this many samples
-DEFAULT_SHOOTING_WEIGHT = 1e6
+# defect weights: a continuity defect of one noise σ costs as much as this many samples; the
+# estimation runs with each in turn, each from the estimates of the one before (continuation)
+DEFAULT_SHOOTING_WEIGHTS = (1.0, 1e3, 1e6)
+DEFAULT_SHOOTING_WEIGHT = DEFAULT_SHOOTING_WEIGHTS[-1]
 
 
 class NotLinearError(InputError):
@@ -86,12 +92,16 @@ class UnstableModel(StateSpaceModel):
             name per state)), ...); None: one interval per maneuver.
         shooting_outputs: per state, the output whose noise variance weights its defect.
         shooting_weight: w, the defects' weight in samples (module docstring).
+        shooting_schedule: smaller weights to estimate with first, in order, each stage
+            starting from the estimates of the one before (continuation; run by
+            ``flightid.estimation.shooting.estimate_multiple_shooting``).
     """
 
     stabilizing_gain: np.ndarray | None = None
     shooting: tuple | None = None
     shooting_outputs: tuple[str, ...] = ()
     shooting_weight: float = DEFAULT_SHOOTING_WEIGHT
+    shooting_schedule: tuple[float, ...] = ()
 
 
 def _as_unstable(model: StateSpaceModel, **changes) -> UnstableModel:
@@ -271,7 +281,7 @@ def with_multiple_shooting(
     model: StateSpaceModel,
     maneuvers: FlightData | Sequence[FlightData],
     intervals: int,
-    weight: float = DEFAULT_SHOOTING_WEIGHT,
+    weight: float | Sequence[float] = DEFAULT_SHOOTING_WEIGHTS,
 ) -> UnstableModel:
     """The model with every maneuver cut into ``intervals`` shooting intervals.
 
@@ -279,10 +289,23 @@ def with_multiple_shooting(
     ``ms<m>_<state>_<maneuver>``) hold each interval's initial states, started at the
     measured channel named like the state (else 0). The defect of state s is weighted with
     the noise variance of the output named s; a state without such an output is refused.
+
+    ``weight``: w, or an increasing sequence of weights — a continuation: the estimation runs
+    with each in turn from the estimates of the one before (``estimate_multiple_shooting``),
+    the last one giving the result. A small first weight lets each interval follow its own
+    data, so the start is not the open-loop simulation's; the large last one closes the gaps.
     """
     items = [maneuvers] if isinstance(maneuvers, FlightData) else list(maneuvers)
-    if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight > 0:
-        raise InputError(f"shooting_weight: expected a positive number, got {weight!r}")
+    weights = [weight] if isinstance(weight, (int, float)) else list(weight)
+    if (
+        not weights
+        or any(isinstance(w, bool) or not isinstance(w, (int, float)) or not w > 0 for w in weights)
+        or any(b <= a for a, b in zip(weights, weights[1:], strict=False))
+    ):
+        raise InputError(
+            f"shooting_weight: expected a positive number or an increasing list of them, "
+            f"got {weight!r}"
+        )
     if not model.has_states:
         raise InputError("shooting_intervals: the model has no states to shoot")
     unobserved = [s for s in model.states if s not in model.outputs]
@@ -318,5 +341,6 @@ def with_multiple_shooting(
         function_parameters=function_parameters,
         shooting=tuple(spec),
         shooting_outputs=tuple(model.states),
-        shooting_weight=float(weight),
+        shooting_weight=float(weights[-1]),
+        shooting_schedule=tuple(float(w) for w in weights[:-1]),
     )
