@@ -6,17 +6,51 @@ The solver keeps a set of parameter points with their output histories. Each pas
 2. estimate the sensitivities G_i from the surface through the stored points
    (``flightid.estimation.surface``: algebraic form [4.15], or least squares [4.18–4.23],
    batch QR or constant-window recursive);
-3. take the Gauss–Newton step [4.4–4.8] with those G_i, integrate once at the new point;
-4. if the cost dropped, the new point enters and the highest-cost point leaves; otherwise the
-   failed point itself enters the surface and the pass is repeated (at most
-   ``learn_from_failures`` times in a row), then the step is halved (one integration each)
-   and, failing that, the solver restarts;
-5. stop when cost and parameters have settled (``Convergence``).
+3. take the Gauss–Newton step [4.4–4.8] with those G_i, shortened to the trust radius Δ
+   (below), and integrate once at the new point;
+4. if the cost dropped, the new point enters the surface and becomes θ⁰; the point that
+   leaves is chosen by the geometry of the set (below). A failed trial does not enter: it
+   lies where the linearisation broke down, and a secant through it misleads the slopes
+   (the earlier ``learn_from_failures`` rule put it in, and on the turbulence data that
+   corrupted the surface pass after pass);
+5. stop when cost and parameters have settled (``Convergence``) — judged only on a surface
+   fresh from perturbations about θ⁰ (a stale one first triggers a restart).
+
+Step control: a trust region in the scaled coordinates ϑ = θ / max(|θ⁰_j|, floor_j) fixed at
+(re)initialisation. The step is the Levenberg–Marquardt step Δϑ(μ) = argmin ‖b − AΔϑ‖² +
+μ‖Δϑ‖² with the smallest μ ≥ 0 for which ‖Δϑ‖ ≤ Δ (μ = 0: the Gauss–Newton step). With the
+cost drop predicted by the surface, pred = ‖b‖² − ‖b − AΔϑ‖², and the drop realised,
+ρ = (J(θ⁰) − J(θ⁰ + Δθ)) / pred:
+
+    rejected (J did not drop), or ρ < 0.25
+    on a fresh surface:                     Δ ← ½‖Δϑ‖
+    ρ > 0.75 and the step reached Δ:        Δ ← 2Δ
+    otherwise:                              Δ unchanged
+
+A disappointing but accepted step on a surface carried along the path blames the surface,
+not the radius: ``max_rejections`` such passes in a row (ρ < 0.25) renew it (restart).
+Δ starts unbounded (the first step is the full Gauss–Newton step) and is kept across
+restarts (never below twice the last accepted step); a new noise cycle starts unbounded.
+On a strongly nonlinear cost (the turbulence data under output error, where the full step
+raises J ten-fold) the solver remembers how far the linearisation
+can be trusted, where the paper's rule — try the full step every pass, then halve — pays
+for the same discovery every pass.
+
+Which point leaves (``replacement``): the paper drops the highest-cost point. That keeps
+the cheapest points but may drop the only point that spans a direction: after one accepted
+step s, the set is θ⁰ + s and perturbations δ_j e_j about θ⁰, and dropping the one along e_j
+leaves e_j spanned only through s, so the slope along e_j is a difference quotient amplified
+by |s|/|s_j|. The default (``"geometry"``, as derivative-free Gauss–Newton methods do)
+keeps the interpolation well posed: replacing point t by x multiplies det ΔX by the value
+ℓ_t(x) of t's Lagrange polynomial (ℓ_t(ϑ_j) = δ_tj), so the point that leaves maximises
+
+    |ℓ_t(x)| · max(1, ‖ϑ_t − ϑ⁰‖² / ‖x − ϑ⁰‖²)
+
+(the second factor sends points far from θ⁰ — stale ones — out first).
 
 Initialisation and restart perturb each parameter from θ⁰ (n_f integrations, in one batch).
 The first perturbations are ``initial_perturbation`` × max(|θ_j|, floor_j) (the floor is the
 parameter's ``scale``, or 1e-3); a perturbation that would cross a bound goes the other way.
-The surface works in coordinates ϑ = θ / max(|θ⁰_j|, floor_j) fixed at (re)initialisation.
 At a restart they are scaled by parameter importance (§7): with M_ℓℓ from the current surface,
 δθ_ℓ ∝ 1/√M_ℓℓ — parameters that move the cost little get larger perturbations — normalised
 so their geometric-mean relative size equals the restart size, then clipped to a factor 10
@@ -24,8 +58,11 @@ either side of it. The restart size shrinks with the last accepted step so that 
 stays local near convergence, and by another factor 10 after each restart that found no
 lower cost (``max_restarts`` such restarts in a row end the search as stalled).
 
-Restarts happen when the cost will not drop, or when ΔX (the point cloud) is ill-conditioned;
-the paper's version had no such safeguards and oscillated on example 2, case 2.
+Restarts happen when ``max_rejections`` passes in a row fail or disappoint on a surface that
+has moved on (``fresh_rejections`` on a fresh one), when ΔX (the point cloud) is
+ill-conditioned, or when a surface that is neither fresh nor just proven (its last step's
+ρ within 0.1 of 1) says the search has converged; the paper's version had no such safeguards
+and oscillated on example 2, case 2.
 """
 
 from __future__ import annotations
@@ -36,12 +73,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flightid.errors import EstimationError, InputError
-from flightid.estimation.gauss_newton import information_matrix
+from flightid.estimation.gauss_newton import GaussNewtonStep, information_matrix
 from flightid.estimation.objective import Objective, SolverOutcome
 from flightid.estimation.solvers.common import (
     bounded_gauss_newton_step,
     budget_status,
-    halving_search,
     limit_step,
 )
 from flightid.estimation.surface import RecursiveSurface, algebraic_surface, batch_surface
@@ -49,7 +85,9 @@ from flightid.estimation.surface import RecursiveSurface, algebraic_surface, bat
 __all__ = ["MNRES"]
 
 _FORMS = ("algebraic", "batch", "recursive")
-_LEARNT = object()  # marker: a failed trial point entered the surface; repeat the pass
+_REPLACEMENTS = ("geometry", "cost")
+# trust-region ratios: below SHRINK the radius halves, above GROW (at the radius) it doubles
+_SHRINK, _GROW = 0.25, 0.75
 
 
 @dataclass
@@ -63,10 +101,12 @@ class _PointSet:
     surface: RecursiveSurface | None = None
     restarts: int = 0  # restarts so far in this run
     failures: int = 0  # consecutive restarts without an accepted step
-    corrections: int = 0  # failed trials inserted since the last accepted step
+    rejections: int = 0  # consecutive rejected trials since the last accepted step
     last_step: np.ndarray | None = field(default=None)
     scale: np.ndarray | None = field(default=None)  # coordinates of the surface: ϑ = θ / scale
     fresh: bool = True  # the surface comes from perturbations about the current best point
+    radius: float = math.inf  # trust radius Δ in ϑ units
+    proven: bool = False  # the last accepted step realised its predicted drop (|ρ − 1| ≤ 0.1)
 
 
 @dataclass(frozen=True)
@@ -79,40 +119,53 @@ class MNRES:
         window: points kept by the least-squares forms (≥ n_f + 1; default n_f + 1).
         initial_perturbation: first perturbation, relative to max(|θ_j|, floor_j).
         importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7).
-        max_halvings: step halvings before a restart.
-        fresh_halvings: step halvings from a freshly (re)initialised surface.
+        max_rejections: rejected trials in a row (each halving the trust radius) before a
+            restart, on a surface that has moved on from its perturbations.
+        fresh_rejections: the same on a freshly (re)initialised surface.
         max_relative_step: no parameter moves more than this fraction of max(|θ_j|, scale_j)
             in one pass (off by default; see MNR).
         max_condition: largest acceptable condition number of the (scaled) point cloud.
-        learn_from_failures: failed full steps whose points enter the surface before the
-            step is halved (0: halve at once, as the paper's step-size control).
         max_restarts: consecutive restarts without progress before declaring a stall; each
             such restart perturbs 10 times less than the previous one.
+        replacement: which point leaves when a new one enters: ``"geometry"`` (the largest
+            distance-weighted Lagrange value, default) or ``"cost"`` (the highest cost, the
+            paper's rule).
+        trust_region: keep the trust radius from pass to pass (default); ``False`` starts
+            every pass from the full Gauss–Newton step and halves it on failure (the paper's
+            step-size control).
     """
 
     form: str = "algebraic"
     window: int | None = None
     initial_perturbation: float = 0.001
     importance_scaling: bool = True
-    max_halvings: int = 3
-    fresh_halvings: int = 10
+    max_rejections: int = 3
+    fresh_rejections: int = 10
     max_relative_step: float = math.inf
     max_condition: float = 1e8
     max_restarts: int = 6
-    learn_from_failures: int = 2
+    replacement: str = "geometry"
+    trust_region: bool = True
 
     name = "mnres"
 
     def __post_init__(self) -> None:
         if self.form not in _FORMS:
             raise InputError(f"MNRES.form: expected one of {_FORMS}, got {self.form!r}")
+        if self.replacement not in _REPLACEMENTS:
+            raise InputError(
+                f"MNRES.replacement: expected one of {_REPLACEMENTS}, got {self.replacement!r}"
+            )
         if not 0 < self.initial_perturbation < 1:
             raise InputError(
                 "MNRES.initial_perturbation: expected a fraction between 0 and 1, "
                 f"got {self.initial_perturbation!r}"
             )
-        if self.max_halvings < 0 or self.max_restarts < 0:
-            raise InputError("MNRES.max_halvings and MNRES.max_restarts must be ≥ 0")
+        if self.max_rejections < 0 or self.fresh_rejections < 0 or self.max_restarts < 0:
+            raise InputError(
+                "MNRES.max_rejections, MNRES.fresh_rejections and MNRES.max_restarts must be "
+                f"≥ 0, got {self.max_rejections}, {self.fresh_rejections}, {self.max_restarts}"
+            )
         if self.form == "algebraic" and self.window is not None:
             raise InputError("MNRES.window: only the 'batch' and 'recursive' forms take a window")
 
@@ -122,14 +175,15 @@ class MNRES:
             "window": self.window,
             "initial_perturbation": self.initial_perturbation,
             "importance_scaling": self.importance_scaling,
-            "max_halvings": self.max_halvings,
-            "fresh_halvings": self.fresh_halvings,
+            "max_rejections": self.max_rejections,
+            "fresh_rejections": self.fresh_rejections,
             "max_relative_step": None
             if math.isinf(self.max_relative_step)
             else self.max_relative_step,
             "max_condition": self.max_condition,
             "max_restarts": self.max_restarts,
-            "learn_from_failures": self.learn_from_failures,
+            "replacement": self.replacement,
+            "trust_region": self.trust_region,
         }
 
     # ------------------------------------------------------------------ helpers
@@ -217,6 +271,74 @@ class MNRES:
             )
         return state.surface.slopes()
 
+    @staticmethod
+    def _trust_region_step(gn: GaussNewtonStep, scale: np.ndarray, radius: float) -> np.ndarray:
+        """Δθ of the Levenberg–Marquardt step no longer than ``radius`` in ϑ = θ / scale.
+
+        With A·diag(scale) = Q R D diag(scale) = Q U Σ Vᵀ and c = UᵀQᵀb:
+        Δϑ(μ) = V diag(s / (s² + μ)) c, whose length decreases with μ; μ is found by
+        bisection on log μ so that ‖Δϑ(μ)‖ = Δ. The Gauss–Newton step is returned as it is
+        when it lies inside the radius.
+        """
+        full = gn.step
+        if not math.isfinite(radius) or gn._factors is None:
+            return full
+        if float(np.linalg.norm(full / scale)) <= radius:
+            return full
+        column_norms, moving, r, qtb = gn._factors
+        m = scale[moving]
+        u, s, vt = np.linalg.svd(r * (column_norms * m)[None, :])
+        c = u.T @ qtb
+        if not s.size or s[0] <= 0 or radius <= 0:
+            return np.zeros_like(full)
+
+        def length(mu: float) -> float:
+            return float(np.linalg.norm(s * c / (s**2 + mu)))
+
+        # ‖Δϑ(μ)‖ ≤ ‖s ⊙ c‖ / μ: the upper end of the bracket meets the radius
+        low, high = 1e-16 * s[0] ** 2, max(float(np.linalg.norm(s * c)) / radius, 1e-300)
+        if length(low) <= radius:
+            high = low
+        for _ in range(100):
+            if high / low < 1.0 + 1e-6:
+                break
+            mid = math.sqrt(low * high)
+            low, high = (mid, high) if length(mid) > radius else (low, mid)
+        step = np.zeros_like(full)
+        # Δϑ = V diag(s / (s² + μ)) UᵀQᵀb;  Δθ = scale ⊙ Δϑ
+        step[moving] = m * (vt.T @ (s * c / (s**2 + high)))
+        return step
+
+    @staticmethod
+    def _predicted_drop(objective: Objective, g: np.ndarray, outputs: np.ndarray, step) -> float:
+        """pred = ‖b‖² − ‖b − AΔθ‖² = 2 bᵀAΔθ − ‖AΔθ‖²: the drop the surface promises."""
+        weight = 1.0 / np.sqrt(objective.r_diag)
+        b = objective.problem.residuals(outputs) * weight[None, :]
+        change = (g @ step) * weight[None, :]
+        return float(2.0 * np.sum(b * change) - np.sum(change**2))
+
+    def _leaving(self, state: _PointSet, theta: np.ndarray, keep_best: bool) -> int:
+        """Index of the point that leaves when θ enters (see the module docstring)."""
+        if self.replacement == "cost":
+            return int(np.argmax(state.costs))
+        scaled = state.points / state.scale
+        x = theta / state.scale
+        best = int(np.argmin(state.costs))
+        # ϑ⁰: the expansion point of the next pass (the new point if it was accepted)
+        centre = scaled[best] if keep_best else x
+        distance = np.linalg.norm(scaled - centre, axis=1)
+        # Lagrange values ℓ(x): [1, ϑ_j − ϑ_b]ᵀ ℓ = [1, x − ϑ_b] (least squares beyond n_f + 1)
+        design = np.column_stack([np.ones(scaled.shape[0]), scaled - scaled[best]])
+        target = np.concatenate([[1.0], x - scaled[best]])
+        lagrange = np.linalg.lstsq(design.T, target, rcond=None)[0]
+        reach = max(float(np.linalg.norm(x - centre)), float(np.linalg.norm(x - scaled[best])))
+        reach = max(reach, np.finfo(float).tiny)
+        # |ℓ_t(x)| · max(1, ‖ϑ_t − ϑ⁰‖² / ‖x − ϑ⁰‖²)
+        score = np.abs(lagrange) * np.maximum(1.0, (distance / reach) ** 2)
+        if keep_best:
+            score[best] = -np.inf
+        return int(np.argmax(score))
+
     # ------------------------------------------------------------------ main loop
     def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
         problem = objective.problem
@@ -232,7 +354,10 @@ class MNRES:
                 objective, theta, outputs, cost, self.initial_perturbation * magnitude, 0
             )
         else:
+            # a new noise cycle: new weights, so the radius learnt under the old ones goes
             state.costs = objective.costs_of(state.outputs)
+            state.radius = math.inf
+            state.rejections = 0
 
         def finish(iterations: int, converged: bool, status: str, message: str):
             best = int(np.argmin(state.costs))
@@ -247,27 +372,52 @@ class MNRES:
                 state=state,
             )
 
+        def restart_or_stall(iteration: int, theta, outputs, cost, g):
+            """A restart, or the reason the search ends here (an outcome)."""
+            if objective.budget_exhausted():
+                return None, finish(iteration, False, *budget_status(objective))
+            if state.failures >= self.max_restarts:
+                return None, finish(
+                    iteration,
+                    False,
+                    "stalled",
+                    f"stalled: {self.max_restarts} restarts in a row found no lower cost",
+                )
+            try:
+                return self._restart(objective, state, theta, outputs, cost, g), None
+            except EstimationError as exc:
+                return None, finish(iteration, False, "stalled", f"stalled: {exc}")
+
         g = None
-        for iteration in range(1, conv.max_iterations + 1):
+        passes = 0  # accepted parameter updates
+        # A pass of MNRES costs one integration where one of MNR costs n_f + 1: the iteration
+        # limit is applied in MNR's currency, max_iterations·(n_f + 1) integrations per call.
+        allowance = conv.max_iterations * (problem.n_free + 1)
+        spent_before = objective.evaluations
+        while objective.evaluations - spent_before < allowance:
+            iteration = passes + 1
             base = int(np.argmin(state.costs))
             theta, cost, outputs = state.points[base], state.costs[base], state.outputs[base]
             if objective.budget_exhausted():
-                return finish(iteration - 1, False, *budget_status(objective))
+                return finish(passes, False, *budget_status(objective))
             try:
                 slopes = self._slopes(objective, state, base)
             except EstimationError:
-                slopes = None  # the point cloud has collapsed: restart below
-            step, accepted = None, None
-            if slopes is not None:
-                # ∂y/∂θ = ∂y/∂ϑ / scale, reshaped to (N, n_o, n_f)
-                g = (slopes / state.scale[:, None]).T.reshape(
-                    problem.n_samples, problem.n_outputs, problem.n_free
-                )
-                gn = bounded_gauss_newton_step(objective, g, outputs, theta)
-                # The predicted drop is trusted from an interpolating surface (n_f + 1 points)
-                # or a fresh one; a smoothed least-squares plane must prove it with a pass.
-                trusted = state.fresh or state.points.shape[0] == problem.n_free + 1
-                if trusted and conv.step_settled(gn, theta, typical, cost):
+                slopes = None  # the point cloud has collapsed: restart
+            if slopes is None:
+                state, stop = restart_or_stall(passes, theta, outputs, cost, g)
+                if stop is not None:
+                    return stop
+                continue
+            # ∂y/∂θ = ∂y/∂ϑ / scale, reshaped to (N, n_o, n_f)
+            g = (slopes / state.scale[:, None]).T.reshape(
+                problem.n_samples, problem.n_outputs, problem.n_free
+            )
+            gn = bounded_gauss_newton_step(objective, g, outputs, theta)
+            if conv.step_settled(gn, theta, typical, cost):
+                # Only a surface fresh from perturbations about this point may say so; a
+                # surface carried along the path is judged again on a fresh one.
+                if state.fresh or state.proven:
                     return finish(
                         iteration,
                         True,
@@ -275,102 +425,93 @@ class MNRES:
                         "converged: the next step and the cost drop it predicts are "
                         "below tolerance",
                     )
-                step = limit_step(gn.step, theta, typical, self.max_relative_step)
-                accepted = self._try_step(objective, state, theta, cost, step, window, gn)
-                if accepted is _LEARNT:
-                    continue
-            if accepted is None:
-                # A surface built from past passes may be stale: only a surface fresh from a
-                # (re)initialisation at this point can declare convergence on a failed step.
-                if step is not None and state.fresh and conv.params_settled(step, theta, typical):
+                state, stop = restart_or_stall(passes, theta, outputs, cost, g)
+                if stop is not None:
+                    return stop
+                continue
+            step = self._trust_region_step(gn, state.scale, state.radius)
+            step = limit_step(step, theta, typical, self.max_relative_step)
+            trial = problem.project(theta + step)
+            taken = trial - theta
+            length = float(np.linalg.norm(taken / state.scale))
+            if length == 0.0:
+                new_cost, new_outputs = math.inf, None
+            else:
+                trial_costs, trial_outputs = objective.evaluate(trial[None, :])
+                new_cost, new_outputs = float(trial_costs[0]), trial_outputs[0]
+            accepted = new_cost < cost
+            was_fresh = state.fresh
+            # ρ = realised / predicted drop
+            predicted = self._predicted_drop(objective, g, outputs, taken)
+            ratio = (cost - new_cost) / predicted if accepted and predicted > 0 else 0.0
+            # Trust radius: a fresh surface that disappoints means the step was too long;
+            # a surface carried along the path that disappoints is itself suspect, and is
+            # renewed (restart) after max_rejections such passes, the radius kept.
+            if not self.trust_region:
+                state.radius = math.inf if accepted else 0.5 * length
+            elif ratio < _SHRINK and (was_fresh or not accepted):
+                state.radius = 0.5 * length
+            elif ratio > _GROW and length >= 0.99 * state.radius:
+                state.radius = 2.0 * state.radius
+            state.rejections = state.rejections + 1 if ratio < _SHRINK else 0
+            if accepted:
+                self._insert(state, trial, new_outputs, new_cost, window, keep_best=False)
+                passes += 1
+                state.last_step = taken
+                state.fresh = False
+                state.proven = abs(ratio - 1.0) <= 0.1
+                state.failures = 0
+                relative = conv.relative_cost_change(cost, new_cost)
+                settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
+                    taken, trial, typical
+                )
+                objective.record(trial, new_cost)
+                noise_settled = objective.maxlik_update(new_outputs, relative)
+                if noise_settled is not None:
+                    state.costs = objective.costs_of(state.outputs)
+                    settled = settled and noise_settled
+                full_step = bool(np.array_equal(taken, gn.step))
+                if settled and full_step and (was_fresh or state.proven):
                     return finish(
-                        iteration,
+                        passes,
+                        True,
+                        "converged",
+                        "converged: cost and parameter changes below tolerance",
+                    )
+            limit = self.fresh_rejections if was_fresh else self.max_rejections
+            if state.rejections <= limit:
+                continue
+            # A surface built from past passes may be stale: only a surface fresh from a
+            # (re)initialisation at this point can declare convergence on a failed step.
+            if was_fresh and not accepted:
+                if conv.params_settled(gn.step, theta, typical):
+                    return finish(
+                        passes,
                         True,
                         "converged",
                         "converged: the step is below the parameter tolerance and no "
                         "shorter step lowers the cost",
                     )
-                if objective.budget_exhausted():
-                    return finish(iteration, False, *budget_status(objective))
-                if state.failures >= self.max_restarts:
+                if gn.predicted_reduction <= conv.cost_rtol * abs(cost) + conv.cost_atol:
                     return finish(
-                        iteration,
-                        False,
-                        "stalled",
-                        f"stalled: {self.max_restarts} restarts in a row found no lower cost",
+                        passes,
+                        True,
+                        "converged",
+                        "converged: the cost drop a fresh surface predicts is below the cost "
+                        "tolerance and no step within the trust region lowers the cost",
                     )
-                state = self._restart(objective, state, theta, outputs, cost, g)
-                continue
-            new_theta, new_cost, new_outputs, taken = accepted
-            self._insert(objective, state, new_theta, new_outputs, new_cost, window)
-            state.last_step = taken
-            state.fresh = False
-            state.failures = 0
-            state.corrections = 0
-            relative = conv.relative_cost_change(cost, new_cost)
-            settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
-                taken, new_theta, typical
+            base = int(np.argmin(state.costs))
+            state, stop = restart_or_stall(
+                passes, state.points[base], state.outputs[base], state.costs[base], g
             )
-            objective.record(new_theta, new_cost)
-            noise_settled = objective.maxlik_update(new_outputs, relative)
-            if noise_settled is not None:
-                state.costs = objective.costs_of(state.outputs)
-                settled = settled and noise_settled
-            if settled:
-                return finish(
-                    iteration,
-                    True,
-                    "converged",
-                    "converged: cost and parameter changes below tolerance",
-                )
+            if stop is not None:
+                return stop
         return finish(
-            conv.max_iterations,
+            passes,
             False,
             "max_iterations",
-            f"stopped after {conv.max_iterations} iterations without converging",
-        )
-
-    def _try_step(
-        self,
-        objective: Objective,
-        state: _PointSet,
-        theta: np.ndarray,
-        cost: float,
-        step: np.ndarray,
-        window: int,
-        gn=None,
-    ):
-        """Integrate along the step: an accepted (θ, J, y, Δθ), None, or ``_LEARNT``."""
-        # a fresh surface's step may also be damped (Levenberg–Marquardt) when halving fails
-        damping = gn if state.fresh else None
-        # a fresh surface is as good as a finite-difference gradient: search its step as far
-        # down as MNR does before giving up on it
-        halvings = max(self.max_halvings, self.fresh_halvings) if state.fresh else self.max_halvings
-        if not (self.learn_from_failures and state.corrections < self.learn_from_failures):
-            return halving_search(objective, theta, cost, step, halvings, gauss_newton=damping)
-        # Try the full step once; if it fails, its outputs still teach the surface about the
-        # direction where it was wrong: the point enters the set (the highest-cost point
-        # leaves) and the pass is repeated.
-        trial = objective.problem.project(theta + step)
-        if np.array_equal(trial, theta):
-            return None
-        trial_costs, trial_outputs = objective.evaluate(trial[None, :])
-        if trial_costs[0] < cost:
-            return trial, float(trial_costs[0]), trial_outputs[0], trial - theta
-        if np.isfinite(trial_costs[0]):
-            self._insert(
-                objective,
-                state,
-                trial,
-                trial_outputs[0],
-                float(trial_costs[0]),
-                window,
-                replace_only=True,
-            )
-            state.corrections += 1
-            return _LEARNT
-        return halving_search(
-            objective, theta, cost, 0.5 * step, halvings - 1, gauss_newton=damping
+            f"stopped after {passes} iterations ({allowance} integrations, the cost of "
+            f"{conv.max_iterations} finite-difference passes) without converging",
         )
 
     def _restart(
@@ -382,43 +523,47 @@ class MNRES:
         cost: float,
         g: np.ndarray | None,
     ) -> _PointSet:
-        """New perturbations about the best point (n_f integrations)."""
+        """New perturbations about the best point (n_f integrations); the trust radius is
+        kept."""
         deltas = self._restart_deltas(objective, theta, g, previous.last_step, previous.failures)
         state = self._initialise(objective, theta, outputs, cost, deltas, previous.restarts + 1)
         state.last_step = previous.last_step
-        # a perturbed point that lowers the cost is progress too
-        progress = float(np.min(state.costs)) < cost
+        # the radius is kept, but never below twice the last accepted step
+        last = 0.0 if previous.last_step is None else previous.last_step / previous.scale
+        state.radius = max(previous.radius, 2.0 * float(np.linalg.norm(last)))
+        state.rejections = 0
+        # a perturbed point that lowers the cost is progress too (not a rounding-level drop)
+        progress = float(np.min(state.costs)) < cost - 1e-9 * abs(cost)
         state.failures = 0 if progress else previous.failures + 1
         return state
 
     def _insert(
         self,
-        objective: Objective,
         state: _PointSet,
         theta: np.ndarray,
         outputs: np.ndarray,
         cost: float,
         window: int,
-        replace_only: bool = False,
+        keep_best: bool,
     ) -> None:
-        """The new point enters; the highest-cost point leaves once the window is full (or
-        at once with ``replace_only``)."""
+        """The new point enters; once the window is full another leaves (``_leaving``):
+        never the best point while θ is not better (``keep_best``)."""
         scale = state.scale
-        if state.points.shape[0] < window and not replace_only:
+        if state.points.shape[0] < window:
             if state.surface is not None:
                 state.surface.add(theta / scale, outputs.reshape(-1))
             state.points = np.vstack([state.points, theta[None]])
             state.outputs = np.concatenate([state.outputs, outputs[None]])
             state.costs = np.append(state.costs, cost)
             return
-        worst = int(np.argmax(state.costs))
+        leaving = self._leaving(state, theta, keep_best)
         if state.surface is not None:
             state.surface.replace(
                 theta / scale,
                 outputs.reshape(-1),
-                state.points[worst] / scale,
-                state.outputs[worst].reshape(-1),
+                state.points[leaving] / scale,
+                state.outputs[leaving].reshape(-1),
             )
-        state.points[worst] = theta
-        state.outputs[worst] = outputs
-        state.costs[worst] = cost
+        state.points[leaving] = theta
+        state.outputs[leaving] = outputs
+        state.costs[leaving] = cost
