@@ -62,7 +62,8 @@ def regressions():
 
 
 def _run(name: str, capsys) -> dict:
-    code = main(["run", str(ROOT / "examples/cases" / f"{name}.toml"), "--json", "--quiet"])
+    case = str(ROOT / "examples/cases" / f"{name}.toml")
+    code = main(["run", case, "--json", "--quiet", "--data-dir", str(DATA)])
     assert code == 0
     document = json.loads(capsys.readouterr().out)
     assert document["results"] == []
@@ -159,4 +160,4 @@ def test_stage_option_errors_name_the_key(tmp_path, capsys, old, new, message):
     from flightid.cases.stages import run_stages
 
     with pytest.raises(CaseError, match=message):
-        run_stages(load_case(_variant(tmp_path, old, new)))
+        run_stages(load_case(_variant(tmp_path, old, new)), DATA)

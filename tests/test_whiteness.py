@@ -159,7 +159,8 @@ def test_regression_stage_whiteness_is_that_of_y_minus_x_theta(tmp_path, capsys)
     assert row["ljung_box_q"] == pytest.approx(expected.ljung_box[0], rel=1e-6)
     # ndiff8 turns the q noise into a residual with ρ(1) ≈ −0.44: coloured
     assert row["rho_1"] == pytest.approx(-0.437, abs=0.01) and row["white"] is False
-    assert main(["run", str(case), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    out = str(tmp_path / "out")
+    assert main(["run", str(case), "--out", out, "--quiet", "--data-dir", str(DATA)]) == 0
     capsys.readouterr()
     page = (tmp_path / "out" / "stages.html").read_text(encoding="utf-8")
     assert "Residual whiteness" in page and "coloured</span>" in page
