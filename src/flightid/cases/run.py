@@ -47,7 +47,7 @@ from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.cases.unstable import apply_unstable_options
 from flightid.data.flightdata import FlightData
 from flightid.errors import SimulationError
-from flightid.estimation import Estimate
+from flightid.estimation import Estimate, estimate
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.estimation.shooting import estimate_multiple_shooting
 from flightid.model.check import check_model
@@ -244,6 +244,12 @@ def prepare_case(
     return Prepared(case, directory, model, tuple(maneuvers), tuple(prediction), base, description)
 
 
+def _has_schedule(model: StateSpaceModel) -> bool:
+    """True for a multiple-shooting model with a defect-weight continuation (one estimation
+    per weight, ``flightid.estimation.shooting``; docs/unstable.md)."""
+    return bool(getattr(model, "shooting_schedule", ()))
+
+
 def input_interpolation(case: Case) -> str:
     """The case's ``estimation.input_interpolation``: ``"linear"`` (default) or ``"zoh"``."""
     return case.estimation.get("input_interpolation", "linear")
@@ -431,7 +437,7 @@ def run_case(
             progress(f"estimating: pass {passes}, {evaluations} simulations, cost {cost:.6g}")
 
     with _heartbeat(progress, "estimating", heartbeat_s):
-        result = estimate_multiple_shooting(
+        result = (estimate_multiple_shooting if _has_schedule(model) else estimate)(
             model,
             list(prepared.maneuvers),
             solver=build_solver(case),
