@@ -655,3 +655,45 @@ def unbiased_model(
         function_parameters=base.parameters.names if copies else None,
         maneuver_parameters=copies or None,
     )
+
+
+def with_process_noise(
+    case: Case, model: StateSpaceModel
+) -> tuple[StateSpaceModel, dict[str, str]]:
+    """The model with the ``[process_noise]`` elements appended as parameters (after all
+    others, so f and h index θ as before), and {state: parameter name} of the diagonal F.
+
+    Each entry ``state = value`` or ``{value, free, name, scale}`` adds the parameter F_ii
+    (default name ``F11``, ``F22``, … by the state's position; free by default).
+    """
+    from flightid.estimation.filter_error import process_noise_name
+
+    added: list[Parameter] = []
+    mapping: dict[str, str] = {}
+    for state, value in case.process_noise.items():
+        where = f"process_noise.{state}"
+        if state not in model.states:
+            raise CaseError(f"{where}: not a state of the model; states {list(model.states)}")
+        spec = value if isinstance(value, Mapping) else {"value": value}
+        name = spec.get("name", process_noise_name(model.states.index(state)))
+        if name in model.parameters or name in mapping.values():
+            raise CaseError(f"{where}.name: {name!r} is already a parameter of the model")
+        added.append(
+            Parameter(
+                name,
+                float(spec["value"]),
+                free=bool(spec.get("free", True)),
+                scale=None if spec.get("scale") is None else float(spec["scale"]),
+            )
+        )
+        mapping[state] = name
+    try:
+        parameters = Parameters(list(model.parameters) + added)
+    except InputError as exc:
+        raise CaseError(f"process_noise: {exc}") from None
+    try:
+        # f and h keep indexing θ as before (the F elements come last)
+        noisy = replace(model, parameters=parameters)
+    except InputError as exc:
+        raise CaseError(f"process_noise: {exc}") from None
+    return noisy, mapping

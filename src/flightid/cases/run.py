@@ -42,6 +42,7 @@ from flightid.cases.build import (
     load_maneuvers,
     resolve_data_dir,
     unbiased_model,
+    with_process_noise,
 )
 from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.cases.unstable import apply_unstable_options
@@ -186,6 +187,13 @@ class Prepared:
     prediction_maneuvers: tuple[FlightData, ...]
     base: StateSpaceModel
     model_description: str
+    # {state: F parameter} of the filter error method ({} for output error)
+    process_noise: dict = field(default_factory=dict)
+
+
+def filter_error(case: Case) -> bool:
+    """True when the case runs the filter error method (``[estimation] estimator``)."""
+    return case.estimation.get("estimator", "output_error") == "filter_error"
 
 
 def prepare_case(
@@ -207,6 +215,9 @@ def prepare_case(
     maneuvers = load_maneuvers(case, directory)
     base, description = base_model(case, directory) if base is None else base
     model, maneuvers = build_model(case, maneuvers, base=base)
+    process_noise: dict[str, str] = {}
+    if filter_error(case):
+        model, process_noise = with_process_noise(case, model)
     build_solver(case)
     build_convergence(case)
     input_interpolation(case)
@@ -241,7 +252,16 @@ def prepare_case(
         )
     # stabilizing gain, eigenvalue shift, multiple shooting (docs/unstable.md)
     model, maneuvers = apply_unstable_options(case, model, maneuvers)
-    return Prepared(case, directory, model, tuple(maneuvers), tuple(prediction), base, description)
+    return Prepared(
+        case,
+        directory,
+        model,
+        tuple(maneuvers),
+        tuple(prediction),
+        base,
+        description,
+        process_noise,
+    )
 
 
 def _has_schedule(model: StateSpaceModel) -> bool:
@@ -383,6 +403,29 @@ def _assess(
     return accuracy
 
 
+def _estimate_filter_error(
+    case: Case, prepared: Prepared, progress: Callable[[int, int, float], None]
+) -> Estimate:
+    """The filter error method on a prepared case (``[estimation] estimator``)."""
+    from flightid.estimation.filter_error import estimate_filter_error
+
+    settings = case.estimation
+    return estimate_filter_error(
+        prepared.model,
+        list(prepared.maneuvers),
+        prepared.process_noise,
+        solver=build_solver(case),
+        relaxation=settings.get("relaxation", "fixed_point"),
+        method=settings.get("method", "rk4"),
+        input_interpolation=input_interpolation(case),
+        linearisation=settings.get("linearisation", "start"),
+        convergence=build_convergence(case),
+        max_cycles=int(settings.get("max_cycles", 30)),
+        compiled=bool(settings.get("compiled", True)),
+        progress=progress,
+    )
+
+
 def run_case(
     case: Case | str | Path,
     data_dir: str | Path | None = None,
@@ -436,19 +479,27 @@ def run_case(
             last_report[0] = now
             progress(f"estimating: pass {passes}, {evaluations} simulations, cost {cost:.6g}")
 
-    with _heartbeat(progress, "estimating", heartbeat_s):
-        result = (estimate_multiple_shooting if _has_schedule(model) else estimate)(
-            model,
-            list(prepared.maneuvers),
-            solver=build_solver(case),
-            method=case.estimation.get("method", "rk4"),
-            noise=case.estimation.get("noise", "max"),
-            R=case.estimation.get("R"),
-            convergence=build_convergence(case),
-            compiled=bool(case.estimation.get("compiled", True)),
-            progress=report_pass,
-            input_interpolation=input_interpolation(case),
+    if filter_error(case) and methods:
+        raise CaseError(
+            f"accuracy.methods: {list(methods)} re-simulate the model without the filter; with "
+            "the filter error method only the Cramér–Rao bounds are given (leave methods out)"
         )
+    with _heartbeat(progress, "estimating", heartbeat_s):
+        if filter_error(case):
+            result = _estimate_filter_error(case, prepared, report_pass)
+        else:
+            result = (estimate_multiple_shooting if _has_schedule(model) else estimate)(
+                model,
+                list(prepared.maneuvers),
+                solver=build_solver(case),
+                method=case.estimation.get("method", "rk4"),
+                noise=case.estimation.get("noise", "max"),
+                R=case.estimation.get("R"),
+                convergence=build_convergence(case),
+                compiled=bool(case.estimation.get("compiled", True)),
+                progress=report_pass,
+                input_interpolation=input_interpolation(case),
+            )
     say(
         f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "
         f"evaluations, cost {result.cost:.6g}, {result.wall_time_s:.1f} s"

@@ -83,6 +83,7 @@ _TOP = {
     "prediction",
     "output",
     "stages",
+    "process_noise",
 }
 # keys of the old `flightid regress` dialect, and where they went in the one language
 _MIGRATED = {
@@ -145,6 +146,10 @@ _ESTIMATION = {
     "eigenvalue_shift",
     "shooting_intervals",
     "shooting_weight",
+    "estimator",
+    "relaxation",
+    "linearisation",
+    "max_cycles",
 }
 _ACCURACY = {
     "confidence",
@@ -168,6 +173,10 @@ NOISE = ("max", "maxlik", "fixed")
 # (each sample held over its interval)
 INPUT_INTERPOLATIONS = ("linear", "zoh")
 SOLVER_CLASSES = {"mnres": MNRES, "mnr": MNR, "fps": FPS}
+# "output_error" (no process noise) or "filter_error" (flightid.estimation.filter_error)
+ESTIMATORS = ("output_error", "filter_error")
+FILTER_RELAXATIONS = ("reference", "fixed_point")
+FILTER_LINEARISATIONS = ("start",)
 AIRCRAFT_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
 # "alpha_q": α and q integrated, the other flight variables measured (flightid.cases.alpha_q);
 # "kinematic": flight-path reconstruction (flightid.compat)
@@ -247,6 +256,8 @@ class Case:
     output: Mapping[str, Any]
     raw: Mapping[str, Any] = field(repr=False, default_factory=dict)
     stages: tuple[StageSpec, ...] = ()
+    # [process_noise]: state → {value, free, name, scale} (filter error method)
+    process_noise: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def staged(self) -> bool:
@@ -619,6 +630,7 @@ def estimation_settings(estimation: Mapping[str, Any], key: str = "estimation") 
         INPUT_INTERPOLATIONS,
     )
     _unstable_settings(estimation, key)
+    _filter_error_settings(estimation, key)
 
 
 def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:
@@ -647,6 +659,34 @@ def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:
                 f"{key}.shooting_weight: expected a positive number or an increasing list of "
                 f"them, got {estimation['shooting_weight']!r}"
             )
+
+
+def _filter_error_settings(estimation: Mapping[str, Any], key: str) -> None:
+    """``estimator`` and the filter error method's settings (``relaxation``,
+    ``linearisation``, ``max_cycles``); R and the noise policy are not its to set."""
+    solver = estimation.get("solver", "mnres")
+    estimator = _string(estimation.get("estimator", "output_error"), f"{key}.estimator", ESTIMATORS)
+    filter_keys = [k for k in ("relaxation", "linearisation", "max_cycles") if k in estimation]
+    if estimator != "filter_error" and filter_keys:
+        raise CaseError(
+            f"{key}.{filter_keys[0]}: a setting of the filter error method; "
+            'set estimator = "filter_error" (and [process_noise])'
+        )
+    if estimator == "filter_error":
+        if solver == "fps":
+            raise CaseError(f"{key}.solver: the filter error method runs with 'mnr' or 'mnres'")
+        if "noise" in estimation or "R" in estimation:
+            raise CaseError(
+                f"{key}.noise: the filter error method estimates R from the innovations; "
+                "leave out noise and R"
+            )
+        _string(
+            estimation.get("relaxation", "fixed_point"), f"{key}.relaxation", FILTER_RELAXATIONS
+        )
+        _string(
+            estimation.get("linearisation", "start"), f"{key}.linearisation", FILTER_LINEARISATIONS
+        )
+        _integer(estimation.get("max_cycles", 30), f"{key}.max_cycles", 1)
 
 
 def _accuracy_methods(accuracy: Mapping[str, Any], key: str) -> None:
@@ -692,6 +732,41 @@ def prediction_settings(
     x0 = _table(section.get("initial_state", {}), f"{key}.initial_state")
     _initial_state_types(x0, f"{key}.initial_state")
     return maneuvers, x0
+
+
+def _process_noise_section(raw: Mapping[str, Any], estimation: Mapping[str, Any]) -> dict:
+    """``[process_noise]``: state = start value of its F element, or {value, free, name,
+    scale}; only with ``[estimation] estimator = "filter_error"``, which needs it."""
+    section = _table(raw.get("process_noise", {}), "process_noise")
+    filter_error = estimation.get("estimator", "output_error") == "filter_error"
+    if section and not filter_error:
+        raise CaseError(
+            "process_noise: only used by the filter error method; set [estimation] estimator = "
+            '"filter_error"'
+        )
+    if filter_error and not section:
+        raise CaseError(
+            "process_noise: missing; the filter error method needs the process-noise elements "
+            "F_ii (state = start value, or {value, free, name})"
+        )
+    for state, value in section.items():
+        where = f"process_noise.{state}"
+        if not isinstance(value, Mapping):
+            _number(value, where)
+            continue
+        _known(value, {"value", "free", "name", "scale"}, where)
+        if "value" not in value:
+            raise CaseError(f"{where}.value: missing (the start value of the F element)")
+        _number(value["value"], f"{where}.value")
+        if "free" in value:
+            _bool(value["free"], f"{where}.free")
+        if "scale" in value:
+            _number(value["scale"], f"{where}.scale")
+        if "name" in value:
+            name = _string(value["name"], f"{where}.name")
+            if not name.isidentifier():
+                raise CaseError(f"{where}.name: expected an identifier, got {name!r}")
+    return dict(section)
 
 
 def _output_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -752,6 +827,7 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
         output=_output_section(raw),
         raw=raw,
         stages=stages,
+        process_noise=_process_noise_section(raw, run.get("estimation", {})),
         **run,
     )
 

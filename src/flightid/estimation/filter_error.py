@@ -78,7 +78,7 @@ RELAXATIONS = ("fixed_point", "reference")
 LINEARISATIONS = ("start",)
 _METHODS = {"euler": 0, "rk4": RK4}
 # diag(KC) may exceed 1 by this much before a θ counts as infeasible (round-off)
-KC_TOLERANCE = 1e-9
+KC_TOLERANCE = 1e-6
 
 
 def process_noise_name(state_index: int) -> str:
@@ -179,6 +179,9 @@ class FilterErrorProblem(OutputErrorProblem):
             its first input sample u_1 (the reference's fixed point).
         gain_r: the weighting R (n_o,) for gain and cost (default: ones; the estimator sets it).
         linearisation_step: Δx of the central differences for A and C (absolute).
+        pinned: states whose F element sits on its constraint: it is not a free parameter
+            but solved, for every θ, from diag(KC)_i = 1 (the active-set treatment of the
+            constraint by ``estimate_filter_error``); their parameters must be fixed.
     """
 
     def __init__(
@@ -192,6 +195,7 @@ class FilterErrorProblem(OutputErrorProblem):
         linearisation: str = "start",
         gain_r: np.ndarray | None = None,
         linearisation_step: float = 1e-4,
+        pinned: Sequence[str] = (),
     ) -> None:
         super().__init__(
             model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
@@ -227,6 +231,18 @@ class FilterErrorProblem(OutputErrorProblem):
             self.noise_states.append(model.states.index(state))
             self.noise_parameters.append(names.index(parameter))
         self.process_noise = dict(process_noise)
+        self.pinned: list[int] = []  # positions in noise_states / noise_parameters
+        for state in pinned:
+            if state not in self.process_noise:
+                raise InputError(f"pinned: {state!r} has no process-noise element")
+            position = list(self.process_noise).index(state)
+            if self.free_mask[self.noise_parameters[position]]:
+                raise InputError(
+                    f"pinned: the F element of {state!r} ({self.process_noise[state]}) is "
+                    "solved from its constraint; it must not be a free parameter"
+                )
+            self.pinned.append(position)
+        self._pin_start: dict[int, float] = {}
         self.linearisation = linearisation
         self.linearisation_step = float(linearisation_step)
         steps = [np.diff(m.time) for m in self.maneuvers if m.n_samples > 1]
@@ -293,12 +309,54 @@ class FilterErrorProblem(OutputErrorProblem):
         """(t, x, u) of the gain's linearisation: x0 and u_1 of the first maneuver."""
         return float(self._times[0][0]), self._x0(full, 0), self._inputs[0][0]
 
+    def complete(self, full: np.ndarray, r_diag: np.ndarray | None = None) -> np.ndarray:
+        """``full`` with the pinned F elements solved from diag(KC)_i = 1 (a copy).
+
+        F_ii = exp(φ_i) with φ the root of diag(KC)_i(F) − 1 = 0 over the pinned states
+        (``scipy.optimize.root``, Powell's hybrid method, each residual one Riccati solve).
+
+        Raises:
+            RiccatiError: no F puts the gain on the constraint.
+        """
+        full = np.array(full, dtype=float)
+        if not self.pinned:
+            return full
+        import scipy.optimize
+
+        r_diag = self.gain_r if r_diag is None else np.asarray(r_diag, dtype=float)
+        indices = [self.noise_parameters[i] for i in self.pinned]
+        states = [self.noise_states[i] for i in self.pinned]
+
+        def residual(phi: np.ndarray) -> np.ndarray:
+            full[indices] = np.exp(phi)
+            try:
+                kc = self._filter_point(full, r_diag).kc
+            except RiccatiError:
+                return np.full(len(indices), 1e3)
+            # diag(KC)_i − 1 for the pinned states
+            return kc[states] - 1.0
+
+        start = np.log([max(abs(self._pin_start.get(i, full[i])), 1e-12) for i in indices])
+        solution = scipy.optimize.root(residual, start, method="hybr", options={"xtol": 1e-12})
+        if not solution.success or np.max(np.abs(residual(solution.x))) > 1e-8:
+            raise RiccatiError(
+                f"no process noise puts diag(KC) on 1 for the pinned states ({solution.message})"
+            )
+        full[indices] = np.exp(solution.x)
+        for i, value in zip(indices, full[indices], strict=True):
+            self._pin_start.setdefault(i, float(value))
+        return full
+
     def filter_point(self, full: np.ndarray, r_diag: np.ndarray | None = None) -> FilterPoint:
-        """A, C, P, K and diag(KC) at the full parameter vector ``full``.
+        """A, C, P, K and diag(KC) at the full parameter vector ``full`` (pinned F elements
+        solved from their constraint first).
 
         Raises:
             RiccatiError: no stabilising solution of the Riccati equation.
         """
+        return self._filter_point(self.complete(full, r_diag), r_diag)
+
+    def _filter_point(self, full: np.ndarray, r_diag: np.ndarray | None = None) -> FilterPoint:
         r_diag = self.gain_r if r_diag is None else np.asarray(r_diag, dtype=float)
         t0, x, u = self.linearisation_point(full)
         theta = self._f_theta(full, 0)
@@ -392,13 +450,36 @@ class FilterErrorProblem(OutputErrorProblem):
 
 @dataclass
 class _Trace:
-    """Histories over all cycles."""
+    """Histories over all cycles and active sets."""
 
     costs: list[float] = field(default_factory=list)
     evaluations: list[int] = field(default_factory=list)
     r_updates: list[int] = field(default_factory=list)
     iterations: int = 0
     cycles: int = 0
+    passes: int = 0  # filter passes of the problems already finished
+
+    def record(self, objective: Objective, problem: FilterErrorProblem) -> None:
+        self.r_updates.append(len(self.costs))
+        self.costs.extend(objective.cost_history)
+        self.evaluations.extend(self.passes + e for e in objective.evaluation_history)
+
+
+@dataclass
+class _Outcome:
+    """Where an estimation ended, in the terms ``estimate_filter_error`` reports."""
+
+    problem: FilterErrorProblem
+    full: np.ndarray  # full parameter vector (pinned F elements solved)
+    outputs: np.ndarray
+    r_diag: np.ndarray
+    sensitivities: np.ndarray  # G over the free parameters of ``problem``
+    accuracy_evaluations: int
+    sigma: float
+    converged: bool
+    status: str
+    message: str
+    pinned: tuple[str, ...] = ()
 
 
 def _check_solver(solver):
@@ -415,67 +496,234 @@ def _check_solver(solver):
     return solver
 
 
-def _fixed_point(
-    problem: FilterErrorProblem,
-    solver: MNR | MNRES,
-    r_start: np.ndarray,
-    convergence: Convergence,
-    r_rtol: float,
-    max_cycles: int,
-    progress: Callable[[int, int, float], None] | None,
-    trace: _Trace,
-):
-    """Converge θ with R held, set R to the innovations' covariance, repeat."""
+def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, trace):
+    """Converge θ with R held, set R to the innovations' covariance, repeat.
+
+    Returns (theta, confirmation, R, state, message) with state "converged", "stuck" (a
+    cycle did not converge) or "max_cycles".
+    """
     theta = problem.theta_start
-    r_diag = np.array(r_start, dtype=float)
-    # R consistent with the start values: R = R̂(e(θ₀; R)), a few filter passes
-    for _ in range(50):
-        problem.gain_r = r_diag.copy()
-        batch = problem.run(theta[None, :], check_kc=False)
-        if batch.diverged[0]:
-            break
-        r_new = problem.noise_covariance(batch.outputs[0])
-        change = float(np.max(np.abs(r_new - r_diag) / r_diag))
-        r_diag = r_new
-        print("start R", r_diag, change)
-        if change <= r_rtol:
-            break
-    confirmation = objective = None
-    message = ""
-    converged = False
-    for cycle in range(1, max_cycles + 1):
+    r_diag = np.array(r_diag, dtype=float)
+    change = float("nan")
+    for _cycle in range(1, max_cycles + 1):
         problem.gain_r = r_diag.copy()
         objective = Objective(problem, r_diag, "fixed", convergence, progress)
-        objective.start_evaluations = 0  # count from the first filter pass of the run
         outcome = solver.minimize(objective, theta)
         confirmation = confirm_convergence(
             objective, outcome, "fixed", fallback=isinstance(solver, MNRES)
         )
         trace.iterations += outcome.iterations + confirmation.passes
-        trace.r_updates.append(len(trace.costs))
-        trace.costs.extend(objective.cost_history)
-        trace.evaluations.extend(objective.evaluation_history)
-        trace.cycles = cycle
+        trace.cycles += 1
+        trace.record(objective, problem)
         final = confirmation.outcome
         theta = final.theta
+        if not final.converged:
+            return theta, confirmation, r_diag, "stuck", final.message
         r_new = problem.noise_covariance(final.outputs)
         # largest relative change of an innovation variance: R has settled when ≤ r_rtol
         change = float(np.max(np.abs(r_new - r_diag) / r_diag))
-        if not final.converged:
-            message = f"cycle {cycle} (R held) did not converge: {final.message}"
-            break
         if change <= r_rtol:
-            converged = True
             message = (
-                f"converged: θ Gauss–Newton-optimal under R, and R equal to the innovations' "
-                f"covariance within {change:.2g} (relative; tolerance {r_rtol:g}) after "
-                f"{cycle} cycle{'s' if cycle > 1 else ''} of R updates"
+                "converged: θ Gauss–Newton-optimal under R, and R equal to the innovations' "
+                f"covariance within {change:.2g} (relative; tolerance {r_rtol:g})"
             )
-            break
+            return theta, confirmation, r_diag, "converged", message
+        theta = _compensated_start(problem, theta, r_diag, r_new)
         r_diag = r_new
-    else:
-        message = f"R did not settle within {max_cycles} cycles (last relative change {change:.3g})"
-    return objective, confirmation, converged, message
+    message = f"R did not settle within {max_cycles} cycles (last relative change {change:.3g})"
+    return theta, confirmation, r_diag, "max_cycles", message
+
+
+def _compensated_start(
+    problem: FilterErrorProblem, theta: np.ndarray, r_old: np.ndarray, r_new: np.ndarray
+) -> np.ndarray:
+    """Start values of the next cycle: the free F elements rescaled for the new R so that
+    the gain stays about the same (the reference's compensation formula, used here only to
+    give the next cycle a feasible, nearby start — the cycle then converges under the new R):
+
+        F_jj ← F_jj · Σ_i C_ij² r_i,old⁻¹ (r_i,new/r_i,old)^½ / Σ_i C_ij² r_i,old⁻¹
+
+    If the gain still violates diag(KC) ≤ 1 there, the free F elements are halved (at most
+    20 times) until it does not.
+    """
+    full = problem.full_theta(theta)
+    c2 = problem.filter_point(full, r_old).c ** 2
+    theta = np.array(theta, dtype=float)
+    free = list(problem.free_index)
+    moved = []
+    for state, parameter in zip(problem.noise_states, problem.noise_parameters, strict=True):
+        if parameter not in free:
+            continue
+        weights = c2[:, state] / r_old
+        if np.sum(weights) <= 0:
+            continue
+        # F_jj ← F_jj Σ_i C_ij² r_i⁻¹ (r_i,new/r_i)^½ / Σ_i C_ij² r_i⁻¹
+        theta[free.index(parameter)] *= np.sum(weights * np.sqrt(r_new / r_old)) / np.sum(weights)
+        moved.append(free.index(parameter))
+    for _ in range(20):
+        try:
+            kc = problem.filter_point(problem.full_theta(theta), r_new).kc
+        except RiccatiError:
+            kc = np.full(1, np.inf)
+        if np.all(kc <= 1.0) or not moved:
+            break
+        theta[moved] *= 0.5
+    return theta
+
+
+def _problem(model, data, process_noise, pinned, values, settings) -> FilterErrorProblem:
+    """The problem with the pinned states' F elements fixed (solved from diag(KC) = 1)."""
+    parameters = model.parameters.with_values(values)
+    names = [process_noise[s] for s in pinned]
+    if names:
+        parameters = parameters.with_free(names, False)
+    return FilterErrorProblem(
+        model.with_parameters(parameters), data, process_noise, pinned=pinned, **settings
+    )
+
+
+def _fixed_point(
+    model,
+    data,
+    process_noise,
+    solver,
+    r_start,
+    convergence,
+    r_rtol,
+    max_cycles,
+    progress,
+    trace,
+    settings,
+) -> _Outcome:
+    """Fixed-point relaxation with an active set for diag(KC) ≤ 1.
+
+    A state whose diag(KC) element reaches 1 while the cycle cannot converge becomes
+    *pinned*: its F element is solved from diag(KC)_i = 1 for every θ, so the constraint
+    holds exactly and the remaining parameters are estimated without it. A pinned element is
+    released again when lowering it lowers the cost (the constraint's multiplier has the
+    wrong sign). The loop ends when no state joins or leaves.
+    """
+    states = list(process_noise)
+    free_noise = [s for s in states if model.parameters[process_noise[s]].free]
+    pinned: list[str] = []
+    values = model.parameters.values
+    r_diag = np.array(r_start, dtype=float)
+    message = ""
+    for _ in range(2 * len(states) + 3):
+        problem = _problem(model, data, process_noise, pinned, values, settings)
+        problem.gain_r = r_diag.copy()
+        theta, confirmation, r_diag, state, message = _cycles(
+            problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, trace
+        )
+        trace.passes += problem.evaluations
+        full = problem.complete(problem.full_theta(theta), r_diag)
+        values = full
+        kc = problem.filter_point(full, r_diag).kc
+        if state == "stuck":
+            candidates = [
+                s
+                for s in free_noise
+                if s not in pinned and kc[problem.model.states.index(s)] > 1.0 - 1e-3
+            ]
+            if candidates:
+                pinned.append(max(candidates, key=lambda s: kc[problem.model.states.index(s)]))
+                continue
+            break
+        if state != "converged":
+            break
+        # release a pinned element whose decrease lowers the cost
+        outputs = confirmation.outcome.outputs
+        cost = float(problem.cost(outputs, r_diag))
+        released = None
+        for s in pinned:
+            index = model.parameters.index(process_noise[s])
+            trial_values = full.copy()
+            trial_values[index] *= 1.0 - 1e-3
+            rest = [p for p in pinned if p != s]
+            trial = _problem(model, data, process_noise, rest, trial_values, settings)
+            trial.gain_r = r_diag.copy()
+            trial_batch = trial.run(trial.theta_start)
+            trace.passes += trial.evaluations
+            if (
+                not trial_batch.diverged[0]
+                and float(trial.cost(trial_batch.outputs[0], r_diag)) < cost
+            ):
+                released = s
+                break
+        if released is None:
+            break
+        pinned.remove(released)
+        values = full
+    outcome = confirmation.outcome
+    converged = state == "converged"
+    status = "converged" if converged else outcome.status
+    if not converged and status == "converged":
+        status = "max_iterations"
+    if pinned:
+        names = [process_noise[s] for s in pinned]
+        message += (
+            f"; the constraint diag(KC) ≤ 1 is active for {pinned}: {names} solved from "
+            "diag(KC)_i = 1 (their bounds by the delta method)"
+        )
+    return _Outcome(
+        problem,
+        full,
+        outcome.outputs,
+        r_diag,
+        confirmation.sensitivities,
+        confirmation.sensitivity_evaluations,
+        confirmation.sigma,
+        converged,
+        status,
+        message,
+        tuple(pinned),
+    )
+
+
+def _reference(problem, r_start, progress, trace) -> _Outcome:
+    from flightid.estimation.filter_reference import reference_relaxation
+
+    run = reference_relaxation(problem, r_start, progress)
+    trace.costs, trace.evaluations = run.cost_history, run.evaluation_history
+    trace.iterations, trace.cycles, trace.r_updates = run.iterations, run.r_updates, []
+    trace.passes = problem.evaluations
+    status = "converged" if run.converged else "max_iterations"
+    return _Outcome(
+        problem,
+        problem.full_theta(run.theta),
+        run.outputs,
+        run.r_diag,
+        run.sensitivities,
+        0,
+        float("nan"),
+        run.converged,
+        status,
+        run.message,
+    )
+
+
+def _pinned_jacobian(outcome: _Outcome, model: StateSpaceModel) -> np.ndarray:
+    """T (n_f × n_r): ∂(originally free parameters)/∂(free parameters of the last problem);
+    identity rows for the free ones, ∂F_ii/∂θ_r for a pinned element (finite differences of
+    the constraint solution, no filter pass)."""
+    problem = outcome.problem
+    original = np.flatnonzero(model.parameters.free_mask)
+    reduced = problem.free_index
+    theta = outcome.full[reduced]
+    base = problem.complete(outcome.full, outcome.r_diag)
+    t = np.zeros((original.size, reduced.size))
+    for j, index in enumerate(reduced):
+        t[list(original).index(index), j] = 1.0
+    pinned = [problem.noise_parameters[i] for i in problem.pinned]
+    for j in range(reduced.size):
+        step = 1e-6 * max(abs(theta[j]), problem.typical[j])
+        moved = outcome.full.copy()
+        moved[reduced[j]] += step
+        moved = problem.complete(moved, outcome.r_diag)
+        for index in pinned:
+            # ∂F_ii/∂θ_j ≈ (F_ii(θ + δ e_j) − F_ii(θ)) / δ
+            t[list(original).index(index), j] = (moved[index] - base[index]) / step
+    return t
 
 
 def estimate_filter_error(
@@ -500,17 +748,18 @@ def estimate_filter_error(
         model: the model; its parameters include the process-noise elements (e.g. F11).
         data: one maneuver or a list (same sampling interval).
         process_noise: {state: parameter name} of the diagonal F.
-        solver: ``MNR()`` (default) or ``MNRES()``; for ``relaxation="reference"`` only the
-            finite-difference settings of the reference apply (see ``reference_relaxation``).
-        relaxation: ``"fixed_point"`` (converge θ under R, update R, repeat until R settles)
-            or ``"reference"`` (the reference tool's schedule: R₀ for 3 steps, then an R update
-            with F compensation after every step; CASES.md §1b).
+        solver: ``MNR()`` (default) or ``MNRES()`` (``relaxation="fixed_point"``); the
+            reference schedule always takes its own forward-difference Gauss–Newton steps.
+        relaxation: ``"fixed_point"`` (converge θ under R, update R, repeat until R settles;
+            the constraint by an active set) or ``"reference"`` (the reference tool's
+            schedule: R₀ for 3 steps, then an R update with F compensation after every
+            step, linearised constraint; CASES.md §1b).
         method, input_interpolation: integration as in ``estimate``.
         linearisation: where A and C are taken (``"start"``: x0, u_1).
         convergence: the solver's stopping rules (default ``Convergence()``).
         r_rtol: ``fixed_point``: R has settled when no variance changes by more than this
             fraction in a cycle.
-        max_cycles: ``fixed_point``: R updates at most.
+        max_cycles: ``fixed_point``: R updates at most (per active set).
         compiled: numba filter kernel.
         progress: called after every accepted pass with (pass, filter passes, cost).
 
@@ -518,9 +767,10 @@ def estimate_filter_error(
         An ``Estimate``: ``predicted`` are the filtered outputs ỹ, ``residuals`` the
         innovations, ``r_diag`` the final weighting R (the innovations' covariance),
         ``cost`` = Σ eᵀR⁻¹e under it, ``equivalent_evaluations`` the filter passes of the
-        optimiser, the Cramér–Rao bounds √diag(M⁻¹) with M from central-difference
-        sensitivities of the filtered outputs at θ̂; ``noise_policy`` is
-        ``"filter_error/<relaxation>"`` and the message gives det R.
+        optimiser, the Cramér–Rao bounds √diag(M⁻¹) with M from the sensitivities of the
+        filtered outputs at θ̂ (central differences; the reference schedule: its last
+        forward-difference step, CASES.md Q14); ``noise_policy`` is
+        ``"filter_error/<relaxation>"`` and the message gives det R and diag(KC).
     """
     if not isinstance(model, StateSpaceModel):
         raise InputTypeError(f"model: expected a StateSpaceModel, got {describe(model)}")
@@ -532,99 +782,104 @@ def estimate_filter_error(
         raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
     started = _time.perf_counter()
     check_model(model, data, method=method)
-    problem = FilterErrorProblem(
-        model,
-        data,
-        process_noise,
-        method=method,
-        compiled=compiled,
-        input_interpolation=input_interpolation,
-        linearisation=linearisation,
-    )
+    settings = {
+        "method": method,
+        "compiled": compiled,
+        "input_interpolation": input_interpolation,
+        "linearisation": linearisation,
+    }
+    problem = FilterErrorProblem(model, data, process_noise, **settings)
     # R₀: one pass with K = 0 (a plain simulation) at the start values
     r_start = problem.noise_covariance(problem.simulate(problem.theta_start))
     trace = _Trace()
     if relaxation == "reference":
-        from flightid.estimation.filter_reference import reference_relaxation
-
-        run = reference_relaxation(problem, r_start, progress)
-        theta, outputs, r_diag = run.theta, run.outputs, run.r_diag
-        g, converged, message = run.sensitivities, run.converged, run.message
-        trace.costs, trace.evaluations = run.cost_history, run.evaluation_history
-        trace.iterations, trace.cycles, trace.r_updates = run.iterations, run.r_updates, []
-        optimizer_evaluations = problem.evaluations
-        accuracy_evaluations = 0
-        status = "converged" if converged else "max_iterations"
-        sigma = float("nan")
-        solver_name, settings = "mnr", {"relative_step": 1e-4, "schedule": "reference"}
+        outcome = _reference(problem, r_start, progress, trace)
+        solver_name = "mnr"
+        solver_settings = {"relative_step": 1e-4, "schedule": "reference (ml_fem2)"}
     else:
-        objective, confirmation, converged, message = _fixed_point(
-            problem, solver, r_start, convergence, r_rtol, max_cycles, progress, trace
+        trace.passes = problem.evaluations
+        outcome = _fixed_point(
+            model,
+            data,
+            process_noise,
+            solver,
+            r_start,
+            convergence,
+            r_rtol,
+            max_cycles,
+            progress,
+            trace,
+            settings,
         )
-        outcome = confirmation.outcome
-        theta, outputs, r_diag = outcome.theta, outcome.outputs, objective.r_diag
-        g = confirmation.sensitivities
-        accuracy_evaluations = confirmation.sensitivity_evaluations
-        optimizer_evaluations = problem.evaluations - accuracy_evaluations
-        status = "converged" if converged else outcome.status
-        if not converged and status == "converged":
-            status = "max_iterations"
-        sigma = confirmation.sigma
-        solver_name, settings = solver.name, solver.settings()
-    full = problem.full_theta(theta)
-    point = problem.filter_point(full, r_diag)
-    det_r = float(np.prod(problem.noise_covariance(outputs)))
-    message += (
-        f"; det R = {det_r:.6g} (innovations), max diag(KC) = {float(np.max(point.kc)):.4g}, "
-        f"{problem.evaluations} filter passes"
+        solver_name, solver_settings = solver.name, solver.settings()
+    last = outcome.problem
+    r_diag, outputs, full = outcome.r_diag, outcome.outputs, outcome.full
+    point = last.filter_point(full, r_diag)
+    det_r = float(np.prod(last.noise_covariance(outputs)))
+    filter_passes = trace.passes
+    message = outcome.message + (
+        f"; det R = {det_r:.6g} (innovations), diag(KC) = "
+        f"{np.array2string(point.kc, precision=4)}, {filter_passes} filter passes"
     )
-    if np.any(point.kc > 1.0 - 1e-3):
+    if relaxation == "reference" and np.any(point.kc > 1.0 - 1e-3):
         message += "; the constraint diag(KC) ≤ 1 is active"
-    m = information_matrix(g, r_diag)
-    covariance, std_free, undetermined = _covariance(m, np.zeros(problem.n_free, dtype=bool))
+    m_reduced = information_matrix(outcome.sensitivities, r_diag)
+    covariance_r, std_r, undetermined = _covariance(m_reduced, np.zeros(last.n_free, dtype=bool))
+    free_mask = model.parameters.free_mask
+    n_f = int(free_mask.sum())
+    if outcome.pinned:
+        # Cov = T Cov_r Tᵀ (delta method for the F elements solved from the constraint)
+        t = _pinned_jacobian(outcome, model)
+        covariance = t @ covariance_r @ t.T
+        std_free = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+        m = np.linalg.pinv(covariance)
+        g = np.zeros((last.n_samples, last.n_outputs, n_f))
+        g[:, :, np.any(t[:, :] == 1.0, axis=1)] = outcome.sensitivities
+    else:
+        covariance, std_free, m, g = covariance_r, std_r, m_reduced, outcome.sensitivities
     if undetermined:
-        names = [problem.free_names[j] for j in undetermined]
+        names = [last.free_names[j] for j in undetermined]
         message += f"; the information matrix is singular: {names} cannot be determined"
     std = np.full(full.shape, np.nan)
-    std[problem.free_index] = std_free
+    std[free_mask] = std_free
     estimated_model = model.with_parameters(model.parameters.with_values(full))
+    accuracy = outcome.accuracy_evaluations
     return Estimate(
         names=tuple(model.parameters.names),
         values=full,
-        initial=problem.theta_start_full,
-        free=problem.free_mask,
+        initial=model.parameters.values,
+        free=free_mask,
         std=std,
         covariance=covariance,
         information_matrix=m,
         sensitivities=g,
         r_diag=np.asarray(r_diag, dtype=float),
-        cost=float(problem.cost(outputs, r_diag)),
+        cost=float(last.cost(outputs, r_diag)),
         cost_history=tuple(trace.costs),
         evaluation_history=tuple(trace.evaluations),
         noise_update_passes=tuple(trace.r_updates[1:]),
-        equivalent_evaluations=int(optimizer_evaluations),
-        accuracy_evaluations=int(accuracy_evaluations),
+        equivalent_evaluations=int(filter_passes - accuracy),
+        accuracy_evaluations=int(accuracy),
         iterations=int(trace.iterations),
         noise_cycles=int(trace.cycles),
-        converged=bool(converged),
-        status=status,
+        converged=bool(outcome.converged),
+        status=outcome.status,
         message=message,
-        time=problem.time,
-        measured=problem.measured,
+        time=last.time,
+        measured=last.measured,
         predicted=outputs,
-        residuals=problem.residuals(outputs),
-        maneuver_index=problem.maneuver_index,
+        residuals=last.residuals(outputs),
+        maneuver_index=last.maneuver_index,
         output_names=tuple(model.outputs),
         output_units=tuple(
-            next((m.units[n] for m in problem.maneuvers if m.units.get(n)), "")
-            for n in model.outputs
+            next((m.units[n] for m in last.maneuvers if m.units.get(n)), "") for n in model.outputs
         ),
         solver=solver_name,
-        solver_settings=settings,
+        solver_settings=solver_settings,
         noise_policy=f"filter_error/{relaxation}",
         method=method,
         input_interpolation=input_interpolation,
         wall_time_s=_time.perf_counter() - started,
         model=estimated_model,
-        optimality_sigma=sigma,
+        optimality_sigma=outcome.sigma,
     )

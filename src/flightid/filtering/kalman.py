@@ -143,7 +143,7 @@ def potter_solution(
 def steady_state_gain(
     a: np.ndarray, c: np.ndarray, f_matrix: np.ndarray, r_diag: np.ndarray, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """K = P Cᵀ R⁻¹ with P from CARE (``riccati_solution``).
+    """K = P Cᵀ R⁻¹ with P from CARE (Potter's method; the Schur solver if that fails).
 
     Args:
         a, c: the linearised system (n × n), (m × n).
@@ -154,7 +154,13 @@ def steady_state_gain(
         (K (n × m), P (n × n)).
     """
     f_matrix = np.atleast_2d(np.asarray(f_matrix, dtype=float))
-    p = riccati_solution(a, c, f_matrix @ f_matrix.T, r_diag, dt)
+    # Potter's method: one eigen-decomposition of the 2n × 2n Hamiltonian, about 100× faster
+    # than the Schur solver for the small systems here; tests check it against scipy's
+    p = potter_solution(a, c, f_matrix @ f_matrix.T, r_diag, dt)
+    if not np.all(np.isfinite(p)) or np.any(
+        np.linalg.eigvalsh(p) < -1e-12 * max(1.0, np.abs(p).max())
+    ):
+        p = riccati_solution(a, c, f_matrix @ f_matrix.T, r_diag, dt)
     # K = P Cᵀ R⁻¹
     k = (p @ np.atleast_2d(c).T) / np.asarray(r_diag, dtype=float)[None, :]
     return k, p
