@@ -139,8 +139,8 @@ class MNRES:
     window: int | None = None
     initial_perturbation: float = 0.001
     importance_scaling: bool = True
-    max_rejections: int = 3
-    fresh_rejections: int = 10
+    max_rejections: int = 2
+    fresh_rejections: int = 4
     max_relative_step: float = math.inf
     max_condition: float = 1e8
     max_restarts: int = 6
