@@ -27,8 +27,11 @@ unchanged. One filter pass is one equivalent evaluation.
 The constraint diag(KC) ≤ 1 (a larger element would mean a negative measurement-noise
 variance, R − CPCᵀ) is enforced by the problem: a θ that violates it gives no filter pass
 (it is reported like a diverged simulation, cost +∞), so the step control keeps every
-accepted iterate feasible. The reference schedule (``relaxation="reference"``) instead
-corrects each Gauss–Newton step with the linearised constraint, as CASES.md §1b describes.
+accepted iterate feasible; where the optimum lies on the constraint, the estimator *pins*
+the state's F element (``FilterErrorProblem(pinned=...)``: solved for every θ from
+diag(KC)_i = 1, no longer free) — an active set, released when lowering the element lowers
+the cost. The reference schedule (``relaxation="reference"``) instead corrects each
+Gauss–Newton step with the linearised constraint, as CASES.md §1b describes.
 
 R and F are both estimated. The estimate the book defines is the fixed point where θ (system
 parameters and F) is Gauss–Newton-optimal under the weighting R and R equals the innovations'
