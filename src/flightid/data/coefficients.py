@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightid.data.preprocess import PreprocessError
+from flightid.data.transfer import cross3
 
 __all__ = ["MassGeometry", "Engine", "aero_coefficients", "COEFFICIENTS"]
 
@@ -99,15 +100,6 @@ class Engine:
     incidence_rad: float = 0.0
 
 
-def _cross(a: tuple, b: tuple) -> tuple:
-    # a × b = (a_y b_z − a_z b_y, a_z b_x − a_x b_z, a_x b_y − a_y b_x)
-    return (
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    )
-
-
 def aero_coefficients(
     ax_m_s2: np.ndarray,
     ay_m_s2: np.ndarray,
@@ -152,7 +144,7 @@ def aero_coefficients(
             np.zeros_like(T),
             -T * np.sin(engine.incidence_rad),
         )
-        moment = _cross(tuple(position), force)
+        moment = cross3(tuple(position), force)
         for i in range(3):
             thrust[i] = thrust[i] + force[i]
             thrust_moment[i] = thrust_moment[i] + moment[i]
@@ -175,7 +167,7 @@ def aero_coefficients(
         -g.Ixy * pd + g.Iy * qd - g.Iyz * rd,
         -g.Ixz * pd - g.Iyz * qd + g.Iz * rd,
     )
-    gyro = _cross(omega, h)
+    gyro = cross3(omega, h)
     # M_aero,CG = I ω̇ + ω × (I ω) − Σ r_Ei × (T_i d_i)
     L, M, N = (h_dot[i] + gyro[i] - thrust_moment[i] for i in range(3))
     x_ac, y_ac, z_ac = (float(c) for c in g.reference_point_m)

@@ -43,7 +43,7 @@ def _vector(position: Sequence[float], what: str) -> np.ndarray:
     return vector
 
 
-def _cross(a: tuple, b: tuple) -> tuple:
+def cross3(a: tuple, b: tuple) -> tuple:
     """a × b for vectors given as 3-tuples of arrays or numbers."""
     # (a_y b_z − a_z b_y, a_z b_x − a_x b_z, a_x b_y − a_y b_x)
     return (
@@ -73,7 +73,7 @@ def transfer_air_data(
     w_s = V * np.cos(beta) * np.sin(alpha)
     omega = (np.asarray(p_rad_s, float), np.asarray(q_rad_s, float), np.asarray(r_rad_s, float))
     # v_t = v_s + ω × (r_t − r_s)
-    du, dv, dw = _cross(omega, d)
+    du, dv, dw = cross3(omega, d)
     u, v, w = u_s + du, v_s + dv, w_s + dw
     # V_t = √(u² + v² + w²),  α_t = atan2(w, u),  β_t = asin(v / V_t)
     V_t = np.sqrt(u * u + v * v + w * w)
@@ -99,8 +99,8 @@ def transfer_accelerations(
     omega = tuple(np.asarray(w, dtype=float) for w in (p_rad_s, q_rad_s, r_rad_s))
     omega_dot = tuple(np.asarray(w, dtype=float) for w in (pdot_rad_s2, qdot_rad_s2, rdot_rad_s2))
     # a_t = a_s + ω̇ × d + ω × (ω × d),  d = r_t − r_s
-    tangential = _cross(omega_dot, d)
-    centripetal = _cross(omega, _cross(omega, d))
+    tangential = cross3(omega_dot, d)
+    centripetal = cross3(omega, cross3(omega, d))
     a_s = (np.asarray(ax_m_s2, float), np.asarray(ay_m_s2, float), np.asarray(az_m_s2, float))
     ax, ay, az = (a_s[i] + tangential[i] + centripetal[i] for i in range(3))
     return ax, ay, az

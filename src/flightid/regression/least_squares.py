@@ -270,6 +270,51 @@ def _vif(X: np.ndarray, constant: np.ndarray) -> np.ndarray:
     return vif
 
 
+def checked_regression_inputs(
+    X: np.ndarray,
+    z: np.ndarray,
+    names: Sequence[str] | None,
+    units: Mapping[str, str] | None,
+    error: type[Exception],
+    extra_rows: int = 0,
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], dict[str, str], np.ndarray]:
+    """X (N, n_p) and z (N,) as float arrays, names, units and the column norms ‖X_j‖, checked.
+
+    Raises ``error`` naming what was expected and what came: not a matrix / series, N ≤ n_p +
+    ``extra_rows``, non-finite values, wrong names or units, an identically zero column.
+    """
+    X = np.asarray(X, dtype=float)
+    z = np.asarray(z, dtype=float)
+    if X.ndim == 1:
+        X = X[:, None]
+    if X.ndim != 2:
+        raise error(f"X: expected an (N, n_p) matrix, got {describe(X)}")
+    if z.ndim != 1 or z.shape[0] != X.shape[0]:
+        raise error(
+            f"z: expected a series of {X.shape[0]} samples (the rows of X), got {describe(z)}"
+        )
+    n, p = X.shape
+    if p == 0:
+        raise error("X: expected at least one regressor column, got none")
+    if n <= p + extra_rows:
+        more = "regressors" if extra_rows == 0 else f"regressors + {extra_rows}"
+        raise error(f"X: expected more samples than {more}, got N = {n} and n_p = {p}")
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(z))):
+        raise error("X, z: values must be finite")
+    names = tuple(f"x{j}" for j in range(p)) if names is None else tuple(names)
+    if len(names) != p:
+        raise error(f"names: expected {p} names (columns of X), got {len(names)}")
+    units = dict(units or {})
+    unknown = sorted(set(units) - set(names))
+    if unknown:
+        raise error(f"units: expected regressor names from {list(names)}, got {unknown}")
+    norms = np.linalg.norm(X, axis=0)
+    if np.any(norms == 0):
+        zero = [names[j] for j in np.flatnonzero(norms == 0)]
+        raise error(f"X: regressor column(s) {zero} are identically zero")
+    return X, z, names, units, norms
+
+
 def least_squares(
     X: np.ndarray,
     z: np.ndarray,
@@ -295,40 +340,9 @@ def least_squares(
     Returns:
         A frozen ``LeastSquaresResult``.
     """
-    X = np.asarray(X, dtype=float)
-    z = np.asarray(z, dtype=float)
-    if X.ndim == 1:
-        X = X[:, None]
-    if X.ndim != 2:
-        raise LeastSquaresError(f"X: expected an (N, n_p) matrix, got {describe(X)}")
-    if z.ndim != 1 or z.shape[0] != X.shape[0]:
-        raise LeastSquaresError(
-            f"z: expected a series of {X.shape[0]} samples (the rows of X), got {describe(z)}"
-        )
+    X, z, names, units, norms = checked_regression_inputs(X, z, names, units, LeastSquaresError)
     n, p = X.shape
-    if p == 0:
-        raise LeastSquaresError("X: expected at least one regressor column, got none")
-    if n <= p:
-        raise LeastSquaresError(
-            f"X: expected more samples than regressors, got N = {n} and n_p = {p}"
-        )
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(z))):
-        raise LeastSquaresError("X, z: values must be finite")
-    names = tuple(f"x{j}" for j in range(p)) if names is None else tuple(names)
-    if len(names) != p:
-        raise LeastSquaresError(f"names: expected {p} names (columns of X), got {len(names)}")
-    units = dict(units or {})
-    unknown = sorted(set(units) - set(names))
-    if unknown:
-        raise LeastSquaresError(
-            f"units: expected regressor names from {list(names)}, got {unknown}"
-        )
-
     # Column scaling to unit length makes the rank test and the condition number unit-free.
-    norms = np.linalg.norm(X, axis=0)
-    if np.any(norms == 0):
-        zero = [names[j] for j in np.flatnonzero(norms == 0)]
-        raise LeastSquaresError(f"X: regressor column(s) {zero} are identically zero")
     Xs = X / norms
     Q, R = np.linalg.qr(Xs)
     singular = np.linalg.svd(R, compute_uv=False)

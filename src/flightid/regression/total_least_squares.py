@@ -60,13 +60,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flightid.errors import describe
 from flightid.regression.least_squares import (
     LeastSquaresError,
     LeastSquaresResult,
     _constant_columns,
     _readonly,
     _vif,
+    checked_regression_inputs,
 )
 
 __all__ = [
@@ -194,38 +194,10 @@ def total_least_squares(
         raise TotalLeastSquaresError(
             f"covariance: expected one of {list(TLS_COVARIANCES)}, got {covariance!r}"
         )
-    X = np.asarray(X, dtype=float)
-    z = np.asarray(z, dtype=float)
-    if X.ndim == 1:
-        X = X[:, None]
-    if X.ndim != 2:
-        raise TotalLeastSquaresError(f"X: expected an (N, n_p) matrix, got {describe(X)}")
-    if z.ndim != 1 or z.shape[0] != X.shape[0]:
-        raise TotalLeastSquaresError(
-            f"z: expected a series of {X.shape[0]} samples (the rows of X), got {describe(z)}"
-        )
+    X, z, names, units, norms = checked_regression_inputs(
+        X, z, names, units, TotalLeastSquaresError, extra_rows=1
+    )
     n, p = X.shape
-    if p == 0:
-        raise TotalLeastSquaresError("X: expected at least one regressor column, got none")
-    if n <= p + 1:
-        raise TotalLeastSquaresError(
-            f"X: expected more samples than regressors + 1, got N = {n} and n_p = {p}"
-        )
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(z))):
-        raise TotalLeastSquaresError("X, z: values must be finite")
-    names = tuple(f"x{j}" for j in range(p)) if names is None else tuple(names)
-    if len(names) != p:
-        raise TotalLeastSquaresError(f"names: expected {p} names (columns of X), got {len(names)}")
-    units = dict(units or {})
-    unknown = sorted(set(units) - set(names))
-    if unknown:
-        raise TotalLeastSquaresError(
-            f"units: expected regressor names from {list(names)}, got {unknown}"
-        )
-    norms = np.linalg.norm(X, axis=0)
-    if np.any(norms == 0):
-        zero = [names[j] for j in np.flatnonzero(norms == 0)]
-        raise TotalLeastSquaresError(f"X: regressor column(s) {zero} are identically zero")
 
     # [X z] = U Σ Vᵀ
     composite = np.column_stack([X, z])
