@@ -373,7 +373,7 @@ def test_alphadot_term_recovers_cmq_and_cmalphadot(alphadot_data):
     assert est.converged
     for name, truth in TRUTH.items():
         assert abs(est.value(name) - truth) < 3 * est.stddev(name), name
-    # measured 2026-11-23: C_mq −12.521 ± 0.024, C_mα̇ −7.301 ± 0.048
+    # measured at ebbf382 (docs/aircraft.md): C_mq −12.487 ± 0.041, C_mα̇ −7.322 ± 0.057
     assert est.value("Cm_qhat") == pytest.approx(-12.5, abs=0.1)
     assert est.value("Cm_alphadot_hat") == pytest.approx(-7.3, abs=0.2)
 
@@ -382,7 +382,7 @@ def test_without_alphadot_the_estimates_are_lumped(alphadot_data):
     start = {k: 1.2 * v for k, v in TRUTH.items()}
     est = estimate(_wind_model(False, start), alphadot_data, MNRES())
     assert est.converged
-    # C_mq absorbs part of C_mα̇ (measured −13.77 ± 0.03): far outside its CR bound
+    # C_mq absorbs part of C_mα̇ (measured −15.17 ± 0.07): far outside its CR bound
     assert est.value("Cm_qhat") < -13.0
     assert abs(est.value("Cm_qhat") + 12.5) > 10 * est.stddev("Cm_qhat")
 
