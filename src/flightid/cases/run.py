@@ -423,6 +423,7 @@ def _estimate_filter_error(
         max_cycles=int(settings.get("max_cycles", 30)),
         compiled=bool(settings.get("compiled", True)),
         progress=progress,
+        gradients=settings.get("filter_gradients", "differences"),
     )
 
 

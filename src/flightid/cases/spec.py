@@ -150,6 +150,7 @@ _ESTIMATION = {
     "relaxation",
     "linearisation",
     "max_cycles",
+    "filter_gradients",
 }
 _ACCURACY = {
     "confidence",
@@ -177,6 +178,8 @@ SOLVER_CLASSES = {"mnres": MNRES, "mnr": MNR, "fps": FPS}
 ESTIMATORS = ("output_error", "filter_error")
 FILTER_RELAXATIONS = ("reference", "fixed_point")
 FILTER_LINEARISATIONS = ("start",)
+# H of the filter error method: "differences" of filter passes, or "analytic" (linear models)
+FILTER_GRADIENTS = ("differences", "analytic")
 AIRCRAFT_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
 # "alpha_q": α and q integrated, the other flight variables measured (flightid.cases.alpha_q);
 # "kinematic": flight-path reconstruction (flightid.compat)
@@ -666,7 +669,11 @@ def _filter_error_settings(estimation: Mapping[str, Any], key: str) -> None:
     ``linearisation``, ``max_cycles``); R and the noise policy are not its to set."""
     solver = estimation.get("solver", "mnres")
     estimator = _string(estimation.get("estimator", "output_error"), f"{key}.estimator", ESTIMATORS)
-    filter_keys = [k for k in ("relaxation", "linearisation", "max_cycles") if k in estimation]
+    filter_keys = [
+        k
+        for k in ("relaxation", "linearisation", "max_cycles", "filter_gradients")
+        if k in estimation
+    ]
     if estimator != "filter_error" and filter_keys:
         raise CaseError(
             f"{key}.{filter_keys[0]}: a setting of the filter error method; "
@@ -687,6 +694,11 @@ def _filter_error_settings(estimation: Mapping[str, Any], key: str) -> None:
             estimation.get("linearisation", "start"), f"{key}.linearisation", FILTER_LINEARISATIONS
         )
         _integer(estimation.get("max_cycles", 30), f"{key}.max_cycles", 1)
+        _string(
+            estimation.get("filter_gradients", "differences"),
+            f"{key}.filter_gradients",
+            FILTER_GRADIENTS,
+        )
 
 
 def _accuracy_methods(accuracy: Mapping[str, Any], key: str) -> None:

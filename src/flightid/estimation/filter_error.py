@@ -580,9 +580,24 @@ def _problem(model, data, process_noise, pinned, values, settings) -> FilterErro
     names = [process_noise[s] for s in pinned]
     if names:
         parameters = parameters.with_free(names, False)
-    return FilterErrorProblem(
-        model.with_parameters(parameters), data, process_noise, pinned=pinned, **settings
+    return _new_problem(
+        model.with_parameters(parameters), data, process_noise, settings, pinned=pinned
     )
+
+
+#: how the filter error method gets H = ∂ỹ/∂θ: finite differences of filter passes, or
+#: analytic for models linear in states and inputs (flightid.estimation.filter_error_linear)
+GRADIENTS = ("differences", "analytic")
+
+
+def _new_problem(model, data, process_noise, settings, **extra) -> FilterErrorProblem:
+    """``FilterErrorProblem``, or ``LinearFilterErrorProblem`` for gradients = "analytic"."""
+    settings = dict(settings)
+    if settings.pop("gradients", "differences") == "analytic":
+        from flightid.estimation.filter_error_linear import LinearFilterErrorProblem
+
+        return LinearFilterErrorProblem(model, data, process_noise, **settings, **extra)
+    return FilterErrorProblem(model, data, process_noise, **settings, **extra)
 
 
 def _fixed_point(
@@ -744,6 +759,7 @@ def estimate_filter_error(
     max_cycles: int = 30,
     compiled: bool = True,
     progress: Callable[[int, int, float], None] | None = None,
+    gradients: str = "differences",
 ) -> Estimate:
     """Filter-error maximum-likelihood estimate (system parameters and F elements).
 
@@ -765,6 +781,10 @@ def estimate_filter_error(
         max_cycles: ``fixed_point``: R updates at most (per active set).
         compiled: numba filter kernel.
         progress: called after every accepted pass with (pass, filter passes, cost).
+        gradients: ``"differences"`` (H by finite differences of filter passes) or
+            ``"analytic"``: a model linear in states and inputs, filtered with the exact
+            discretisation Φ = e^{AΔt}, H from the differentiated Riccati equation and
+            filter recursion (``LinearFilterErrorProblem``; docs/turbulence.md).
 
     Returns:
         An ``Estimate``: ``predicted`` are the filtered outputs ỹ, ``residuals`` the
@@ -791,7 +811,10 @@ def estimate_filter_error(
         "input_interpolation": input_interpolation,
         "linearisation": linearisation,
     }
-    problem = FilterErrorProblem(model, data, process_noise, **settings)
+    if gradients not in GRADIENTS:
+        raise InputError(f"gradients: expected one of {list(GRADIENTS)}, got {gradients!r}")
+    settings["gradients"] = gradients
+    problem = _new_problem(model, data, process_noise, settings)
     # R₀: one pass with K = 0 (a plain simulation) at the start values
     r_start = problem.noise_covariance(problem.simulate(problem.theta_start))
     trace = _Trace()
