@@ -143,6 +143,134 @@ def covariance_derivative(
     return 0.5 * (dp + dp.T)
 
 
+def _filter_loop(phi, psi, b, bx, c, d, by, gain, x0, u, z, y):  # pragma: no cover - numba
+    n, n_x, n_o, n_u = u.shape[0], phi.shape[0], c.shape[0], u.shape[1]
+    x = x0.copy()
+    xhat = np.empty(n_x)
+    e = np.empty(n_o)
+    drive = np.empty(n_x)
+    for k in range(n):
+        # ỹ_k = C x̃_k + D u_k + b_y
+        for i in range(n_o):
+            acc = by[i]
+            for j in range(n_x):
+                acc += c[i, j] * x[j]
+            for j in range(n_u):
+                acc += d[i, j] * u[k, j]
+            y[k, i] = acc
+            e[i] = z[k, i] - acc
+        # x̂_k = x̃_k + K e_k
+        for i in range(n_x):
+            acc = x[i]
+            for j in range(n_o):
+                acc += gain[i, j] * e[j]
+            xhat[i] = acc
+        if k + 1 < n:
+            # x̃_{k+1} = Φ x̂_k + Ψ (B (u_k + u_{k+1})/2 + b_x)
+            for i in range(n_x):
+                acc = bx[i]
+                for j in range(n_u):
+                    acc += b[i, j] * 0.5 * (u[k, j] + u[k + 1, j])
+                drive[i] = acc
+            for i in range(n_x):
+                acc = 0.0
+                for j in range(n_x):
+                    acc += phi[i, j] * xhat[j] + psi[i, j] * drive[j]
+                x[i] = acc
+
+
+def _sensitivity_loop(
+    phi, psi, dphi, dpsi, b, bx, c, d, by, db, dbx, dc, dd, dby, gain, dgain, x0, dx0, u, z, y, g
+):  # pragma: no cover - numba
+    n, n_x, n_o, n_u = u.shape[0], phi.shape[0], c.shape[0], u.shape[1]
+    n_p = dphi.shape[2]
+    x = x0.copy()
+    s = dx0.copy()
+    xhat = np.empty(n_x)
+    shat = np.empty((n_x, n_p))
+    e = np.empty(n_o)
+    ubar = np.empty(n_u)
+    drive = np.empty(n_x)
+    ddrive = np.empty((n_x, n_p))
+    for k in range(n):
+        for i in range(n_o):
+            # ỹ_k = C x̃_k + D u_k + b_y
+            acc = by[i]
+            for j in range(n_x):
+                acc += c[i, j] * x[j]
+            for j in range(n_u):
+                acc += d[i, j] * u[k, j]
+            y[k, i] = acc
+            e[i] = z[k, i] - acc
+            # ∂ỹ_k = ∂C x̃_k + C S̃_k + ∂D u_k + ∂b_y
+            for p in range(n_p):
+                acc = dby[i, p]
+                for j in range(n_x):
+                    acc += dc[i, j, p] * x[j] + c[i, j] * s[j, p]
+                for j in range(n_u):
+                    acc += dd[i, j, p] * u[k, j]
+                g[k, i, p] = acc
+        for i in range(n_x):
+            # x̂_k = x̃_k + K e_k
+            acc = x[i]
+            for j in range(n_o):
+                acc += gain[i, j] * e[j]
+            xhat[i] = acc
+            # ∂x̂_k = S̃_k + ∂K e_k − K ∂ỹ_k
+            for p in range(n_p):
+                acc = s[i, p]
+                for j in range(n_o):
+                    acc += dgain[i, j, p] * e[j] - gain[i, j] * g[k, j, p]
+                shat[i, p] = acc
+        if k + 1 < n:
+            for j in range(n_u):
+                ubar[j] = 0.5 * (u[k, j] + u[k + 1, j])
+            # B ū_k + b_x and its derivative ∂B ū_k + ∂b_x
+            for i in range(n_x):
+                acc = bx[i]
+                for j in range(n_u):
+                    acc += b[i, j] * ubar[j]
+                drive[i] = acc
+                for p in range(n_p):
+                    acc = dbx[i, p]
+                    for j in range(n_u):
+                        acc += db[i, j, p] * ubar[j]
+                    ddrive[i, p] = acc
+            for i in range(n_x):
+                # x̃_{k+1} = Φ x̂_k + Ψ (B ū_k + b_x)
+                acc = 0.0
+                for j in range(n_x):
+                    acc += phi[i, j] * xhat[j] + psi[i, j] * drive[j]
+                x[i] = acc
+                # S̃_{k+1} = ∂Φ x̂_k + Φ ∂x̂_k + ∂Ψ (B ū_k + b_x) + Ψ (∂B ū_k + ∂b_x)
+                for p in range(n_p):
+                    acc = 0.0
+                    for j in range(n_x):
+                        acc += dphi[i, j, p] * xhat[j] + phi[i, j] * shat[j, p]
+                        acc += dpsi[i, j, p] * drive[j] + psi[i, j] * ddrive[j, p]
+                    s[i, p] = acc
+
+
+_KERNELS: dict[str, Callable] = {}
+
+
+def _kernel(name: str) -> Callable:
+    """The numba-compiled loop (the plain Python loop if numba is missing)."""
+    if name not in _KERNELS:
+        function = {"filter": _filter_loop, "sensitivity": _sensitivity_loop}[name]
+        try:
+            import numba
+
+            _KERNELS[name] = numba.njit(cache=True)(function)
+        except ImportError:  # pragma: no cover
+            _KERNELS[name] = function
+    return _KERNELS[name]
+
+
+def _c(array: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(array, dtype=float)
+
+
 def linear_filter(
     matrices: tuple[np.ndarray, ...],
     gain: np.ndarray,
@@ -154,16 +282,10 @@ def linear_filter(
     """Filtered outputs ỹ (N, n_o) of one maneuver with the exact discretisation."""
     a, b, bx, c, d, by = matrices
     phi, psi = discretise(a, dt)
-    n = u.shape[0]
-    y = np.empty((n, c.shape[0]))
-    x = np.array(x0, dtype=float)
-    for k in range(n):
-        # ỹ_k = C x̃_k + D u_k + b_y;  x̂_k = x̃_k + K (z_k − ỹ_k)
-        y[k] = c @ x + d @ u[k] + by
-        xhat = x + gain @ (z[k] - y[k])
-        if k + 1 < n:
-            # x̃_{k+1} = Φ x̂_k + Ψ B (u_k + u_{k+1})/2 + Ψ b_x
-            x = phi @ xhat + psi @ (b @ (0.5 * (u[k] + u[k + 1])) + bx)
+    y = np.empty((u.shape[0], c.shape[0]))
+    _kernel("filter")(
+        _c(phi), _c(psi), _c(b), _c(bx), _c(c), _c(d), _c(by), _c(gain), _c(x0), _c(u), _c(z), y
+    )
     return y
 
 
@@ -187,39 +309,25 @@ def linear_filter_sensitivities(
     da, db, dbx, dc, dd, dby = derivatives
     n_p = da.shape[-1]
     phi, psi = discretise(a, dt)
-    dphi = np.empty(da.shape)
-    dpsi = np.empty(da.shape)
+    dphi = np.zeros(da.shape)
+    dpsi = np.zeros(da.shape)
     for j in range(n_p):
         if np.any(da[..., j]):
             _, _, dphi[..., j], dpsi[..., j] = discretise_derivative(a, da[..., j], dt)
-        else:
-            dphi[..., j] = 0.0
-            dpsi[..., j] = 0.0
     n = u.shape[0]
     y = np.empty((n, c.shape[0]))
     g = np.empty((n, c.shape[0], n_p))
-    x = np.array(x0, dtype=float)
-    s = np.array(dx0, dtype=float)  # S̃_k = ∂x̃_k/∂θ (n_x, n_p)
-    for k in range(n):
-        # ỹ_k = C x̃_k + D u_k + b_y;  ∂ỹ_k = ∂C x̃_k + C S̃_k + ∂D u_k + ∂b_y
-        y[k] = c @ x + d @ u[k] + by
-        g[k] = np.einsum("ijp,j->ip", dc, x) + c @ s + np.einsum("ijp,j->ip", dd, u[k]) + dby
-        e = z[k] - y[k]
-        # x̂_k = x̃_k + K e_k;  ∂x̂_k = S̃_k + ∂K e_k − K ∂ỹ_k
-        xhat = x + gain @ e
-        shat = s + np.einsum("ijp,j->ip", dgain, e) - gain @ g[k]
-        if k + 1 < n:
-            ubar = 0.5 * (u[k] + u[k + 1])
-            drive = b @ ubar + bx
-            # x̃_{k+1} = Φ x̂_k + Ψ (B ū_k + b_x)
-            x = phi @ xhat + psi @ drive
-            # ∂x̃_{k+1} = ∂Φ x̂_k + Φ ∂x̂_k + ∂Ψ (B ū_k + b_x) + Ψ (∂B ū_k + ∂b_x)
-            s = (
-                np.einsum("ijp,j->ip", dphi, xhat)
-                + phi @ shat
-                + np.einsum("ijp,j->ip", dpsi, drive)
-                + psi @ (np.einsum("ijp,j->ip", db, ubar) + dbx)
-            )
+    _kernel("sensitivity")(
+        *(_c(m) for m in (phi, psi, dphi, dpsi, b, bx, c, d, by, db, dbx, dc, dd, dby)),
+        _c(gain),
+        _c(dgain),
+        _c(x0),
+        _c(dx0),
+        _c(u),
+        _c(z),
+        y,
+        g,
+    )
     return y, g
 
 
