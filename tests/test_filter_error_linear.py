@@ -14,7 +14,8 @@ import scipy.linalg
 
 from flightid.cases import load_case, run_case
 from flightid.cases.run import prepare_case
-from flightid.estimation.filter_error import _problem
+from flightid.cases.spec import CaseError
+from flightid.estimation.filter_error import FilterErrorProblem, _problem
 from flightid.estimation.filter_error_linear import LinearFilterErrorProblem
 from flightid.filtering import riccati_solution
 from flightid.filtering.linear import (
@@ -173,3 +174,24 @@ def test_y13aus_linear_case_same_optimum_fewer_passes():
     assert np.max(deviation) < 0.05, deviation
     # measured 207 vs 1219 filter passes
     assert lin.equivalent_evaluations < 0.3 * gen.equivalent_evaluations
+
+
+@needs_data
+def test_linear_cost_equals_the_generic_rk4_cost(y13_problem):
+    # the generic path (RK4, linearly interpolated inputs, numba kernel) at the same θ and R:
+    # both discretisations are O(Δt⁴)-close for this smooth model; measured 3e-4 relative
+    problem, prepared = y13_problem
+    generic = FilterErrorProblem(prepared.model, list(prepared.maneuvers), prepared.process_noise)
+    generic.gain_r = problem.gain_r.copy()
+    theta = problem.theta_start
+    linear_cost = problem.cost(problem.run(theta).outputs[0], problem.gain_r)
+    generic_cost = generic.cost(generic.run(theta).outputs[0], generic.gain_r)
+    assert abs(linear_cost - generic_cost) < 1e-3 * generic_cost
+
+
+def test_case_rejects_an_unknown_gradient_option(tmp_path):
+    text = (CASES / "y13aus_lateral_filter_error_linear.toml").read_text()
+    path = tmp_path / "case.toml"
+    path.write_text(text.replace('filter_gradients = "analytic"', 'filter_gradients = "exact"'))
+    with pytest.raises(CaseError, match="filter_gradients"):
+        load_case(path)
