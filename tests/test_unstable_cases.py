@@ -86,6 +86,12 @@ def test_unstable_options_are_checked_by_name(tmp_path):
     path.write_text(bad)
     with pytest.raises(CaseError, match="estimation.stabilizing_gain: .*not a state"):
         run_case(load_case(path), data_dir=DATA)
+    for shift in ("0.0", "-1.0"):  # σ ≤ 0 would destabilize (measured: a local minimum)
+        path.write_text(
+            text.replace("stabilizing_gain = { w = { w = 0.05 } }", f"eigenvalue_shift = {shift}")
+        )
+        with pytest.raises(CaseError, match="eigenvalue_shift: expected σ > 0"):
+            load_case(path)
     bad = text.replace("stabilizing_gain = { w = { w = 0.05 } }", "shooting_intervals = 1")
     path.write_text(bad)
     with pytest.raises(CaseError, match="shooting_intervals"):

@@ -647,7 +647,14 @@ def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:
             for output, value in _table(row, f"{key}.stabilizing_gain.{state}").items():
                 _number(value, f"{key}.stabilizing_gain.{state}.{output}")
     if "eigenvalue_shift" in estimation:
-        _number(estimation["eigenvalue_shift"], f"{key}.eigenvalue_shift")
+        shift = _number(estimation["eigenvalue_shift"], f"{key}.eigenvalue_shift")
+        # σ ≤ 0 weights the data by e^(+|σ|t) and moves the eigenvalues to the right: the
+        # transformation then destabilizes instead of stabilizing
+        if shift <= 0:
+            raise CaseError(
+                f"{key}.eigenvalue_shift: expected σ > 0 (1/s; larger than the unstable "
+                f"eigenvalue's real part, e.g. 0.7), got {shift!r}"
+            )
     if "shooting_intervals" in estimation:
         _integer(estimation["shooting_intervals"], f"{key}.shooting_intervals", 2)
     if "shooting_weight" in estimation:
