@@ -1,0 +1,384 @@
+"""Peers on a 6-DOF benchmark: flightid MNR and MNRES against scipy, lmfit and DFO-LS.
+
+    python -P bench/peers.py [--seeds 8] [--quick] [--scaling]
+
+The benchmark (issue 14): the Navion 6-DOF model built by ``flightid.aircraft.six_dof_model``
+(9 states u, v, w, p, q, r, l_xz, l_yz, l_zz; Nelson's longitudinal and lateral derivatives,
+22 free aerodynamic parameters), trimmed at 53.6 m/s, excited by elevator, aileron and rudder
+doublets; 1000 RK4 steps of 0.02 s; 8 outputs (V, α, β, Θ, Φ, p, q, r) with seeded Gaussian
+noise. Seed s draws the noise and a start θ₀ = θ_true·(1 + a u) + 0.01 u', u, u' ~ U(−1, 1).
+
+Every method minimises the same weighted cost J = Σ νᵀR⁻¹ν (R = diag σ², fixed) through the
+same simulator: ``flightid.simulate.Simulator.run`` is wrapped here, so every integration of
+the system, by any method, is timed and its cost recorded in order. "sims to J*+1" is the
+number of simulations until the first one whose cost is ≤ J* + 1 (J* = the lowest cost any
+method reached on that seed), likewise for J*+0.01; "-" means never. "sim share" is the time
+spent in ``Simulator.run`` over the method's wall time (cost recording excluded).
+
+Peers: scipy ``least_squares`` (lm, trf; 2-point Jacobian, ftol = xtol = 1e-8), lmfit
+(``leastsq``), DFO-LS (``dfols.solve``, variables scaled by the parameters' typical values).
+A peer whose package is missing is skipped with a printed reason (``pip install -e '.[bench]'``).
+
+``--scaling`` adds the table over N (1e3, 1e4, 1e5 samples, same 20 s manoeuvre) and the number
+of free parameters (5, 10, 20, 40: the first n of the 22, fixed the rest at the truth; 40 adds 18
+terms whose true value is zero) for MNR, MNRES and scipy lm on seed 0; it is slow.
+"""
+
+from __future__ import annotations
+
+import os
+
+# one BLAS thread for every method: several threads on 2 shared cores distort timings
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.optimize import least_squares  # noqa: E402
+
+from flightid.aircraft import (  # noqa: E402
+    AeroModel,
+    navion,
+    navion_longitudinal_aero,
+    six_dof_model,
+    trim_level_flight,
+)
+from flightid.aircraft.library import NAVION_TRIM_SPEED  # noqa: E402
+from flightid.data import FlightData  # noqa: E402
+from flightid.estimation import MNR, MNRES, Convergence, OutputErrorProblem, estimate  # noqa: E402
+from flightid.model import Parameter, Parameters  # noqa: E402
+from flightid.simulate import Simulator, simulate  # noqa: E402
+
+# Nelson (1998) App. B, Navion lateral derivatives (per rad), as in tests/test_aircraft_equations.py
+NAVION_LATERAL = {
+    "CY_beta": -0.564, "CY_dr": 0.157, "Cl_beta": -0.074, "Cl_phat": -0.410, "Cl_rhat": 0.107,
+    "Cl_da": -0.134, "Cl_dr": 0.107, "Cn_beta": 0.071, "Cn_phat": -0.0575, "Cn_rhat": -0.125,
+    "Cn_da": -0.0035, "Cn_dr": -0.072,
+}  # fmt: skip
+LATERAL = {
+    "CY": ["beta", "dr"],
+    "Cl": ["beta", "phat", "rhat", "da", "dr"],
+    "Cn": ["beta", "phat", "rhat", "da", "dr"],
+}
+# 18 further terms (true value 0) for the 40-parameter variant
+EXTRA = {
+    "CY": ["1", "phat", "rhat", "da", "alpha*beta"],
+    "Cl": ["1", "alpha*beta", "alpha*da"],
+    "Cn": ["1", "alpha*beta", "alpha*da"],
+    "CD": ["de", "qhat", "beta^2", "alpha^2"],
+    "CL": ["beta^2", "alpha^2"],
+    "Cm": ["beta^2"],
+}
+OUTPUTS8 = ("V", "alpha", "beta", "theta", "phi", "p", "q", "r")
+# noise standard deviations of the 8 outputs: m/s, rad (α β Θ Φ), rad/s (p q r)
+SIGMA8 = np.array([0.1, 0.002, 0.002, 0.002, 0.002, 0.005, 0.005, 0.005])
+DURATION_S = 20.0
+
+
+def _doublet(t, start, width, amplitude):
+    return amplitude * (
+        ((t >= start) & (t < start + width)).astype(float)
+        - ((t >= start + width) & (t < start + 2 * width)).astype(float)
+    )
+
+
+def benchmark(seed: int, n_steps: int = 1000, n_free: int = 22, spread: float = 0.5):
+    """(model at the seeded start, data, R diagonal, truth) of the 6-DOF benchmark."""
+    lon, lon_values = navion_longitudinal_aero()
+    spec = {k: list(v) for k, v in LATERAL.items()}
+    if n_free > 22:
+        for coefficient, terms in EXTRA.items():
+            spec.setdefault(coefficient, []).extend(terms)
+    aero = lon + AeroModel(spec)
+    values = {**lon_values, **NAVION_LATERAL}
+    names = aero.parameter_names
+    truth = np.array([values.get(n, 0.0) for n in names])
+    full = six_dof_model(navion(), aero, aero.parameters(dict(zip(names, truth, strict=True))))
+    trim = trim_level_flight(full, NAVION_TRIM_SPEED)
+    dt = DURATION_S / n_steps
+    t = np.arange(n_steps + 1) * dt
+    inputs = {n: np.full(t.shape, trim.inputs[n]) for n in full.inputs}
+    inputs["de"] = inputs["de"] + _doublet(t, 1.0, 0.5, 0.03) + _doublet(t, 11.0, 1.0, -0.02)
+    inputs["da"] = inputs["da"] + _doublet(t, 3.0, 1.0, 0.06) + _doublet(t, 14.0, 0.5, -0.05)
+    inputs["dr"] = inputs["dr"] + _doublet(t, 6.5, 1.0, 0.06) + _doublet(t, 16.5, 0.7, 0.04)
+    truth_model = six_dof_model(
+        navion(),
+        aero,
+        aero.parameters(dict(zip(names, truth, strict=True))),
+        outputs=OUTPUTS8,
+        x0=tuple(trim.x),
+    )
+    clean = simulate(truth_model, FlightData(t, inputs))
+    rng = np.random.default_rng(seed)
+    noisy = clean + rng.normal(size=clean.shape) * SIGMA8
+    data = FlightData(t, inputs, {n: noisy[:, k] for k, n in enumerate(OUTPUTS8)})
+    free = np.arange(len(names)) < min(n_free, len(names))
+    start = truth * (1 + spread * rng.uniform(-1, 1, truth.size)) + 0.01 * rng.uniform(
+        -1, 1, truth.size
+    )
+    start = np.where(free, start, truth)
+    parameters = Parameters(
+        Parameter(n, float(v), free=bool(f), scale=max(abs(tv), 0.05))
+        for n, v, f, tv in zip(names, start, free, truth, strict=True)
+    )
+    model = six_dof_model(navion(), aero, parameters, outputs=OUTPUTS8, x0=tuple(trim.x))
+    return model, data, SIGMA8**2, truth
+
+
+class Recorder:
+    """Wraps ``Simulator.run``: times every call and records each trajectory's cost J."""
+
+    def __init__(self) -> None:
+        self.measured = None
+        self.weight = None
+        self.costs: list[float] = []
+        self.sim_s = 0.0
+        self.record_s = 0.0
+        self._original = Simulator.run
+        recorder = self
+
+        def run(simulator, thetas):
+            start = time.perf_counter()
+            batch = recorder._original(simulator, thetas)
+            middle = time.perf_counter()
+            recorder.sim_s += middle - start
+            if recorder.measured is not None:
+                # J = Σ_k Σ_i (z_i(k) − y_i(k))² / σ_i² per trajectory of the batch
+                resid = (recorder.measured[None] - batch.outputs) * recorder.weight
+                costs = np.sum(resid.reshape(resid.shape[0], -1) ** 2, axis=1)
+                recorder.costs.extend(np.where(np.isfinite(costs), costs, np.inf).tolist())
+            recorder.record_s += time.perf_counter() - middle
+            return batch
+
+        Simulator.run = run
+
+    def reset(self, measured, r_diag) -> None:
+        self.measured = measured
+        self.weight = 1.0 / np.sqrt(r_diag)
+        self.costs = []
+        self.sim_s = 0.0
+        self.record_s = 0.0
+
+
+def _flightid(solver, budget):
+    def run(model, data, r_diag, problem):
+        result = estimate(
+            model,
+            data,
+            solver,
+            noise="fixed",
+            R=r_diag,
+            convergence=Convergence(max_iterations=500, max_evaluations=budget),
+        )
+        return result.cost
+
+    return run
+
+
+def _residual_function(problem, r_diag):
+    weight = 1.0 / np.sqrt(r_diag)
+
+    def residuals(theta):
+        return ((problem.measured - problem.outputs(theta[None, :])[0]) * weight).ravel()
+
+    return residuals
+
+
+def _scipy(lsq_method, budget):
+    def run(model, data, r_diag, problem):
+        solution = least_squares(
+            _residual_function(problem, r_diag),
+            problem.theta_start,
+            method=lsq_method,
+            ftol=1e-8,
+            xtol=1e-8,
+            x_scale=problem.typical,
+            max_nfev=budget,
+        )
+        return float(np.sum(solution.fun**2))
+
+    return run
+
+
+def _lmfit(budget):
+    import lmfit
+
+    def run(model, data, r_diag, problem):
+        residuals = _residual_function(problem, r_diag)
+        params = lmfit.Parameters()
+        for i, value in enumerate(problem.theta_start):
+            params.add(f"p{i}", value=float(value))
+
+        def objective(p):
+            return residuals(np.array([p[f"p{i}"].value for i in range(len(p))]))
+
+        out = lmfit.minimize(
+            objective, params, method="leastsq", max_nfev=budget, ftol=1e-8, xtol=1e-8
+        )
+        return float(np.sum(np.asarray(out.residual) ** 2))
+
+    return run
+
+
+def _dfols(budget):
+    import dfols
+
+    def run(model, data, r_diag, problem):
+        residuals = _residual_function(problem, r_diag)
+        typical = problem.typical
+        solution = dfols.solve(
+            lambda z: residuals(z * typical),
+            problem.theta_start / typical,
+            maxfun=budget,
+            rhoend=1e-8,
+        )
+        return float(np.sum(np.asarray(solution.resid) ** 2))
+
+    return run
+
+
+def methods(budget: int):
+    """(name, runner or None, reason skipped)."""
+    rows = [
+        ("MNR", _flightid(MNR(), budget), ""),
+        ("MNRES", _flightid(MNRES(), budget), ""),
+        ("scipy lm", _scipy("lm", budget), ""),
+        ("scipy trf", _scipy("trf", budget), ""),
+    ]
+    for name, module, factory in (("lmfit", "lmfit", _lmfit), ("DFO-LS", "dfols", _dfols)):
+        try:
+            __import__(module)
+        except ImportError as error:
+            rows.append((name, None, f"{module} not installed ({error})"))
+        else:
+            rows.append((name, factory(budget), ""))
+    return rows
+
+
+def run_one(recorder, runner, model, data, r_diag):
+    problem = OutputErrorProblem(model, data)
+    recorder.reset(problem.measured, r_diag)
+    start = time.perf_counter()
+    cost = runner(model, data, r_diag, problem)
+    wall = time.perf_counter() - start - recorder.record_s
+    return {
+        "cost": cost,
+        "history": np.array(recorder.costs),
+        "wall": wall,
+        "share": recorder.sim_s / wall if wall > 0 else float("nan"),
+        "sims": len(recorder.costs),
+    }
+
+
+def _first_below(history, level):
+    hits = np.flatnonzero(history <= level)
+    return int(hits[0]) + 1 if hits.size else None
+
+
+def _fmt(value):
+    return "-" if value is None else str(value)
+
+
+def seeds_table(recorder, seeds, budget, n_steps):
+    runs = methods(budget)
+    for name, runner, reason in runs:
+        if runner is None:
+            print(f"skipped {name}: {reason}")
+    active = [(n, r) for n, r, _ in runs if r is not None]
+    per_method = {n: [] for n, _ in active}
+    print(
+        "| seed | method | sims to J*+1 | sims to J*+0.01 | sims total | final J − J* | "
+        "wall, s | sim share |"
+    )
+    print("|---:|---|---:|---:|---:|---:|---:|---:|")
+    for seed in seeds:
+        model, data, r_diag, _ = benchmark(seed, n_steps)
+        simulate(model, data)  # compile outside the timings
+        results = {name: run_one(recorder, runner, model, data, r_diag) for name, runner in active}
+        j_star = min(float(np.min(r["history"])) for r in results.values())
+        for name, r in results.items():
+            to1 = _first_below(r["history"], j_star + 1)
+            to001 = _first_below(r["history"], j_star + 0.01)
+            per_method[name].append(
+                (to1, to001, r["sims"], r["cost"] - j_star, r["wall"], r["share"])
+            )
+            print(
+                f"| {seed} | {name} | {_fmt(to1)} | {_fmt(to001)} | {r['sims']} | "
+                f"{r['cost'] - j_star:.3g} | {r['wall']:.3f} | {r['share']:.2f} |"
+            )
+        print(f"<!-- seed {seed}: J* = {j_star:.6g}, N = {n_steps + 1} samples -->")
+    print()
+    print(
+        "| method | median sims to J*+1 | median sims to J*+0.01 (reached) | median sims total | "
+        "median final J − J* | median wall, s | median sim share |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+
+    def median(values):
+        # seeds that never reached the level count as +∞ in the median
+        values = [np.inf if v is None else v for v in values]
+        m = statistics.median(values)
+        return "-" if not np.isfinite(m) else f"{m:g}"
+
+    for name, rows in per_method.items():
+        reached = sum(r[1] is not None for r in rows)
+        print(
+            f"| {name} | {median([r[0] for r in rows])} | "
+            f"{median([r[1] for r in rows])} ({reached}/{len(rows)}) | "
+            f"{median([r[2] for r in rows])} | {statistics.median(r[3] for r in rows):.3g} | "
+            f"{statistics.median(r[4] for r in rows):.3f} | "
+            f"{statistics.median(r[5] for r in rows):.2f} |"
+        )
+
+
+def scaling_table(recorder, budget, sizes, free_counts):
+    chosen = [
+        ("MNR", _flightid(MNR(), budget)),
+        ("MNRES", _flightid(MNRES(), budget)),
+        ("scipy lm", _scipy("lm", budget)),
+    ]
+    print()
+    print("| N | free parameters | method | sims to J*+0.01 | sims total | wall, s | sim share |")
+    print("|---:|---:|---|---:|---:|---:|---:|")
+    for n_steps in sizes:
+        for n_free in free_counts:
+            model, data, r_diag, _ = benchmark(0, n_steps, n_free)
+            simulate(model, data)
+            results = {n: run_one(recorder, r, model, data, r_diag) for n, r in chosen}
+            j_star = min(float(np.min(r["history"])) for r in results.values())
+            for name, r in results.items():
+                to001 = _first_below(r["history"], j_star + 0.01)
+                print(
+                    f"| {n_steps} | {n_free} | {name} | {_fmt(to001)} | {r['sims']} | "
+                    f"{r['wall']:.3f} | {r['share']:.2f} |"
+                )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=8, help="number of seeded starts (0, 1, …)")
+    parser.add_argument(
+        "--quick", action="store_true", help="3 seeds, 300 RK4 steps, budget 1500 simulations"
+    )
+    parser.add_argument("--scaling", action="store_true", help="also the N × parameters table")
+    parser.add_argument("--budget", type=int, default=5000, help="simulations per method and run")
+    args = parser.parse_args()
+    recorder = Recorder()
+    n_seeds, n_steps, budget = args.seeds, 1000, args.budget
+    if args.quick:
+        n_seeds, n_steps, budget = min(n_seeds, 3), 300, min(budget, 1500)
+    print(
+        f"6-DOF Navion benchmark: {n_steps} RK4 steps, 8 outputs, 22 free parameters, "
+        f"{n_seeds} seeds, budget {budget} simulations"
+    )
+    seeds_table(recorder, range(n_seeds), budget, n_steps)
+    if args.scaling:
+        sizes = (300, 1000) if args.quick else (1000, 10000, 100000)
+        scaling_table(recorder, budget, sizes, (5, 10, 20, 40))
+
+
+if __name__ == "__main__":
+    main()
