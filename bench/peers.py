@@ -88,11 +88,11 @@ def _doublet(t, start, width, amplitude):
 def benchmark(seed: int, n_steps: int = 1000, n_free: int = 22, spread: float = 0.5):
     """(model at the seeded start, data, R diagonal, truth) of the 6-DOF benchmark."""
     lon, lon_values = navion_longitudinal_aero()
-    spec = {k: list(v) for k, v in LATERAL.items()}
+    spec = {k: list(v) for k, v in {**lon.spec, **LATERAL}.items()}
     if n_free > 22:
         for coefficient, terms in EXTRA.items():
-            spec.setdefault(coefficient, []).extend(terms)
-    aero = lon + AeroModel(spec)
+            spec[coefficient].extend(terms)
+    aero = AeroModel(spec)
     values = {**lon_values, **NAVION_LATERAL}
     names = aero.parameter_names
     truth = np.array([values.get(n, 0.0) for n in names])
@@ -264,6 +264,7 @@ def run_one(recorder, runner, model, data, r_diag):
     start = time.perf_counter()
     cost = runner(model, data, r_diag, problem)
     wall = time.perf_counter() - start - recorder.record_s
+    recorder.measured = None  # simulations outside a method's run are not recorded
     return {
         "cost": cost,
         "history": np.array(recorder.costs),
@@ -359,12 +360,24 @@ def scaling_table(recorder, budget, sizes, free_counts):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=8, help="number of seeded starts (0, 1, …)")
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=8,
+        help="number of seeded starts (0, 1, …; 0: scaling table only)",
+    )
     parser.add_argument(
         "--quick", action="store_true", help="3 seeds, 300 RK4 steps, budget 1500 simulations"
     )
     parser.add_argument("--scaling", action="store_true", help="also the N × parameters table")
     parser.add_argument("--budget", type=int, default=5000, help="simulations per method and run")
+    parser.add_argument(
+        "--sizes",
+        type=int,
+        nargs="+",
+        default=None,
+        help="RK4 steps of the scaling table (default 1000 10000 100000; --quick: 300 1000)",
+    )
     args = parser.parse_args()
     recorder = Recorder()
     n_seeds, n_steps, budget = args.seeds, 1000, args.budget
@@ -374,9 +387,10 @@ def main() -> None:
         f"6-DOF Navion benchmark: {n_steps} RK4 steps, 8 outputs, 22 free parameters, "
         f"{n_seeds} seeds, budget {budget} simulations"
     )
-    seeds_table(recorder, range(n_seeds), budget, n_steps)
+    if n_seeds > 0:
+        seeds_table(recorder, range(n_seeds), budget, n_steps)
     if args.scaling:
-        sizes = (300, 1000) if args.quick else (1000, 10000, 100000)
+        sizes = args.sizes or ((300, 1000) if args.quick else (1000, 10000, 100000))
         scaling_table(recorder, budget, sizes, (5, 10, 20, 40))
 
 
