@@ -378,6 +378,13 @@ def main() -> None:
         default=None,
         help="RK4 steps of the scaling table (default 1000 10000 100000; --quick: 300 1000)",
     )
+    parser.add_argument(
+        "--free",
+        type=int,
+        nargs="+",
+        default=[5, 10, 20, 40],
+        help="free-parameter counts of the scaling table (5 … 40)",
+    )
     args = parser.parse_args()
     recorder = Recorder()
     n_seeds, n_steps, budget = args.seeds, 1000, args.budget
@@ -391,7 +398,7 @@ def main() -> None:
         seeds_table(recorder, range(n_seeds), budget, n_steps)
     if args.scaling:
         sizes = args.sizes or ((300, 1000) if args.quick else (1000, 10000, 100000))
-        scaling_table(recorder, budget, sizes, (5, 10, 20, 40))
+        scaling_table(recorder, budget, sizes, args.free)
 
 
 if __name__ == "__main__":
