@@ -71,8 +71,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg.blas
 
-from flightid.errors import EstimationError, InputError
+from flightid.errors import EstimationError, InputError, SimulationError
 from flightid.estimation.gauss_newton import GaussNewtonStep, information_matrix
 from flightid.estimation.objective import Objective, SolverOutcome
 from flightid.estimation.solvers.common import (
@@ -84,10 +85,15 @@ from flightid.estimation.surface import RecursiveSurface, algebraic_surface, bat
 
 __all__ = ["MNRES"]
 
-_FORMS = ("algebraic", "batch", "recursive")
+_FORMS = ("secant", "algebraic", "batch", "recursive")
 _REPLACEMENTS = ("geometry", "cost")
 # trust-region ratios: below SHRINK the radius halves, above GROW (at the radius) it doubles
 _SHRINK, _GROW = 0.25, 0.75
+# secant form: relative step of the finite-difference sweeps (as MNR's) and the rejected
+# trials in a row on swept sensitivities before a stall
+_SECANT_STEP = 1e-6
+_SURFACE_PERTURBATION = 1e-3
+_SECANT_STALL = 30
 
 
 @dataclass
@@ -107,6 +113,84 @@ class _PointSet:
     fresh: bool = True  # the surface comes from perturbations about the current best point
     radius: float = math.inf  # trust radius Δ in ϑ units
     proven: bool = False  # the last accepted step realised its predicted drop (|ρ − 1| ≤ 0.1)
+
+
+# ---------------------------------------------------------------------------- secant form
+@dataclass
+class _SecantState:
+    """The secant form's model: θ, its outputs and cost, and the estimated sensitivities.
+
+    ``jacobian`` holds ∂y/∂ϑ (N, n_o, n_f) in the coordinates ϑ = θ / scale fixed at the
+    last finite-difference sweep; ``normal_by_output`` the n_o blocks J_kᵀJ_k (n_o, n_f, n_f),
+    so M = Σ_k J_kᵀJ_k / R_kk costs O(n_o·n_f²) when R changes.
+    """
+
+    theta: np.ndarray
+    outputs: np.ndarray
+    cost: float
+    scale: np.ndarray
+    jacobian: np.ndarray
+    normal_by_output: np.ndarray
+    fresh: bool = True  # the sensitivities were swept at θ (no secant update since)
+    proven: bool = False  # the last accepted step realised its predicted drop (|ρ − 1| ≤ 0.1)
+    radius: float = math.inf  # trust radius Δ in ϑ units
+    poor: int = 0  # passes in a row whose step disappointed (ρ < 0.25 or rejected)
+    updates: int = 0  # secant updates since M was last recomputed exactly
+    sweeps: int = 0
+
+
+def _exact_normal(jacobian: np.ndarray) -> np.ndarray:
+    """J_kᵀJ_k for every output k (n_o, n_f, n_f): O(N·n_o·n_f²)."""
+    return np.stack([jacobian[:, k, :].T @ jacobian[:, k, :] for k in range(jacobian.shape[1])])
+
+
+def _secant_step(
+    normal: np.ndarray, gradient: np.ndarray, held: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(Gauss–Newton step, trust-region step) in ϑ from M and c = JᵀR⁻¹ν.
+
+    Gauss–Newton: Δϑ = M⁺c with M scaled to unit diagonal (D⁻¹MD⁻¹, D = diag √M_jj) and
+    eigenvalues below 1e-13 of the largest dropped (directions the data do not determine).
+    Trust region: Δϑ(μ) = (M + μI)⁻¹c with the smallest μ ≥ 0 for which ‖Δϑ(μ)‖ ≤ Δ
+    (Levenberg–Marquardt), by bisection on log μ over the eigen-decomposition of M.
+    Parameters in ``held`` (on an active bound) get no step.
+    """
+    n = gradient.size
+    moving = ~held
+    gn = np.zeros(n)
+    step = np.zeros(n)
+    if not moving.any():
+        return gn, step
+    m = normal[np.ix_(moving, moving)]
+    c = gradient[moving]
+    diagonal = np.diag(m).copy()
+    d = np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    # D⁻¹MD⁻¹ = V Λ Vᵀ;  Δϑ = D⁻¹ V Λ⁺ Vᵀ D⁻¹ c
+    lam, vec = np.linalg.eigh(m / np.outer(d, d))
+    keep = lam > 1e-13 * lam[-1] if lam[-1] > 0 else np.zeros_like(lam, dtype=bool)
+    coefficients = np.where(keep, (vec.T @ (c / d)) / np.where(keep, lam, 1.0), 0.0)
+    gn[moving] = (vec @ coefficients) / d
+    length = float(np.linalg.norm(gn))
+    if length <= radius:
+        return gn, gn.copy()
+    # M = W Σ Wᵀ in ϑ:  Δϑ(μ) = W diag(1/(σ + μ)) Wᵀ c,  ‖Δϑ(μ)‖ decreasing in μ
+    sigma, w = np.linalg.eigh(m)
+    sigma = np.maximum(sigma, 0.0)
+    projected = w.T @ c
+
+    def norm(mu: float) -> float:
+        return float(np.linalg.norm(projected / (sigma + mu)))
+
+    # ‖Δϑ(μ)‖ ≤ ‖c‖/μ: at μ = ‖c‖/Δ the step is inside; bisection on log μ
+    high = max(float(np.linalg.norm(c)) / max(radius, 1e-300), 1e-300)
+    low = high * 1e-14
+    for _ in range(200):
+        if high / low < 1.0 + 1e-3:
+            break
+        mid = math.sqrt(low * high)
+        low, high = (mid, high) if norm(mid) > radius else (low, mid)
+    step[moving] = w @ (projected / (sigma + high))
+    return gn, step
 
 
 @dataclass(frozen=True)
@@ -135,11 +219,11 @@ class MNRES:
             step-size control).
     """
 
-    form: str = "algebraic"
+    form: str = "secant"
     window: int | None = None
-    initial_perturbation: float = 0.001
+    initial_perturbation: float | None = None
     importance_scaling: bool = True
-    max_rejections: int = 2
+    max_rejections: int | None = None
     fresh_rejections: int = 4
     max_relative_step: float = math.inf
     max_condition: float = 1e8
@@ -156,12 +240,13 @@ class MNRES:
             raise InputError(
                 f"MNRES.replacement: expected one of {_REPLACEMENTS}, got {self.replacement!r}"
             )
-        if not 0 < self.initial_perturbation < 1:
+        if self.initial_perturbation is not None and not 0 < self.initial_perturbation < 1:
             raise InputError(
                 "MNRES.initial_perturbation: expected a fraction between 0 and 1, "
                 f"got {self.initial_perturbation!r}"
             )
-        if self.max_rejections < 0 or self.fresh_rejections < 0 or self.max_restarts < 0:
+        rejections = 0 if self.max_rejections is None else self.max_rejections
+        if rejections < 0 or self.fresh_rejections < 0 or self.max_restarts < 0:
             raise InputError(
                 "MNRES.max_rejections, MNRES.fresh_rejections and MNRES.max_restarts must be "
                 f"≥ 0, got {self.max_rejections}, {self.fresh_rejections}, {self.max_restarts}"
@@ -245,7 +330,7 @@ class MNRES:
         """Perturbations for a restart: importance-scaled, shrinking with the last step and
         by a factor 10 for each consecutive restart that found no lower cost."""
         magnitude = objective.problem.magnitude(theta)
-        size = self.initial_perturbation
+        size = self._perturbation()
         if last_step is not None:
             # 10 × the last relative step, between 1e-5 and the initial perturbation
             size = float(np.clip(10.0 * np.max(np.abs(last_step) / magnitude), 1e-5, size))
@@ -339,8 +424,284 @@ class MNRES:
             score[best] = -np.inf
         return int(np.argmax(score))
 
+    # ------------------------------------------------------------------ secant form
+    def _sweep(
+        self,
+        objective: Objective,
+        theta: np.ndarray,
+        outputs: np.ndarray,
+        cost: float,
+        previous: _SecantState | None,
+    ) -> _SecantState:
+        """Forward-difference sensitivities at θ (n_f integrations in one batch); the trust
+        radius is kept. Raises SimulationError if the perturbed simulations diverge."""
+        problem = objective.problem
+        g, _ = problem.sensitivities(theta, outputs, self._sweep_step())
+        scale = problem.magnitude(theta)
+        # ∂y/∂ϑ = ∂y/∂θ · scale
+        jacobian = np.ascontiguousarray(g * scale)
+        state = _SecantState(
+            theta.copy(), outputs, float(cost), scale, jacobian, _exact_normal(jacobian)
+        )
+        if previous is not None:
+            state.sweeps = previous.sweeps + 1
+        return state
+
+    def _sweep_step(self) -> float:
+        return self._perturbation()
+
+    def _max_rejections(self) -> int:
+        """``max_rejections``, or its default: 1 (secant), 2 (surface forms)."""
+        if self.max_rejections is not None:
+            return max(int(self.max_rejections), 1)
+        return 1 if self.form == "secant" else 2
+
+    def _perturbation(self) -> float:
+        """``initial_perturbation``, or its default: 1e-6 (secant), 1e-3 (surface forms)."""
+        if self.initial_perturbation is not None:
+            return self.initial_perturbation
+        return _SECANT_STEP if self.form == "secant" else _SURFACE_PERTURBATION
+
+    @staticmethod
+    def _secant_update(state: _SecantState, step: np.ndarray, change: np.ndarray) -> None:
+        """Broyden's rank-one update with the step Δϑ and the output change Δy it caused.
+
+            u = Δy − JΔϑ,  v = Δϑ/‖Δϑ‖²:   J ← J + u vᵀ   (now JΔϑ = Δy exactly)
+            J_kᵀJ_k ← J_kᵀJ_k + p_k vᵀ + v p_kᵀ + ‖u_k‖² v vᵀ,  p_k = J_kᵀu_k (old J)
+
+        O(N·n_o·n_f); J_kᵀJ_k is recomputed exactly every n_f updates (amortised the same),
+        so rounding does not accumulate.
+        """
+        n_samples, n_outputs, n_free = state.jacobian.shape
+        flat = state.jacobian.reshape(-1, n_free)
+        u = (change.reshape(-1) - flat @ step).reshape(n_samples, n_outputs)
+        v = step / float(step @ step)
+        if state.updates + 1 >= n_free:
+            scipy.linalg.blas.dger(1.0, v, u.reshape(-1), a=flat.T, overwrite_a=1)
+            state.normal_by_output = _exact_normal(state.jacobian)
+            state.updates = 0
+            return
+        p = np.stack([state.jacobian[:, k, :].T @ u[:, k] for k in range(n_outputs)])
+        q = np.sum(u**2, axis=0)
+        # J ← J + u vᵀ in place (BLAS rank-one update on the transposed, Fortran-ordered view)
+        scipy.linalg.blas.dger(1.0, v, u.reshape(-1), a=flat.T, overwrite_a=1)
+        state.normal_by_output += (
+            p[:, :, None] * v[None, None, :]
+            + v[None, :, None] * p[:, None, :]
+            + q[:, None, None] * np.outer(v, v)[None]
+        )
+        state.updates += 1
+
+    def _minimize_secant(
+        self, objective: Objective, theta0: np.ndarray, state: _SecantState | None
+    ) -> SolverOutcome:
+        problem = objective.problem
+        conv = objective.convergence
+        typical = objective.typical
+        passes = 0
+        allowance = conv.max_iterations * (problem.n_free + 1)
+        spent_before = objective.evaluations
+        if state is None:
+            theta = np.array(theta0, dtype=float)
+            cost, outputs = objective.evaluate_start(theta)
+            objective.record(theta, cost)
+            try:
+                state = self._sweep(objective, theta, outputs, cost, None)
+            except SimulationError as exc:
+                return SolverOutcome(
+                    theta,
+                    outputs,
+                    cost,
+                    0,
+                    False,
+                    "stalled",
+                    f"stalled: the perturbed simulations for the sensitivities diverge at the "
+                    f"start values ({exc})",
+                )
+        else:
+            # a new noise cycle: new weights, so the radius learnt under the old ones goes
+            state.cost = float(objective.costs_of(state.outputs)[0])
+            state.radius = math.inf
+            state.poor = 0
+        current = state
+        fresh_failures = 0  # rejected trials in a row on freshly swept sensitivities
+
+        def finish(iterations: int, converged: bool, status: str, message: str):
+            return SolverOutcome(
+                current.theta,
+                current.outputs,
+                current.cost,
+                iterations,
+                converged,
+                status,
+                message,
+                state=current,
+            )
+
+        def sweep() -> SolverOutcome | None:
+            """Renew the sensitivities at the current point, or the reason to stop."""
+            nonlocal current, fresh_failures
+            if objective.budget_exhausted():
+                return finish(passes, False, *budget_status(objective))
+            try:
+                current = self._sweep(
+                    objective, current.theta, current.outputs, current.cost, current
+                )
+            except SimulationError as exc:
+                return finish(
+                    passes,
+                    False,
+                    "stalled",
+                    f"stalled: the perturbed simulations for the sensitivities diverge here "
+                    f"({exc})",
+                )
+            fresh_failures = 0
+            return None
+
+        while objective.evaluations - spent_before < allowance:
+            if objective.budget_exhausted():
+                return finish(passes, False, *budget_status(objective))
+            theta, cost, outputs, scale = (
+                current.theta,
+                current.cost,
+                current.outputs,
+                current.scale,
+            )
+            weights = 1.0 / objective.r_diag
+            # M = Σ_k J_kᵀJ_k / R_kk,  c = Σ_i J_iᵀR⁻¹ν_i  (ϑ units)
+            normal = np.tensordot(weights, current.normal_by_output, axes=1)
+            nu = problem.residuals(outputs)
+            flat = current.jacobian.reshape(-1, problem.n_free)
+            gradient = flat.T @ (nu * weights[None, :]).reshape(-1)
+            # active set: a parameter on a bound whose Gauss–Newton step points outwards
+            held = np.zeros(problem.n_free, dtype=bool)
+            on_lower = theta <= problem.lower
+            on_upper = theta >= problem.upper
+            for _ in range(problem.n_free + 1):
+                gn, step = _secant_step(normal, gradient, held, current.radius)
+                outward = (on_lower & (gn < 0)) | (on_upper & (gn > 0))
+                if not np.any(outward & ~held):
+                    break
+                held |= outward
+            # predicted drop of Δϑ: ‖b‖² − ‖b − AΔϑ‖² = 2cᵀΔϑ − ΔϑᵀMΔϑ
+            gn_drop = float(2.0 * gradient @ gn - gn @ normal @ gn)
+            gn_step = GaussNewtonStep(gn * scale, -1, math.nan, gn_drop)
+            if conv.step_settled(gn_step, theta, typical, cost):
+                if current.fresh or current.proven:
+                    return finish(
+                        passes + 1,
+                        True,
+                        "converged",
+                        "converged: the next step and the cost drop it predicts are below "
+                        "tolerance",
+                    )
+                stop = sweep()
+                if stop is not None:
+                    return stop
+                continue
+            step_theta = limit_step(step * scale, theta, typical, self.max_relative_step)
+            trial = problem.project(theta + step_theta)
+            taken = (trial - theta) / scale
+            length = float(np.linalg.norm(taken))
+            new_cost, new_outputs = math.inf, None
+            if length > 0.0:
+                trial_costs, trial_outputs = objective.evaluate(trial[None, :])
+                new_cost, new_outputs = float(trial_costs[0]), trial_outputs[0]
+            accepted = new_cost < cost
+            was_fresh = current.fresh
+            predicted = float(2.0 * gradient @ taken - taken @ normal @ taken)
+            # ρ = realised / predicted drop
+            ratio = (cost - new_cost) / predicted if accepted and predicted > 0 else 0.0
+            poor = ratio < _SHRINK
+            if not self.trust_region:
+                current.radius = math.inf if accepted else 0.5 * length
+            elif poor and (was_fresh or not accepted):
+                # a fresh model that disappoints: the step was too long; a carried one that
+                # lowered the cost but disappointed: the model is suspect, not the radius
+                current.radius = 0.5 * length
+            elif ratio > _GROW and length >= 0.99 * current.radius:
+                current.radius = 2.0 * current.radius
+            current.poor = current.poor + 1 if poor else 0
+            # The secant through the trial point: always after an accepted step (the slopes
+            # move with θ); after a rejected one only into carried sensitivities — a swept
+            # Jacobian at θ is the better local model than a secant over a step too long.
+            if new_outputs is not None and np.all(np.isfinite(new_outputs)):
+                if accepted or not was_fresh:
+                    self._secant_update(current, taken, new_outputs - outputs)
+            if accepted:
+                passes += 1
+                current.theta, current.outputs, current.cost = trial, new_outputs, new_cost
+                current.fresh = False
+                current.proven = abs(ratio - 1.0) <= 0.1
+                fresh_failures = 0
+                relative = conv.relative_cost_change(cost, new_cost)
+                settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
+                    trial - theta, trial, typical
+                )
+                objective.record(trial, new_cost)
+                noise_settled = objective.maxlik_update(new_outputs, relative)
+                if noise_settled is not None:
+                    current.cost = float(objective.costs_of(new_outputs)[0])
+                    settled = settled and noise_settled
+                if settled and bool(np.array_equal(step, gn)):
+                    if was_fresh or current.proven:
+                        return finish(
+                            passes,
+                            True,
+                            "converged",
+                            "converged: cost and parameter changes below tolerance",
+                        )
+                    # settled on carried sensitivities: judge again on swept ones
+                    stop = sweep()
+                    if stop is not None:
+                        return stop
+                    continue
+            elif was_fresh:
+                fresh_failures += 1
+                if fresh_failures >= self.fresh_rejections:
+                    if conv.params_settled(gn * scale, theta, typical):
+                        return finish(
+                            passes,
+                            True,
+                            "converged",
+                            "converged: the step is below the parameter tolerance and no "
+                            "shorter step lowers the cost",
+                        )
+                    if gn_drop <= conv.cost_rtol * abs(cost) + conv.cost_atol:
+                        return finish(
+                            passes,
+                            True,
+                            "converged",
+                            "converged: the cost drop freshly swept sensitivities predict "
+                            "is below the cost tolerance and no step within the trust "
+                            "region lowers the cost",
+                        )
+                if fresh_failures >= _SECANT_STALL:
+                    return finish(
+                        passes,
+                        False,
+                        "stalled",
+                        f"stalled: {fresh_failures} trials in a row, each half as long, on "
+                        "freshly swept sensitivities did not lower the cost",
+                    )
+                continue
+            # carried sensitivities that mislead max_rejections passes in a row are renewed
+            if not current.fresh and current.poor >= self._max_rejections():
+                stop = sweep()
+                if stop is not None:
+                    return stop
+        return finish(
+            passes,
+            False,
+            "max_iterations",
+            f"stopped after {passes} iterations ({allowance} integrations, the cost of "
+            f"{conv.max_iterations} finite-difference passes) without converging",
+        )
+
     # ------------------------------------------------------------------ main loop
     def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
+        if self.form == "secant":
+            return self._minimize_secant(objective, theta0, state)
         problem = objective.problem
         conv = objective.convergence
         typical = objective.typical
@@ -351,7 +712,7 @@ class MNRES:
             objective.record(theta, cost)
             magnitude = problem.magnitude(theta)
             state = self._initialise(
-                objective, theta, outputs, cost, self.initial_perturbation * magnitude, 0
+                objective, theta, outputs, cost, self._perturbation() * magnitude, 0
             )
         else:
             # a new noise cycle: new weights, so the radius learnt under the old ones goes
@@ -478,7 +839,7 @@ class MNRES:
                         "converged",
                         "converged: cost and parameter changes below tolerance",
                     )
-            limit = self.fresh_rejections if was_fresh else self.max_rejections
+            limit = self.fresh_rejections if was_fresh else self._max_rejections()
             if state.rejections <= limit:
                 continue
             # A surface built from past passes may be stale: only a surface fresh from a
