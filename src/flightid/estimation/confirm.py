@@ -18,6 +18,16 @@ at ``max_iterations``, is not continued. Whatever the solver said, its end point
 converged exactly when the test holds there; otherwise its status stands and the message
 says how far the optimum may be, in σ. M is weighted by the residuals' own R̂ (see
 ``Convergence``), so the σ are those of the data's noise even under a fixed R.
+
+Central differences at the end point, half of them already paid for: when the solver's last
+pass took forward differences at that very point with the confirmation's own steps
+δ_j = 10⁻⁶·max(|θ_j|, floor_j) (MNR's default; ``SolverOutcome.differences``), only the n_f
+backward integrations are run, and (G⁺_j + G⁻_j)/2 = (y(θ + δ_j e_j) − y(θ − δ_j e_j))/(2δ_j)
+is the central difference, equal to rounding to the one computed from scratch
+(``OutputErrorProblem.complete_central``). The derivatives stay fresh (all taken at θ̂, none
+from an earlier point), so the test means what it meant. The relative step 10⁻⁶ (10⁻⁷
+before issue 14): the central difference's error is about δ²·|y‴|/6 + ε·|y|/δ, and at 10⁻⁷
+the rounding term is ten times that at 10⁻⁶ while the truncation term is negligible at both.
 """
 
 from __future__ import annotations
@@ -30,11 +40,14 @@ from flightid.errors import SimulationError
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import GaussNewtonStep
 from flightid.estimation.objective import Objective, SolverOutcome
+from flightid.estimation.problem import FiniteDifferences
 from flightid.estimation.solvers.common import bounded_gauss_newton_step, halving_search
 
 __all__ = ["Confirmation", "confirm_convergence"]
 
-_CENTRAL_STEP = 1e-7  # relative step of the central differences (also those of the CR bounds)
+# relative step of the central differences (also those of the CR bounds); MNR's default
+# forward step, so that MNR's last forward differences are half of them (module docstring)
+_CENTRAL_STEP = 1e-6
 
 
 @dataclass(frozen=True)
@@ -50,11 +63,34 @@ class Confirmation:
     sensitivity_evaluations: int  # integrations of the last central-difference G
 
 
-def _central(objective: Objective, theta: np.ndarray, outputs: np.ndarray):
+def _reusable(problem, forward: FiniteDifferences | None, theta: np.ndarray) -> bool:
+    """Are ``forward`` the plain forward half of the central differences at θ?"""
+    return (
+        forward is not None
+        and forward.plain
+        and not forward.central
+        and np.array_equal(forward.theta, theta)
+        and np.array_equal(forward.steps, _CENTRAL_STEP * problem.magnitude(theta))
+    )
+
+
+def _central(
+    objective: Objective,
+    theta: np.ndarray,
+    outputs: np.ndarray,
+    forward: FiniteDifferences | None = None,
+):
     """Central-difference G at θ (one-sided where a perturbation diverges), its cost in
-    integrations, and None or the reason it could not be computed."""
+    integrations, and None or the reason it could not be computed. ``forward``: the
+    solver's forward differences at θ, completed in place when they are the plain forward
+    half (``_reusable``)."""
     problem = objective.problem
     before = problem.evaluations
+    if _reusable(problem, forward, theta):
+        completed = problem.complete_central(forward)
+        if completed is not None:
+            return completed.g, problem.evaluations - before, None
+        # a backward integration diverged: from scratch (one-sided there, as always)
     try:
         g, _ = problem.sensitivities(theta, outputs, relative_step=_CENTRAL_STEP, central=True)
     except SimulationError as exc:
@@ -70,7 +106,7 @@ def _sigma_distance(problem, g: np.ndarray, step: np.ndarray, outputs: np.ndarra
     noise level, whatever R the cost is weighted with.
     """
     r_hat = problem.noise_covariance(outputs)
-    change = g @ step  # (N, n_o): G_i Δθ
+    change = np.einsum("ikj,j->ik", g, step)  # (N, n_o): G_i Δθ, no copy of a strided G
     return float(np.sqrt(np.sum(change**2 / r_hat[None, :])))
 
 
@@ -109,8 +145,14 @@ def confirm_convergence(
     confirmed = False
     passes = 0
     initial = float("nan")
+    # the solver's last forward differences at θ (consumed: completed in place, then dropped)
+    forward = outcome.differences
+    outcome = _replace(
+        outcome, theta, outputs, cost, outcome.converged, outcome.status, outcome.message
+    )
     while True:
-        g, used, failure = _central(objective, theta, outputs)
+        g, used, failure = _central(objective, theta, outputs, forward)
+        forward = None
         if failure is not None:
             # no sensitivities here: nothing can be confirmed, and there are no CR bounds
             gn = GaussNewtonStep(np.zeros(problem.n_free), 0, float("inf"), float("nan"))
@@ -196,5 +238,6 @@ def _replace(outcome, theta, outputs, cost, converged, status, message) -> Solve
         converged,
         status,
         message,
-        state=outcome.state,
+        # the solver's warm-start state and forward differences end here (their G may have
+        # been completed in place into the confirmation's)
     )

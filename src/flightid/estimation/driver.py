@@ -254,6 +254,8 @@ def estimate(
     accuracy_evaluations = confirmation.sensitivity_evaluations
     optimizer_evaluations = problem.evaluations - evaluations_before - accuracy_evaluations
     g = confirmation.sensitivities
+    # the Estimate keeps this G itself (read-only, not copied; nothing else holds it)
+    g.flags.writeable = False
     m = information_matrix(g, objective.r_diag)
     on_bound = problem.at_bound(outcome.theta)
     covariance, std_free, undetermined = _covariance(m, on_bound)

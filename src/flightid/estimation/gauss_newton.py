@@ -6,7 +6,9 @@
 
 Computed without forming M⁻¹: with the weighted, stacked sensitivities A = R^(−½) G (rows i,k)
 and weighted residuals b = R^(−½) ν, Δθ is the least-squares solution of A Δθ ≈ b, obtained
-from a QR factorisation of A and an SVD of its small triangular factor.
+from a QR factorisation of [A | b] and an SVD of its small triangular factor. The QR runs over
+blocks of samples (``triangular_factor``): neither A nor any other copy of the (N·n_o × n_f)
+sensitivities is formed, and one factor serves every step taken from the same G and ν.
 
 Scale-free by construction: the columns of A are scaled to unit norm before the
 factorisation (equivalently, M is scaled to unit diagonal, D⁻¹MD⁻¹ with D = diag(√M_jj)), so
@@ -26,11 +28,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 __all__ = [
     "GaussNewtonStep",
     "gauss_newton_step",
     "information_matrix",
+    "step_from_factor",
+    "triangular_factor",
     "undetermined_parameters",
 ]
 
@@ -75,11 +80,52 @@ class GaussNewtonStep:
         return float(np.sqrt(max(self.predicted_reduction, 0.0)))
 
 
-def _weighted(g: np.ndarray, nu: np.ndarray | None, r_diag: np.ndarray):
-    weight = 1.0 / np.sqrt(r_diag)
-    a = (g * weight[None, :, None]).reshape(-1, g.shape[-1])
-    b = None if nu is None else (nu * weight[None, :]).reshape(-1)
-    return a, b
+# Rows of R^(−½)[G | ν] factorised per block (128 samples of 8 outputs ≈ 1000 rows): the
+# blocks stay in cache and no weighted copy of the whole (N·n_o × n_f) matrix is ever formed.
+_BLOCK_ROWS = 1024
+
+
+def _sample_blocks(n_samples: int, n_outputs: int):
+    """(start, stop) sample ranges of about ``_BLOCK_ROWS`` rows each."""
+    per_block = max(1, _BLOCK_ROWS // max(n_outputs, 1))
+    for start in range(0, n_samples, per_block):
+        yield start, min(start + per_block, n_samples)
+
+
+def triangular_factor(g: np.ndarray, nu: np.ndarray, r_diag: np.ndarray) -> np.ndarray:
+    """The triangular factor T of the weighted least-squares problem, block by block.
+
+    With A = R^(−½)G (rows i,k) and b = R^(−½)ν, [A | b] = Q T with T upper triangular,
+    (n_f + 1) × (n_f + 1):
+
+        T = [[R₀, Qᵀb], [0, ρ]],   AᵀA = R₀ᵀR₀ = M,   ‖b − AΔθ‖² = ‖Qᵀb − R₀Δθ‖² + ρ²
+
+    so every Gauss–Newton quantity follows from T alone. Computed as a tall-skinny QR over
+    blocks of samples: T ← triangle of QR([T; block]) — the same T (rows' signs aside) as one
+    Householder QR of the whole matrix, whose column-wise backward stability also makes it
+    independent of the columns' scales (``gauss_newton_step`` scales afterwards).
+
+    Args:
+        g: sensitivities (N, n_o, n_f); any strides.
+        nu: residuals (N, n_o).
+        r_diag: noise variances (n_o,).
+    """
+    n_samples, n_outputs, n_free = g.shape
+    width = n_free + 1
+    weight = 1.0 / np.sqrt(np.asarray(r_diag, dtype=float))
+    factor = np.zeros((width, width))
+    for start, stop in _sample_blocks(n_samples, n_outputs):
+        rows = (stop - start) * n_outputs
+        stacked = np.empty((width + rows, width), order="F")
+        stacked[:width] = factor
+        # rows of R^(−½)G and R^(−½)ν for samples start … stop − 1
+        stacked[width:, :n_free] = (g[start:stop] * weight[None, :, None]).reshape(rows, n_free)
+        stacked[width:, n_free] = (nu[start:stop] * weight[None, :]).reshape(rows)
+        qr, _, _, info = scipy.linalg.lapack.dgeqrf(stacked, overwrite_a=True)
+        if info != 0:  # pragma: no cover - LAPACK argument errors only
+            raise RuntimeError(f"LAPACK dgeqrf failed (info = {info})")
+        factor = np.triu(qr[:width])
+    return factor
 
 
 def gauss_newton_step(
@@ -99,23 +145,38 @@ def gauss_newton_step(
             on an active bound.
         rcond: relative singular-value cut-off on the column-scaled matrix.
     """
-    a, b = _weighted(g, nu, r_diag)
-    n_f = a.shape[1]
+    return step_from_factor(triangular_factor(g, nu, r_diag), held, rcond)
+
+
+def step_from_factor(
+    factor: np.ndarray, held: np.ndarray | None = None, rcond: float = 1e-10
+) -> GaussNewtonStep:
+    """The Gauss–Newton step from ``triangular_factor``'s T (see ``gauss_newton_step``).
+
+    With parameters held, the columns of the others (and Qᵀb, ρ) are refactorised:
+    QR([A_moving | b]) = QR(T[:, moving ∪ {b}]), an (n_f + 1)-row problem.
+    """
+    n_f = factor.shape[0] - 1
     moving = np.ones(n_f, dtype=bool) if held is None else ~np.asarray(held, dtype=bool)
     step = np.zeros(n_f)
     if not moving.any():
         return GaussNewtonStep(step, 0, float("inf"), 0.0, ())
-    a_moving = a[:, moving]
-    # D = diag(‖A_j‖): unit-norm columns make the rank test independent of units and scales
-    norms = np.linalg.norm(a_moving, axis=0)
+    if moving.all():
+        r_moving, qtb = factor[:n_f, :n_f], factor[:n_f, n_f]
+    else:
+        columns = np.append(np.flatnonzero(moving), n_f)
+        reduced = scipy.linalg.qr(factor[:, columns], mode="r", check_finite=False)[0]
+        n_moving = int(moving.sum())
+        r_moving, qtb = reduced[:n_moving, :n_moving], reduced[:n_moving, n_moving]
+    # D = diag(‖A_j‖) = diag(‖R_j‖): unit-norm columns make the rank test independent of
+    # units and scales; the scaled problem's triangle is R D⁻¹ (A D⁻¹ = Q R D⁻¹)
+    norms = np.linalg.norm(r_moving, axis=0)
     zero_column = norms == 0.0
     scale = np.where(zero_column, 1.0, norms)
-    a_scaled = a_moving / scale[None, :]
-    # A = QR (economic), then R = U Σ Vᵀ: the SVD of the small n_f × n_f factor gives the same
-    # singular values and directions as an SVD of the tall A, at a fraction of the cost.
-    q, r = scipy.linalg.qr(a_scaled, mode="economic", check_finite=False)
+    r = r_moving / scale[None, :]
+    # R = U Σ Vᵀ: the SVD of the small n_f × n_f factor gives the singular values and
+    # directions of the tall A D⁻¹
     u, s, vt = np.linalg.svd(r)
-    qtb = q.T @ b
     projected = u.T @ qtb  # Uᵀ Qᵀ b
     keep = s > rcond * s[0] if s.size and s[0] > 0 else np.zeros_like(s, dtype=bool)
     # Δθ_scaled = V Σ⁺ Uᵀ Qᵀ b
@@ -141,9 +202,16 @@ def gauss_newton_step(
 
 
 def information_matrix(g: np.ndarray, r_diag: np.ndarray) -> np.ndarray:
-    """M = Σ_i G_iᵀ R⁻¹ G_i (n_f × n_f) [4.6]."""
-    a, _ = _weighted(g, None, r_diag)
-    return a.T @ a
+    """M = Σ_i G_iᵀ R⁻¹ G_i (n_f × n_f) [4.6], summed over blocks of samples (no weighted
+    copy of G)."""
+    n_samples, n_outputs, n_free = g.shape
+    weight = 1.0 / np.sqrt(np.asarray(r_diag, dtype=float))
+    m = np.zeros((n_free, n_free))
+    for start, stop in _sample_blocks(n_samples, n_outputs):
+        # A_block = R^(−½) G_i for the block's samples, rows (i, k)
+        a = (g[start:stop] * weight[None, :, None]).reshape(-1, n_free)
+        m += a.T @ a
+    return m
 
 
 def undetermined_parameters(m: np.ndarray, ratio: float = 1e-12) -> tuple[np.ndarray, list[int]]:

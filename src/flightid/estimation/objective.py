@@ -21,7 +21,7 @@ import numpy as np
 
 from flightid.errors import EstimationError
 from flightid.estimation.convergence import Convergence
-from flightid.estimation.problem import OutputErrorProblem
+from flightid.estimation.problem import FiniteDifferences, OutputErrorProblem
 
 __all__ = ["Objective", "SolverOutcome", "NOISE_POLICIES"]
 
@@ -40,6 +40,10 @@ class SolverOutcome:
     status: str  # converged | max_iterations | max_evaluations | stalled
     message: str
     state: object = None  # solver-specific warm-start state for the next noise cycle
+    # forward differences the solver's last pass took at ``theta`` itself (None if it has
+    # none there): the confirmation completes them to central differences with n_f more
+    # integrations instead of 2·n_f (``OutputErrorProblem.complete_central``)
+    differences: FiniteDifferences | None = None
 
 
 class Objective:

@@ -20,6 +20,7 @@ form. ``n_data`` is N; R̂ comes from the data rows only.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,7 +29,37 @@ from flightid.errors import FlightIdError, InputError, ModelError, SimulationErr
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate.simulator import SimulationBatch, Simulator, _as_data_list
 
-__all__ = ["OutputErrorProblem", "estimate_noise_covariance"]
+__all__ = ["OutputErrorProblem", "FiniteDifferences", "estimate_noise_covariance"]
+
+# Outputs of the perturbed integrations held at once while differencing (bytes): the
+# perturbations run in batches of this size and are differenced straight into G, so the
+# sensitivities cost G plus about this much, never G plus all perturbed outputs (at N = 10⁵,
+# 8 outputs: 2 trajectories of 6.4 MB per batch).
+DIFFERENCE_BATCH_BYTES = 16 * 2**20
+
+
+@dataclass(frozen=True)
+class FiniteDifferences:
+    """Finite-difference sensitivities at θ and how they were taken.
+
+    Attributes:
+        g: G (N, n_o, n_f), a view of an (n_f, N, n_o) array (each parameter's column
+            contiguous).
+        outputs: y(θ) (N, n_o).
+        theta: the free parameters θ (n_f,).
+        steps: the step δ_j of each parameter (signed; after any retries).
+        central: central differences (else one-sided).
+        plain: every δ_j is the positive relative step (no bound turned it, no diverging
+            perturbation shortened it) and the problem has no bounds — forward differences
+            that ``OutputErrorProblem.complete_central`` can complete.
+    """
+
+    g: np.ndarray
+    outputs: np.ndarray
+    theta: np.ndarray
+    steps: np.ndarray
+    central: bool
+    plain: bool
 
 
 def estimate_noise_covariance(residuals: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray:
@@ -242,15 +273,33 @@ class OutputErrorProblem:
         relative_step: float = 1e-6,
         central: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Output sensitivities G_i = ∂y_i/∂θ by finite differences, in one batch.
+        """Output sensitivities G_i = ∂y_i/∂θ by finite differences.
 
         Forward differences cost n_f integrations (plus one if ``outputs`` at ``theta_free``
         is not given); central differences cost 2·n_f. Steps are
-        ``relative_step · max(|θ_j|, typical_j)``.
+        ``relative_step · max(|θ_j|, typical_j)``. The perturbed integrations run in batches
+        of at most ``DIFFERENCE_BATCH_BYTES`` of outputs, each differenced straight into G.
 
         Returns:
             (G of shape (N, n_o, n_f), outputs at theta_free of shape (N, n_o)).
         """
+        differences = self.differences(theta_free, outputs, relative_step, central)
+        return differences.g, differences.outputs
+
+    @property
+    def finite_differences(self) -> bool:
+        """Whether ``sensitivities`` are this class's finite differences of ``run`` (a
+        subclass with sensitivities of its own, e.g. analytic ones, says False)."""
+        return type(self).sensitivities is OutputErrorProblem.sensitivities
+
+    def differences(
+        self,
+        theta_free: np.ndarray,
+        outputs: np.ndarray | None = None,
+        relative_step: float = 1e-6,
+        central: bool = False,
+    ) -> FiniteDifferences:
+        """``sensitivities`` with the record of how they were taken (``FiniteDifferences``)."""
         theta_free = np.asarray(theta_free, dtype=float)
         steps = relative_step * self.magnitude(theta_free)
         if self.bounded:
@@ -260,51 +309,121 @@ class OutputErrorProblem:
             steps = np.where(downwards, -steps, steps)
             if central and np.any(downwards | (theta_free - np.abs(steps) < self.lower)):
                 central = False
-        eye = np.diag(steps)
         if central:
-            batch = np.vstack([theta_free + eye, theta_free - eye])
-            sim = self.run(batch)
-            if sim.diverged.any():
+            columns = self._central_columns(theta_free, steps)
+            if columns is None:
                 # near the edge of stability: one-sided differences, which retry smaller
-                return self.sensitivities(theta_free, outputs, relative_step, central=False)
-            plus, minus = sim.outputs[: self.n_free], sim.outputs[self.n_free :]
-            # G_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
-            g = (plus - minus) / (2.0 * steps[:, None, None])
+                return self.differences(theta_free, outputs, relative_step, central=False)
             if outputs is None:
                 outputs = self.outputs(theta_free[None, :])[0]
+            plain = True
         else:
             if outputs is None:
                 sim = self.run(theta_free[None, :])
                 self._raise_if_diverged(sim, "sensitivities")
                 outputs = sim.outputs[0]
-            sim = self.run(theta_free + eye)
-            perturbed = sim.outputs
-            diverged, messages = sim.diverged.copy(), list(sim.messages)
-            # a perturbed simulation that diverges is retried the other way, then 10× and
-            # 100× smaller (within the bounds), before the sensitivities are given up
-            first_steps = steps.copy()
-            for factor in (-1.0, 0.1, -0.1, 0.01, -0.01):
-                bad = np.flatnonzero(diverged)
-                if bad.size == 0:
-                    break
-                retry = factor * first_steps[bad]
-                moved = theta_free[bad] + retry
-                inside = (moved >= self.lower[bad]) & (moved <= self.upper[bad])
-                if not inside.any():
-                    continue
-                bad, retry = bad[inside], retry[inside]
-                steps[bad] = retry
-                again = self.run(theta_free + np.diag(steps)[bad])
-                perturbed[bad] = again.outputs
-                diverged[bad] = again.diverged
-                for row, message in zip(bad, again.messages, strict=True):
+            plain_steps = steps.copy()
+            columns = self._forward_columns(theta_free, outputs, steps)
+            plain = bool(np.array_equal(steps, plain_steps)) and not self.bounded
+        return FiniteDifferences(
+            np.moveaxis(columns, 0, -1), outputs, theta_free.copy(), steps, central, plain
+        )
+
+    def _batches(self, n_rows: int, trajectories_per_row: int = 1):
+        """Slices of rows whose integrations fit ``DIFFERENCE_BATCH_BYTES`` of outputs."""
+        trajectory = max(self.n_samples * self.n_outputs * 8 * trajectories_per_row, 1)
+        per_batch = max(1, DIFFERENCE_BATCH_BYTES // trajectory)
+        for start in range(0, n_rows, per_batch):
+            yield slice(start, min(start + per_batch, n_rows))
+
+    def _central_columns(self, theta_free: np.ndarray, steps: np.ndarray) -> np.ndarray | None:
+        """(n_f, N, n_o): G_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j); None if a
+        perturbed integration diverges."""
+        columns = np.empty((self.n_free, self.n_samples, self.n_outputs))
+        eye = np.diag(steps)
+        for rows in self._batches(self.n_free, 2):
+            sim = self.run(np.vstack([theta_free + eye[rows], theta_free - eye[rows]]))
+            if sim.diverged.any():
+                return None
+            count = rows.stop - rows.start
+            plus, minus = sim.outputs[:count], sim.outputs[count:]
+            # G_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
+            np.subtract(plus, minus, out=columns[rows])
+            columns[rows] /= 2.0 * steps[rows, None, None]
+        return columns
+
+    def _forward_columns(
+        self, theta_free: np.ndarray, outputs: np.ndarray, steps: np.ndarray
+    ) -> np.ndarray:
+        """(n_f, N, n_o): G_j = (y(θ + δ_j e_j) − y(θ)) / δ_j; ``steps`` is updated in place
+        where a diverging perturbation was retried."""
+        columns = np.empty((self.n_free, self.n_samples, self.n_outputs))
+        diverged = np.zeros(self.n_free, dtype=bool)
+        messages = [""] * self.n_free
+
+        def perturb(rows: np.ndarray) -> None:
+            for batch in self._batches(rows.size):
+                chosen = rows[batch]
+                sim = self.run(theta_free + np.diag(steps)[chosen])
+                # y(θ + δ_j e_j) − y(θ), divided by δ_j below
+                np.subtract(sim.outputs, outputs, out=sim.outputs)
+                columns[chosen] = sim.outputs
+                diverged[chosen] = sim.diverged
+                for row, message in zip(chosen, sim.messages, strict=True):
                     messages[row] = message
-            if diverged.any():
-                first = int(np.flatnonzero(diverged)[0])
-                raise SimulationError(f"sensitivities: {messages[first]}")
-            # G_j = (y(θ + δ_j e_j) − y(θ)) / δ_j
-            g = (perturbed - outputs[None]) / steps[:, None, None]
-        return np.moveaxis(g, 0, -1), outputs
+
+        perturb(np.arange(self.n_free))
+        # a perturbed simulation that diverges is retried the other way, then 10× and
+        # 100× smaller (within the bounds), before the sensitivities are given up
+        first_steps = steps.copy()
+        for factor in (-1.0, 0.1, -0.1, 0.01, -0.01):
+            bad = np.flatnonzero(diverged)
+            if bad.size == 0:
+                break
+            retry = factor * first_steps[bad]
+            moved = theta_free[bad] + retry
+            inside = (moved >= self.lower[bad]) & (moved <= self.upper[bad])
+            if not inside.any():
+                continue
+            bad, retry = bad[inside], retry[inside]
+            steps[bad] = retry
+            perturb(bad)
+        if diverged.any():
+            first = int(np.flatnonzero(diverged)[0])
+            raise SimulationError(f"sensitivities: {messages[first]}")
+        # G_j = (y(θ + δ_j e_j) − y(θ)) / δ_j
+        columns /= steps[:, None, None]
+        return columns
+
+    def complete_central(self, forward: FiniteDifferences) -> FiniteDifferences | None:
+        """Central differences from forward ones: n_f integrations instead of 2·n_f.
+
+        With G⁺_j = (y(θ + δ_j e_j) − y(θ))/δ_j given, the backward quotients
+        G⁻_j = (y(θ) − y(θ − δ_j e_j))/δ_j complete the central difference
+
+            (G⁺_j + G⁻_j)/2 = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
+
+        (equal to rounding in the differences). ``forward.g`` is overwritten in place (no
+        second G is allocated). Only for ``forward.plain`` differences (every δ_j the positive
+        relative step, no bounds). Returns None if a backward integration diverges; the
+        contents of ``forward.g`` are then undefined (partly completed) and must not be used.
+        """
+        if not forward.plain or forward.central:
+            raise InputError("complete_central: needs plain forward differences")
+        columns = np.moveaxis(forward.g, -1, 0)  # (n_f, N, n_o), the array differenced into
+        theta, steps, outputs = forward.theta, forward.steps, forward.outputs
+        eye = np.diag(steps)
+        for rows in self._batches(self.n_free):
+            sim = self.run(theta - eye[rows])
+            if sim.diverged.any():
+                return None
+            minus = sim.outputs
+            # G⁻_j δ_j = y(θ) − y(θ − δ_j e_j);  G_j = (G⁺_j + G⁻_j)/2
+            np.subtract(outputs, minus, out=minus)
+            minus /= steps[rows, None, None]
+            columns[rows] += minus
+            columns[rows] *= 0.5
+        return FiniteDifferences(forward.g, outputs, theta, steps, True, True)
 
     def sensitivities_from_equations(
         self, theta_free: np.ndarray, relative_step: float = 1e-7

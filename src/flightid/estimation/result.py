@@ -117,8 +117,14 @@ class Estimate(ResultSurface):
             "residuals",
             "maneuver_index",
         ):
-            array = np.array(getattr(self, name))
-            array.flags.writeable = False
+            value = getattr(self, name)
+            if isinstance(value, np.ndarray) and not value.flags.writeable:
+                # already read-only (``estimate`` hands over its G so): kept, not copied — at
+                # N = 10⁵ a copy of G would double the estimate's memory
+                array = value
+            else:
+                array = np.array(value)
+                array.flags.writeable = False
             object.__setattr__(self, name, array)
 
     # ------------------------------------------------------------------ derived

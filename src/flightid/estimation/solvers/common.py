@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flightid.estimation.gauss_newton import GaussNewtonStep, gauss_newton_step
+from flightid.estimation.gauss_newton import GaussNewtonStep, step_from_factor, triangular_factor
 from flightid.estimation.objective import Objective
 
 __all__ = ["halving_search", "budget_status", "limit_step", "bounded_gauss_newton_step"]
@@ -23,11 +23,12 @@ def bounded_gauss_newton_step(
     """The Gauss–Newton step at θ with parameters on an active bound held.
 
     Active set: θ_j on its lower bound with Δθ_j < 0, or on its upper bound with Δθ_j > 0.
-    Repeated until no held parameter changes (at most n_f times).
+    Repeated until no held parameter changes (at most n_f times); one triangular factor of
+    [R^(−½)G | R^(−½)ν] (one pass over G) serves every repetition.
     """
     problem = objective.problem
-    nu = problem.residuals(outputs)
-    gn = gauss_newton_step(g, nu, objective.r_diag)
+    factor = triangular_factor(g, problem.residuals(outputs), objective.r_diag)
+    gn = step_from_factor(factor)
     if not problem.bounded:
         return gn
     on_lower = theta <= problem.lower
@@ -38,7 +39,7 @@ def bounded_gauss_newton_step(
         if not np.any(outward & ~held):
             break
         held |= outward
-        gn = gauss_newton_step(g, nu, objective.r_diag, held=held)
+        gn = step_from_factor(factor, held=held)
     return gn
 
 
@@ -77,11 +78,17 @@ def halving_search(
     no trial lowered the cost (or the budget ran out).
     """
     problem = objective.problem
-    trials = [scale * step for scale in 0.5 ** np.arange(max_halvings + 1)]
-    if gauss_newton is not None:
-        magnitude = problem.magnitude(theta)
-        trials += [gauss_newton.damped(mu, magnitude) for mu in DAMPING_SEQUENCE]
-    for trial_step in trials:
+
+    def trials():
+        # computed one at a time: the damped steps (an SVD each) only once halving failed
+        for scale in 0.5 ** np.arange(max_halvings + 1):
+            yield scale * step
+        if gauss_newton is not None:
+            magnitude = problem.magnitude(theta)
+            for mu in DAMPING_SEQUENCE:
+                yield gauss_newton.damped(mu, magnitude)
+
+    for trial_step in trials():
         if objective.budget_exhausted():
             return None
         # θ(λ) = P(θ + λΔθ): the projected path stays inside the bounds

@@ -5,6 +5,10 @@ batch) or central (2·n_f) differences at the current θ, the Gauss–Newton ste
 Δθ = −M⁻¹g, then step-size control (halving) until the cost drops. The integration at the
 accepted point is the base of the next pass, so a forward-difference pass costs n_f + 1
 equivalent evaluations plus one per halving.
+
+When a pass ends the search (its step is negligible), the forward differences it took at θ̂
+go out with the outcome (``SolverOutcome.differences``): the confirmation completes them to
+central differences with the n_f backward integrations only.
 """
 
 from __future__ import annotations
@@ -77,8 +81,9 @@ class MNR:
         problem = objective.problem
         conv = objective.convergence
         g = None  # sensitivities at θ; they do not depend on R, so a new noise cycle reuses them
+        differences = None  # how g was taken, when by this problem's forward differences
         if state is not None:
-            theta, outputs, g = state
+            theta, outputs, g, differences = state
             cost = float(objective.costs_of(outputs)[0])
         else:
             theta = np.array(theta0, dtype=float)
@@ -94,7 +99,8 @@ class MNR:
                 converged,
                 status,
                 message,
-                state=(theta, outputs, g),
+                state=(theta, outputs, g, differences),
+                differences=differences if g is not None else None,
             )
 
         for iteration in range(1, conv.max_iterations + 1):
@@ -103,6 +109,11 @@ class MNR:
             try:
                 if g is None and self.sensitivities == "equations":
                     g, _ = problem.sensitivities_from_equations(theta)
+                elif g is None and problem.finite_differences:
+                    differences = problem.differences(
+                        theta, outputs, self.relative_step, self.central
+                    )
+                    g = differences.g
                 elif g is None:
                     g, _ = problem.sensitivities(theta, outputs, self.relative_step, self.central)
             except SimulationError as exc:
@@ -147,7 +158,7 @@ class MNR:
             settled = conv.cost_settled(cost, new_cost) and conv.params_settled(
                 taken, new_theta, problem.typical
             )
-            theta, cost, outputs, g = new_theta, new_cost, new_outputs, None
+            theta, cost, outputs, g, differences = new_theta, new_cost, new_outputs, None, None
             objective.record(theta, cost)
             noise_settled = objective.maxlik_update(outputs, relative)
             if noise_settled is not None:
