@@ -45,7 +45,6 @@ fixed point (tests/test_filter_error.py, docs/turbulence.md).
 
 from __future__ import annotations
 
-import math
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -64,8 +63,9 @@ from flightid.estimation.result import Estimate
 from flightid.estimation.solvers import MNR, MNRES
 from flightid.filtering.kalman import RiccatiError, linearise, steady_state_gain
 from flightid.model.check import check_model
+from flightid.model.forms import kernel_function, out_form_of
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.kernels import RK4, make_step
+from flightid.simulate.kernels import RK4, make_step, record_sample, step_buffers
 from flightid.simulate.simulator import SimulationBatch
 
 __all__ = [
@@ -90,9 +90,12 @@ def process_noise_name(state_index: int) -> str:
     return f"F{state_index + 1}{state_index + 1}"
 
 
-def _filter_source(f: Callable, h: Callable, jit: Callable = lambda fn: fn) -> Callable:
-    """The filter-pass loop over a batch, closed over the model functions."""
-    step = jit(make_step(f))
+def _filter_source(f_out: Callable, h_out: Callable, jit: Callable = lambda fn: fn) -> Callable:
+    """The filter-pass loop over a batch, closed over the out-form model functions (no
+    allocation per step: ``flightid.simulate.kernels``)."""
+    step = jit(make_step(f_out))
+    buffers_for = jit(step_buffers)
+    record = jit(record_sample)
 
     def kernel(thetas, x0s, gains, t, u, z, method, interpolation, n_outputs, y_out, flag):
         n_batch = thetas.shape[0]
@@ -101,33 +104,23 @@ def _filter_source(f: Callable, h: Callable, jit: Callable = lambda fn: fn) -> C
             theta = thetas[b]
             gain = gains[b]
             x = x0s[b].copy()
+            y = np.empty(n_outputs)
+            buffers = buffers_for(x.shape[0], u.shape[1])
             flag[b] = -1
             for k in range(n_samples):
                 # ỹ_k = g(x̃_k, u_k)
-                y = h(t[k], x, u[k], theta)
-                finite = True
-                for j in range(n_outputs):
-                    y_out[b, k, j] = y[j]
-                    if not math.isfinite(y[j]):
-                        finite = False
-                for i in range(x.shape[0]):
-                    if not math.isfinite(x[i]):
-                        finite = False
-                if not finite:
+                h_out(t[k], x, u[k], theta, y)
+                if not record(y, x, y_out[b], k, n_outputs):
                     flag[b] = k
-                    for kk in range(k, n_samples):
-                        for j in range(n_outputs):
-                            y_out[b, kk, j] = np.nan
                     break
                 if k == n_samples - 1:
                     break
                 # x̂_k = x̃_k + K (z_k − ỹ_k)
-                corrected = x.copy()
                 for i in range(x.shape[0]):
                     for j in range(n_outputs):
-                        corrected[i] += gain[i, j] * (z[k, j] - y[j])
+                        x[i] += gain[i, j] * (z[k, j] - y[j])
                 # x̃_{k+1}: the state equation integrated from x̂_k
-                x = step(t, u, k, corrected, theta, method, interpolation)
+                step(t, u, k, x, theta, method, interpolation, buffers)
 
     return kernel
 
@@ -136,22 +129,23 @@ _FILTER_KERNELS: dict[tuple, tuple] = {}
 
 
 def _filter_kernel(f: Callable, h: Callable, compiled: bool) -> Callable:
+    """The filter kernel of the model functions ``f``, ``h`` (return forms; the kernel runs
+    their out forms, ``flightid.model.forms``), kept per (f, h)."""
     key = (id(f), id(h), compiled)
     entry = _FILTER_KERNELS.get(key)
     if entry is not None and entry[0] is f and entry[1] is h:
         return entry[2]
-    py_f = getattr(f, "py_func", f)
-    py_h = getattr(h, "py_func", h)
+    f_out, h_out = out_form_of(f), out_form_of(h)
     if compiled:
         import numba
 
         from flightid.simulate.cache import cached_njit
 
-        jit_f = f if hasattr(f, "py_func") else numba.njit(f)
-        jit_h = h if hasattr(h, "py_func") else numba.njit(h)
-        kernel = cached_njit(_filter_source(jit_f, jit_h, numba.njit))
+        kernel = cached_njit(
+            _filter_source(kernel_function(f_out, True), kernel_function(h_out, True), numba.njit)
+        )
     else:
-        kernel = _filter_source(py_f, py_h)
+        kernel = _filter_source(kernel_function(f_out, False), kernel_function(h_out, False))
     _FILTER_KERNELS[key] = (f, h, kernel)
     return kernel
 

@@ -8,6 +8,14 @@
 and return 1-D float arrays of length ``len(states)`` and ``len(outputs)``. Functions that
 numba can compile are run compiled; anything else still runs, in pure Python.
 
+Two forms (``flightid.model.forms``): the return form above, ``f(t, x, u, theta) -> dx``, or
+the out form ``f(t, x, u, theta, out)`` that writes dx into the caller's ``out`` and returns
+nothing. The out form lets the simulation kernels integrate without allocating an array per
+stage (the return form is adapted: call, then copy — the slower path). The form is
+recognised by the number of positional parameters (4 or 5) or given as ``function_form``.
+Whatever was written, ``model.f``/``model.h`` are the return forms and
+``model.f_out``/``model.h_out`` the out forms.
+
 Models without states (output error on algebraic outputs, nonlinear regression): give
 ``states=()`` and ``f=None``; the outputs are then y_k = h(t_k, [], u_k, θ) at every sample
 (``x`` is an empty array) and the simulator evaluates h alone, without integrating.
@@ -45,6 +53,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from flightid.errors import InputError, InputTypeError, describe
+from flightid.model.forms import as_out_form, as_return_form
+from flightid.model.forms import function_form as _form_of
 from flightid.model.parameters import Parameters
 
 __all__ = ["StateSpaceModel", "InitialState", "DELAY_CONVENTIONS", "per_maneuver_name"]
@@ -81,9 +91,10 @@ class StateSpaceModel:
         states: state names.
         inputs: input channel names, looked up by name in the ``FlightData``.
         outputs: output channel names, looked up by name in the ``FlightData``.
-        f: state derivative ``f(t, x, u, theta) -> dx/dt``; ``None`` for a model without
-            states (``states=()``), where it becomes ``no_state_derivative``.
-        h: output map ``h(t, x, u, theta) -> y``.
+        f: state derivative ``f(t, x, u, theta) -> dx/dt`` or, out form,
+            ``f(t, x, u, theta, out)`` writing dx/dt into ``out``; ``None`` for a model
+            without states (``states=()``), where it becomes ``no_state_derivative``.
+        h: output map ``h(t, x, u, theta) -> y`` or ``h(t, x, u, theta, out)``.
         parameters: ``Parameters`` (or anything ``Parameters`` accepts).
         x0: initial state: numbers and/or parameter names (one list, or one per maneuver).
         name: label for reports.
@@ -101,6 +112,9 @@ class StateSpaceModel:
         maneuver_parameters: ``{name: (parameter of maneuver 1, of maneuver 2, ...)}``: the
             slot ``name`` of the θ that f and h receive takes, in each maneuver, the value of
             that maneuver's parameter; default none. See ``with_per_maneuver``.
+        function_form: ``"auto"`` (default: 4 positional parameters = return form, 5 = out
+            form), ``"return"`` or ``"out"`` (``flightid.model.forms``); it applies to f and
+            h. After construction ``f``/``h`` are return forms, ``f_out``/``h_out`` out forms.
     """
 
     states: tuple[str, ...]
@@ -116,6 +130,7 @@ class StateSpaceModel:
     input_delays: dict[str, str] | None = None  # a dict ({} for none) after __post_init__
     function_parameters: tuple[str, ...] | None = None  # a tuple after __post_init__
     maneuver_parameters: dict[str, tuple[str, ...]] | None = None  # a dict after
+    function_form: str = "auto"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "states", _names(self.states, "states"))
@@ -139,6 +154,7 @@ class StateSpaceModel:
                     f"{argument}: expected a function (t, x, u, theta) -> array, "
                     f"got {describe(getattr(self, argument))}"
                 )
+        self._set_function_forms()
         if not isinstance(self.parameters, Parameters):
             object.__setattr__(self, "parameters", Parameters(self.parameters))
         self._check_maneuver_parameters()
@@ -149,6 +165,18 @@ class StateSpaceModel:
             checked = tuple(self._check_x0(x0, None))
         object.__setattr__(self, "x0", checked)
         self._check_delays()
+
+    def _set_function_forms(self) -> None:
+        """``f``/``h`` in return form, ``f_out``/``h_out`` in out form (module docstring)."""
+        for argument, size in (("f", len(self.states)), ("h", len(self.outputs))):
+            fn = getattr(self, argument)
+            if _form_of(fn, self.function_form, argument) == "out":
+                # the user's out form; the return form allocates and calls it
+                fn = as_return_form(fn, size)
+                object.__setattr__(self, argument, fn)
+            out = getattr(fn, "out_form", None)
+            # a return form without its own out form: call, then copy (allocates per call)
+            object.__setattr__(self, f"{argument}_out", out if out is not None else as_out_form(fn))
 
     # ----------------------------------------------------------------- output delays
     def _check_delays(self) -> None:

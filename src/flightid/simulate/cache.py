@@ -178,15 +178,19 @@ def _cache_enabled() -> bool:
     return os.environ.get("FLIGHTID_KERNEL_CACHE", "1").strip().lower() not in ("0", "no", "off")
 
 
-def cached_njit(py_func: Callable) -> Callable:
-    """``numba.njit(py_func)``, its compiled code kept on disk under the digest of
-    ``kernel_digest`` (no disk cache where there is no digest, or no writable cache folder)."""
+def cached_njit(py_func: Callable, parallel: bool = False) -> Callable:
+    """``numba.njit(py_func, parallel=parallel)``, its compiled code kept on disk under the
+    digest of ``kernel_digest`` (no disk cache where there is no digest, or no writable cache
+    folder). The parallel and the serial compilation of one kernel are kept apart (the flag
+    is part of the key)."""
     import numba
 
-    dispatcher = numba.njit(py_func)
+    dispatcher = numba.njit(py_func, parallel=parallel)
     digest = kernel_digest(py_func) if _cache_enabled() else None
     if digest is None:
         return dispatcher
+    if parallel:
+        digest += ":parallel"
     from numba.core.caching import FunctionCache
 
     class DigestCache(FunctionCache):

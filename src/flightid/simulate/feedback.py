@@ -23,25 +23,36 @@ returns the state at its last sample, *before* any correction there, so that the
 defect of an interval is x_end(interval m) − x0(interval m + 1).
 
 Both kernels are numba-compiled like the plain ones (disk cache by digest,
-``flightid.simulate.cache``); the loops add no allocation to the integration step.
+``flightid.simulate.cache``) and take the out-form model functions; the loops allocate
+nothing per step. The batch loop of the state kernel is a ``prange`` (parallel for batches of
+several trajectories, ``flightid.simulate.kernels.BatchKernel``); the sensitivity kernel is
+the one of ``flightid.simulate.sensitivity``, given the gain and the measured outputs.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
+from numba import prange
 
-from flightid.simulate.kernels import _identity, make_step
-from flightid.simulate.sensitivity import _jacobian, _rates
+from flightid.simulate.kernels import (
+    BatchKernel,
+    _identity,
+    make_step,
+    record_sample,
+    step_buffers,
+)
+from flightid.simulate.sensitivity import make_sensitivity_kernel
 
 __all__ = ["make_feedback_kernel", "make_feedback_sensitivity_kernel"]
 
 
-def _feedback_source(f: Callable, h: Callable, jit: Callable = _identity) -> Callable:
+def _feedback_source(f_out: Callable, h_out: Callable, jit: Callable = _identity) -> Callable:
     """The batch loop with the state correction and the end state (helpers through ``jit``)."""
-    step = jit(make_step(f))
+    step = jit(make_step(f_out))
+    buffers_for = jit(step_buffers)
+    record = jit(record_sample)
 
     def kernel(
         thetas,
@@ -61,25 +72,16 @@ def _feedback_source(f: Callable, h: Callable, jit: Callable = _identity) -> Cal
         n_samples = t.shape[0]
         n_states = x0s.shape[1]
         stabilize = gain.shape[0] > 0
-        for b in range(n_batch):
+        for b in prange(n_batch):
             theta = thetas[b]
             x = x0s[b].copy()
+            y = np.empty(n_outputs)
+            buffers = buffers_for(n_states, u.shape[1])
             diverged_at[b] = -1
             for k in range(n_samples):
-                y = h(t[k], x, u[k], theta)
-                finite = True
-                for j in range(n_outputs):
-                    y_out[b, k, j] = y[j]
-                    if not math.isfinite(y[j]):
-                        finite = False
-                for j in range(n_states):
-                    if not math.isfinite(x[j]):
-                        finite = False
-                if not finite:
+                h_out(t[k], x, u[k], theta, y)
+                if not record(y, x, y_out[b], k, n_outputs):
                     diverged_at[b] = k
-                    for kk in range(k, n_samples):
-                        for j in range(n_outputs):
-                            y_out[b, kk, j] = np.nan
                     for j in range(n_states):
                         x_end[b, j] = np.nan
                     break
@@ -95,87 +97,14 @@ def _feedback_source(f: Callable, h: Callable, jit: Callable = _identity) -> Cal
                             acc += gain[i, j] * (z[k, j] - y[j])
                         # x_k ← x_k + S (z_k − y_k)
                         x[i] += acc
-                x = step(t, u, k, x, theta, method, interpolation)
+                step(t, u, k, x, theta, method, interpolation, buffers)
 
     return kernel
 
 
-def _feedback_sensitivity_source(f: Callable, h: Callable, jit: Callable) -> Callable:
-    """The sensitivity kernel of ``flightid.simulate.sensitivity`` with the state correction
-    applied to the states and to their sensitivities."""
-    jac_h = jit(_jacobian(h))
-    rates = jit(_rates(f, jit(_jacobian(f))))
-    step = jit(make_step(rates))
-
-    def kernel(
-        theta,
-        x0,
-        s0,
-        free_index,
-        steps,
-        rel,
-        t,
-        u,
-        method,
-        interpolation,
-        n_outputs,
-        y_out,
-        g_out,
-        z,
-        gain,
-    ):
-        n_s = x0.shape[0]
-        n_f = free_index.shape[0]
-        stabilize = gain.shape[0] > 0
-        # zz = (x, S row by row)
-        zz = np.empty(n_s * (1 + n_f))
-        for i in range(n_s):
-            zz[i] = x0[i]
-            for j in range(n_f):
-                zz[n_s + i * n_f + j] = s0[i, j]
-        p = (theta, free_index, steps, rel)
-        n_samples = t.shape[0]
-        for k in range(n_samples):
-            x = zz[:n_s].copy()
-            uk = u[k]
-            y = h(t[k], x, uk, theta)
-            hx, ht = jac_h(t[k], x, uk, theta, free_index, steps, rel, y)
-            finite = True
-            for i in range(n_outputs):
-                y_out[k, i] = y[i]
-                if not math.isfinite(y[i]):
-                    finite = False
-                for j in range(n_f):
-                    # G = h_x S + h_θ
-                    acc = ht[i, j]
-                    for m in range(n_s):
-                        acc += hx[i, m] * zz[n_s + m * n_f + j]
-                    g_out[k, i, j] = acc
-            if not finite:
-                return k
-            if k == n_samples - 1:
-                break
-            if stabilize:
-                for i in range(n_s):
-                    acc = 0.0
-                    for o in range(n_outputs):
-                        acc += gain[i, o] * (z[k, o] - y[o])
-                    # x_k ← x_k + S (z_k − y_k)
-                    zz[i] += acc
-                    for j in range(n_f):
-                        acc = 0.0
-                        for o in range(n_outputs):
-                            acc += gain[i, o] * g_out[k, o, j]
-                        # ∂x_k/∂θ ← ∂x_k/∂θ − S G_k
-                        zz[n_s + i * n_f + j] -= acc
-            zz = step(t, u, k, zz, p, method, interpolation)
-        return -1
-
-    return kernel
-
-
-def make_feedback_kernel(f: Callable, h: Callable, compiled: bool = True) -> Callable:
-    """The batch kernel with state correction and end states for ``f`` and ``h``.
+def make_feedback_kernel(f_out: Callable, h_out: Callable, compiled: bool = True) -> Callable:
+    """The batch kernel with state correction and end states for the out-form ``f_out`` and
+    ``h_out``.
 
     ``kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at, z,
     gain, x_end)``: as the plain kernel (``flightid.simulate.kernels``), plus the measured
@@ -183,31 +112,26 @@ def make_feedback_kernel(f: Callable, h: Callable, compiled: bool = True) -> Cal
     array: none), and ``x_end`` (B, n_s) receiving each trajectory's state at its last sample
     (NaN where it diverged).
     """
+    from flightid.model.forms import kernel_function, out_form_of
+
+    # functions in return form (the former interface) are adapted
+    f_out, h_out = out_form_of(f_out), out_form_of(h_out)
     if not compiled:
-        return _feedback_source(getattr(f, "py_func", f), getattr(h, "py_func", h))
+        return _feedback_source(kernel_function(f_out, False), kernel_function(h_out, False))
     import numba
 
-    from flightid.simulate.cache import cached_njit
-
-    jit_f = f if hasattr(f, "py_func") else numba.njit(f)
-    jit_h = h if hasattr(h, "py_func") else numba.njit(h)
-    return cached_njit(_feedback_source(jit_f, jit_h, numba.njit))
+    return BatchKernel(
+        _feedback_source(kernel_function(f_out, True), kernel_function(h_out, True), numba.njit)
+    )
 
 
-def make_feedback_sensitivity_kernel(f: Callable, h: Callable, compiled: bool = True) -> Callable:
+def make_feedback_sensitivity_kernel(
+    f_out: Callable, h_out: Callable, compiled: bool = True
+) -> Callable:
     """The sensitivity kernel (``flightid.simulate.sensitivity``) with the state correction.
 
     ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs,
-    y_out, g_out, z, gain)``; returns −1 or the sample where the outputs became non-finite.
+    y_out, g_out, z, gain)``; returns −1 or the sample where the state or the outputs became
+    non-finite.
     """
-    if not compiled:
-        return _feedback_sensitivity_source(
-            getattr(f, "py_func", f), getattr(h, "py_func", h), _identity
-        )
-    import numba
-
-    from flightid.simulate.cache import cached_njit
-
-    jit_f = f if hasattr(f, "py_func") else numba.njit(f)
-    jit_h = h if hasattr(h, "py_func") else numba.njit(h)
-    return cached_njit(_feedback_sensitivity_source(jit_f, jit_h, numba.njit))
+    return make_sensitivity_kernel(f_out, h_out, compiled)

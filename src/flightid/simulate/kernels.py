@@ -46,10 +46,14 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from numba import prange
 
 __all__ = [
     "make_kernel",
     "make_step",
+    "step_buffers",
+    "record_sample",
+    "BatchKernel",
     "no_state_derivative",
     "EULER",
     "RK4",
@@ -67,18 +71,27 @@ INTERPOLATIONS = {"linear": LINEAR, "zoh": ZOH}
 
 
 def make_step(rate: Callable) -> Callable:
-    """The integration step for ``rate(t, x, u, p) -> dx/dt`` (``p`` passed through).
+    """The integration step for the out-form ``rate(t, x, u, p, out)`` writing dx/dt into
+    ``out`` (``p`` passed through).
 
-    ``step(t, u, k, x, p, method, interpolation)`` returns x at t[k+1] from x at t[k]:
-    Euler, or RK4 with the input between samples by ``interpolation`` (module docstring).
+    ``step(t, u, k, x, p, method, interpolation, buffers)`` advances x from t[k] to t[k+1]
+    in place: Euler, or RK4 with the input between samples by ``interpolation`` (module
+    docstring). ``buffers`` = ``step_buffers(n_states, n_inputs)``: the stages k1…k4, the
+    stage state and the half-step input, allocated once per trajectory, so the step itself
+    allocates nothing.
     """
 
-    def step(t, u, k, x, p, method, interpolation):
+    def step(t, u, k, x, p, method, interpolation, buffers):
+        k1, k2, k3, k4, x_stage, u_mid = buffers
+        n = x.shape[0]
         dt = t[k + 1] - t[k]
         uk = u[k]
         if method == EULER:
-            # x_{k+1} = x_k + Δt · f(t_k, x_k, u_k)
-            return x + dt * rate(t[k], x, uk, p)
+            rate(t[k], x, uk, p, k1)
+            for i in range(n):
+                # x_{k+1} = x_k + Δt · f(t_k, x_k, u_k)
+                x[i] = x[i] + dt * k1[i]
+            return
         if interpolation == ZOH:
             # zero-order hold: u(t) = u_k on [t_k, t_{k+1})
             u_half = uk
@@ -86,15 +99,58 @@ def make_step(rate: Callable) -> Callable:
         else:
             # linear: u_k+½ = (u_k + u_{k+1})/2, u(t_{k+1}) = u_{k+1}
             u_end = u[k + 1]
-            u_half = 0.5 * (uk + u_end)
-        k1 = rate(t[k], x, uk, p)
-        k2 = rate(t[k] + 0.5 * dt, x + 0.5 * dt * k1, u_half, p)
-        k3 = rate(t[k] + 0.5 * dt, x + 0.5 * dt * k2, u_half, p)
-        k4 = rate(t[k] + dt, x + dt * k3, u_end, p)
-        # x_{k+1} = x_k + Δt/6 · (k1 + 2k2 + 2k3 + k4)
-        return x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            for j in range(u_mid.shape[0]):
+                u_mid[j] = 0.5 * (uk[j] + u_end[j])
+            u_half = u_mid
+        half = 0.5 * dt
+        rate(t[k], x, uk, p, k1)
+        for i in range(n):
+            x_stage[i] = x[i] + half * k1[i]
+        rate(t[k] + 0.5 * dt, x_stage, u_half, p, k2)
+        for i in range(n):
+            x_stage[i] = x[i] + half * k2[i]
+        rate(t[k] + 0.5 * dt, x_stage, u_half, p, k3)
+        for i in range(n):
+            x_stage[i] = x[i] + dt * k3[i]
+        rate(t[k] + dt, x_stage, u_end, p, k4)
+        sixth = dt / 6.0
+        for i in range(n):
+            # x_{k+1} = x_k + Δt/6 · (k1 + 2k2 + 2k3 + k4)
+            x[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
     return step
+
+
+def step_buffers(n_states: int, n_inputs: int) -> tuple:
+    """Work arrays of ``make_step``: k1, k2, k3, k4, the stage state (n_states each) and the
+    half-step input (n_inputs)."""
+    return (
+        np.empty(n_states),
+        np.empty(n_states),
+        np.empty(n_states),
+        np.empty(n_states),
+        np.empty(n_states),
+        np.empty(n_inputs),
+    )
+
+
+def record_sample(y, x, y_block, k, n_outputs):
+    """Record the outputs ``y`` of sample ``k`` in ``y_block[k]`` (one trajectory's (N, n_o)
+    outputs) and check them and the state ``x``: True if all are finite; otherwise the
+    trajectory stops here and ``y_block[k:]`` is filled with NaN (False)."""
+    finite = True
+    for j in range(n_outputs):
+        y_block[k, j] = y[j]
+        if not math.isfinite(y[j]):
+            finite = False
+    for j in range(x.shape[0]):
+        if not math.isfinite(x[j]):
+            finite = False
+    if not finite:
+        for kk in range(k, y_block.shape[0]):
+            for j in range(n_outputs):
+                y_block[kk, j] = np.nan
+    return finite
 
 
 def no_state_derivative(t: float, x: np.ndarray, u: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -106,94 +162,137 @@ def _identity(function: Callable) -> Callable:
     return function
 
 
-def _kernel_source(f: Callable, h: Callable, jit: Callable = _identity) -> Callable:
-    """The integration loop over a batch, closed over the model functions (helpers passed
-    through ``jit``: numba.njit or the identity)."""
-    step = jit(make_step(f))
+def _kernel_source(f_out: Callable, h_out: Callable, jit: Callable = _identity) -> Callable:
+    """The integration loop over a batch, closed over the out-form model functions (helpers
+    passed through ``jit``: numba.njit or the identity). The batch loop is a ``prange``: run
+    in parallel when compiled with ``parallel=True``; every trajectory has its own buffers,
+    so the results do not depend on how the batch is split."""
+    step = jit(make_step(f_out))
+    buffers_for = jit(step_buffers)
+    record = jit(record_sample)
 
     def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
         n_batch = thetas.shape[0]
         n_samples = t.shape[0]
-        for b in range(n_batch):
+        for b in prange(n_batch):
             theta = thetas[b]
             x = x0s[b].copy()
+            y = np.empty(n_outputs)
+            buffers = buffers_for(x.shape[0], u.shape[1])
             diverged_at[b] = -1
             for k in range(n_samples):
-                y = h(t[k], x, u[k], theta)
-                finite = True
-                for j in range(n_outputs):
-                    y_out[b, k, j] = y[j]
-                    if not math.isfinite(y[j]):
-                        finite = False
-                for j in range(x.shape[0]):
-                    if not math.isfinite(x[j]):
-                        finite = False
-                if not finite:
+                h_out(t[k], x, u[k], theta, y)
+                if not record(y, x, y_out[b], k, n_outputs):
                     diverged_at[b] = k
-                    for kk in range(k, n_samples):
-                        for j in range(n_outputs):
-                            y_out[b, kk, j] = np.nan
                     break
                 if k == n_samples - 1:
                     break
-                x = step(t, u, k, x, theta, method, interpolation)
+                step(t, u, k, x, theta, method, interpolation, buffers)
 
     return kernel
 
 
-def _output_kernel_source(h: Callable) -> Callable:
+def _output_kernel_source(h_out: Callable, jit: Callable = _identity) -> Callable:
     """The batch loop of a model without states: y_k = h(t_k, [], u_k, θ) at every sample
     (no integration; ``method`` and ``interpolation`` are accepted and unused)."""
+    record = jit(record_sample)
 
     def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
         n_batch = thetas.shape[0]
         n_samples = t.shape[0]
-        x = np.empty(0)
-        for b in range(n_batch):
+        for b in prange(n_batch):
             theta = thetas[b]
+            x = np.empty(0)
+            y = np.empty(n_outputs)
             diverged_at[b] = -1
             for k in range(n_samples):
                 # y_k = h(t_k, [], u_k, θ)
-                y = h(t[k], x, u[k], theta)
-                finite = True
-                for j in range(n_outputs):
-                    y_out[b, k, j] = y[j]
-                    if not math.isfinite(y[j]):
-                        finite = False
-                if not finite:
+                h_out(t[k], x, u[k], theta, y)
+                if not record(y, x, y_out[b], k, n_outputs):
                     diverged_at[b] = k
-                    for kk in range(k, n_samples):
-                        for j in range(n_outputs):
-                            y_out[b, kk, j] = np.nan
                     break
 
     return kernel
 
 
+class BatchKernel:
+    """A compiled batch kernel that runs batches of more than one trajectory on the numba
+    threads (``parallel=True``, the ``prange`` over trajectories) and single trajectories,
+    or everything when numba has one thread, serially. Both variants compute every
+    trajectory with the same operations in the same order: the results are bit-identical.
+
+    The parallel variant is compiled on the first batch that uses it; if numba cannot
+    compile it, the serial one runs instead (a ``RuntimeWarning`` says so).
+    """
+
+    def __init__(self, source: Callable) -> None:
+        from flightid.simulate.cache import cached_njit
+
+        self.source = source
+        self.serial = cached_njit(source)
+        self.parallel = cached_njit(source, parallel=True)
+        # False after the parallel variant failed to compile (or to run batches serially)
+        self.parallel_ok = True
+        self.parallel_runs = 0
+
+    @property
+    def stats(self):
+        """numba's cache statistics of the serial variant (the one single trajectories use)."""
+        return self.serial.stats
+
+    def use_parallel(self, n_batch: int) -> bool:
+        """True if a batch of ``n_batch`` trajectories runs on the numba threads."""
+        import numba
+
+        return self.parallel_ok and n_batch > 1 and numba.get_num_threads() > 1
+
+    def __call__(self, thetas, *arguments):
+        if self.use_parallel(thetas.shape[0]):
+            try:
+                result = self.parallel(thetas, *arguments)
+                self.parallel_runs += 1
+                return result
+            except Exception as exc:  # numba compilation errors have many classes
+                if not type(exc).__module__.startswith("numba"):
+                    raise
+                import warnings
+
+                warnings.warn(
+                    f"the parallel batch kernel did not compile ({type(exc).__name__}); "
+                    "running batches serially",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+                self.parallel_ok = False
+        return self.serial(thetas, *arguments)
+
+
 def make_kernel(
-    f: Callable, h: Callable, compiled: bool = True, stateless: bool = False
+    f_out: Callable, h_out: Callable, compiled: bool = True, stateless: bool = False
 ) -> tuple[Callable, bool]:
-    """Build the batch kernel for ``f`` and ``h`` (``stateless``: the model has no states, the
-    kernel evaluates h alone at every sample and ``f`` is not called).
+    """Build the batch kernel for the out-form ``f_out`` and ``h_out`` (``model.f_out``,
+    ``model.h_out``; ``stateless``: the model has no states, the kernel evaluates h alone at
+    every sample and ``f_out`` is not called).
 
     Returns ``(kernel, is_compiled)``. With ``compiled=True`` the kernel is numba-compiled if
     numba can compile ``f``, ``h`` and the loop (checked lazily by the first call: see
-    ``Simulator``), and its machine code is cached on disk (``flightid.simulate.cache``); with
+    ``Simulator``), its machine code is cached on disk (``flightid.simulate.cache``), and
+    batches of several trajectories run in parallel (``BatchKernel``); with
     ``compiled=False`` it is the same loop in plain Python.
     """
-    py_f = getattr(f, "py_func", f)
-    py_h = getattr(h, "py_func", h)
+    from flightid.model.forms import kernel_function, out_form_of
+
+    # functions in return form (the former interface) are adapted
+    f_out, h_out = out_form_of(f_out), out_form_of(h_out)
     if not compiled:
+        py_h = kernel_function(h_out, False)
         if stateless:
             return _output_kernel_source(py_h), False
-        return _kernel_source(py_f, py_h), False
+        return _kernel_source(kernel_function(f_out, False), py_h), False
     import numba
 
-    from flightid.simulate.cache import cached_njit
-
+    jit_h = kernel_function(h_out, True)
     if stateless:
-        jit_h = h if hasattr(h, "py_func") else numba.njit(h)
-        return cached_njit(_output_kernel_source(jit_h)), True
-    jit_f = f if hasattr(f, "py_func") else numba.njit(f)
-    jit_h = h if hasattr(h, "py_func") else numba.njit(h)
-    return cached_njit(_kernel_source(jit_f, jit_h, numba.njit)), True
+        return BatchKernel(_output_kernel_source(jit_h, numba.njit)), True
+    jit_f = kernel_function(f_out, True)
+    return BatchKernel(_kernel_source(jit_f, jit_h, numba.njit)), True

@@ -317,7 +317,7 @@ class Simulator:
         if self.feedback:
             self._feedback_kernel = self._memo(
                 ("feedback", self.compiled),
-                lambda: make_feedback_kernel(self.model.f, self.model.h, self.compiled),
+                lambda: make_feedback_kernel(self.model.f_out, self.model.h_out, self.compiled),
             )
 
     # --------------------------------------------------------------------- kernels
@@ -335,7 +335,7 @@ class Simulator:
     def _get_kernel(self, compiled: bool):
         def build():
             kernel, is_compiled = make_kernel(
-                self.model.f, self.model.h, compiled, stateless=not self.model.has_states
+                self.model.f_out, self.model.h_out, compiled, stateless=not self.model.has_states
             )
             return self._try_compile(kernel) if is_compiled else (kernel, is_compiled)
 
@@ -371,8 +371,8 @@ class Simulator:
                     stacklevel=4,
                 )
                 return make_kernel(
-                    self.model.f,
-                    self.model.h,
+                    self.model.f_out,
+                    self.model.h_out,
                     compiled=False,
                     stateless=not self.model.has_states,
                 )
@@ -561,12 +561,14 @@ class Simulator:
         if stabilize:
             kernel = self._memo(
                 ("feedback-sensitivity", self.compiled),
-                lambda: make_feedback_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
+                lambda: make_feedback_sensitivity_kernel(
+                    self.model.f_out, self.model.h_out, self.compiled
+                ),
             )
         else:
             kernel = self._memo(
                 ("sensitivity", self.compiled),
-                lambda: make_sensitivity_kernel(self.model.f, self.model.h, self.compiled),
+                lambda: make_sensitivity_kernel(self.model.f_out, self.model.h_out, self.compiled),
             )
         theta = np.ascontiguousarray(theta, dtype=float)
         free_index = np.ascontiguousarray(free_index, dtype=np.int64)
