@@ -75,7 +75,9 @@ Z = q̄ S C_Z:
 see the signals α, q̂ = q c̄/(2V) and the inputs, ``alpha_q_signals``).
 
 Every function here is decorated with ``register_jitable``: called from Python it is plain
-Python, called from a numba-compiled model function it is compiled inline.
+Python, called from a numba-compiled model function it is compiled inline. The functions that
+return an array have an ``_into`` twin writing into a caller's array (the same arithmetic),
+from which the models' out-form functions are built without any allocation per call.
 """
 
 from __future__ import annotations
@@ -106,6 +108,15 @@ __all__ = [
     "alpha_q_signals",
     "alpha_q_derivatives",
     "alpha_q_outputs",
+    "signals_from_body_into",
+    "aero_coefficients_into",
+    "forces_and_moments_into",
+    "rigid_body_derivatives_into",
+    "body_outputs_into",
+    "wind_axis_derivatives_into",
+    "alpha_q_signals_into",
+    "alpha_q_derivatives_into",
+    "alpha_q_outputs_into",
 ]
 
 # Body state X, in order.
@@ -138,8 +149,15 @@ def signals_from_body(X, U, extra_input, b, cbar, V0, rate_V0):
     """Signal vector (see ``SIGNALS``) from the body state X and the input vector U; the
     rates are normalised with V_n = V0 where ``rate_V0`` is 1, else V; α̇̂ = β̇̂ = 0 (set by
     ``solve_rate_terms``)."""
+    sig = np.empty(18 + extra_input.shape[0])
+    signals_from_body_into(X, U, extra_input, b, cbar, V0, rate_V0, sig)
+    return sig
+
+
+@register_jitable
+def signals_from_body_into(X, U, extra_input, b, cbar, V0, rate_V0, sig):
+    """``signals_from_body`` written into ``sig`` (18 + len(extra_input) entries)."""
     n_extra = extra_input.shape[0]
-    sig = np.zeros(18 + n_extra)
     u = X[0]
     v = X[1]
     w = X[2]
@@ -165,13 +183,17 @@ def signals_from_body(X, U, extra_input, b, cbar, V0, rate_V0):
     # Θ = asin(−l_xz), Φ = atan(l_yz/l_zz)                           [2.22–2.23]
     sig[12] = math.asin(max(-1.0, min(1.0, -X[6])))
     sig[13] = math.atan2(X[7], X[8])
+    sig[14] = 0.0
+    sig[15] = 0.0
     if V0 > 0.0:
         # V/V0 and (V − V0)/V0
         sig[14] = V / V0
         sig[15] = (V - V0) / V0
+    # α̇̂ = β̇̂ = 0 until solve_rate_terms
+    sig[16] = 0.0
+    sig[17] = 0.0
     for j in range(n_extra):
         sig[18 + j] = U[extra_input[j]]
-    return sig
 
 
 @register_jitable
@@ -185,7 +207,22 @@ def aero_coefficients(
     the first-order spline (x − knot)₊ = max(x − knot, 0) where ``factor_spline`` is 1, or
     its absolute value |x| where it is 2.
     """
-    C = np.zeros(8)
+    C = np.empty(8)
+    aero_coefficients_into(
+        sig, theta, term_coef, term_param, factor_start, factor_signal, factor_power,
+        factor_spline, factor_knot, C,
+    )  # fmt: skip
+    return C
+
+
+@register_jitable
+def aero_coefficients_into(
+    sig, theta, term_coef, term_param, factor_start, factor_signal, factor_power, factor_spline,
+    factor_knot, C,
+):  # fmt: skip
+    """``aero_coefficients`` written into ``C`` (8 entries)."""
+    for i in range(8):
+        C[i] = 0.0
     for k in range(term_coef.shape[0]):
         value = theta[term_param[k]]
         for j in range(factor_start[k], factor_start[k + 1]):
@@ -198,19 +235,25 @@ def aero_coefficients(
                 x = abs(x)
             value *= x ** factor_power[j]
         C[term_coef[k]] += value
-    return C
 
 
 @register_jitable
 def forces_and_moments(C, alpha, V, thrust, consts):
     """Body-axis forces (X, Y, Z) in N and moments (L, M, N) in N·m [2.14–2.15]."""
+    out = np.empty(6)
+    forces_and_moments_into(C, alpha, V, thrust, consts, out)
+    return out
+
+
+@register_jitable
+def forces_and_moments_into(C, alpha, V, thrust, consts, out):
+    """``forces_and_moments`` written into ``out`` (6 entries)."""
     S = consts[5]
     # q̄ = ½ ρ V²
     qbar = 0.5 * consts[8] * V * V
     sa = math.sin(alpha)
     ca = math.cos(alpha)
     alpha_T = consts[10]
-    out = np.empty(6)
     # X = q̄S(C_X + C_L sin α − C_D cos α) + T cos α_T
     out[0] = qbar * S * (C[0] + C[4] * sa - C[3] * ca) + thrust * math.cos(alpha_T)
     # Y = q̄S C_Y
@@ -221,7 +264,6 @@ def forces_and_moments(C, alpha, V, thrust, consts):
     out[3] = qbar * S * consts[6] * C[5]
     out[4] = qbar * S * consts[7] * C[6]
     out[5] = qbar * S * consts[6] * C[7]
-    return out
 
 
 @register_jitable
@@ -280,6 +322,14 @@ def solve_rate_terms(a0, a_alpha, a_beta, b0, b_alpha, b_beta):
 @register_jitable
 def rigid_body_derivatives(X, F, consts):
     """dX/dt of the body state X under forces/moments F = (X, Y, Z, L, M, N) [2.5–2.13]."""
+    D = np.empty(9)
+    rigid_body_derivatives_into(X, F, consts, D)
+    return D
+
+
+@register_jitable
+def rigid_body_derivatives_into(X, F, consts, D):
+    """``rigid_body_derivatives`` written into ``D`` (9 entries)."""
     m = consts[0]
     Ix = consts[1]
     Iy = consts[2]
@@ -295,7 +345,6 @@ def rigid_body_derivatives(X, F, consts):
     lxz = X[6]
     lyz = X[7]
     lzz = X[8]
-    D = np.empty(9)
     # du/dt = −q w + r v + g l_xz + X/m                               [2.5]
     D[0] = -q * w + r * v + g * lxz + F[0] / m
     # dv/dt = −r u + p w + g l_yz + Y/m                               [2.6]
@@ -316,14 +365,20 @@ def rigid_body_derivatives(X, F, consts):
     D[6] = r * lyz - q * lzz
     D[7] = -r * lxz + p * lzz
     D[8] = q * lxz - p * lyz
-    return D
 
 
 @register_jitable
 def body_outputs(X, F, sig, consts, pdot, qdot, rdot):
     """Full output vector (V, α, β, Θ, Φ, a_x, a_y, a_z, p, q, r, ṗ, q̇, ṙ) [2.19–2.26]."""
-    mg = consts[0] * consts[9]
     out = np.empty(14)
+    body_outputs_into(X, F, sig, consts, pdot, qdot, rdot, out)
+    return out
+
+
+@register_jitable
+def body_outputs_into(X, F, sig, consts, pdot, qdot, rdot, out):
+    """``body_outputs`` written into ``out`` (14 entries)."""
+    mg = consts[0] * consts[9]
     out[0] = sig[0]
     out[1] = sig[1]
     out[2] = sig[2]
@@ -340,17 +395,23 @@ def body_outputs(X, F, sig, consts, pdot, qdot, rdot):
     out[11] = pdot
     out[12] = qdot
     out[13] = rdot
-    return out
 
 
 @register_jitable
 def wind_axis_derivatives(V, alpha, theta_pitch, q, F, consts):
     """d(V, α, Θ, q)/dt of the wind-axis longitudinal form (see the module docstring)."""
+    D = np.empty(4)
+    wind_axis_derivatives_into(V, alpha, theta_pitch, q, F, consts, D)
+    return D
+
+
+@register_jitable
+def wind_axis_derivatives_into(V, alpha, theta_pitch, q, F, consts, D):
+    """``wind_axis_derivatives`` written into ``D`` (4 entries)."""
     m = consts[0]
     g = consts[9]
     sa = math.sin(alpha)
     ca = math.cos(alpha)
-    D = np.empty(4)
     # dV/dt = (X cos α + Z sin α)/m − g sin(Θ − α)
     D[0] = (F[0] * ca + F[2] * sa) / m - g * math.sin(theta_pitch - alpha)
     # dα/dt = q + (Z cos α − X sin α)/(m V) + g cos(Θ − α)/V
@@ -359,7 +420,6 @@ def wind_axis_derivatives(V, alpha, theta_pitch, q, F, consts):
     D[2] = q
     # dq/dt = M/I_y
     D[3] = F[4] / consts[2]
-    return D
 
 
 @register_jitable
@@ -367,18 +427,32 @@ def alpha_q_signals(x, U, cbar):
     """Signal vector of the α–q form: (α, q̂, U…) with x = (α, q) and U the inputs
     (V, q̄, Θ, Φ, a_x, p, r, controls…)."""
     sig = np.empty(2 + U.shape[0])
+    alpha_q_signals_into(x, U, cbar, sig)
+    return sig
+
+
+@register_jitable
+def alpha_q_signals_into(x, U, cbar, sig):
+    """``alpha_q_signals`` written into ``sig`` (2 + len(U) entries)."""
     sig[0] = x[0]
     # q̂ = q c̄/(2V)
     sig[1] = x[1] * cbar / (2.0 * U[0])
     for k in range(U.shape[0]):
         sig[2 + k] = U[k]
-    return sig
 
 
 @register_jitable
 def alpha_q_derivatives(x, U, C, consts):
     """d(α, q)/dt of the α–q form (module docstring); C the coefficient vector
     (``aero_coefficients``: C_Z = C[2], C_m = C[6])."""
+    D = np.empty(2)
+    alpha_q_derivatives_into(x, U, C, consts, D)
+    return D
+
+
+@register_jitable
+def alpha_q_derivatives_into(x, U, C, consts, D):
+    """``alpha_q_derivatives`` written into ``D`` (2 entries)."""
     m = consts[0]
     Ix = consts[1]
     Iy = consts[2]
@@ -396,7 +470,6 @@ def alpha_q_derivatives(x, U, C, consts):
     ax = U[4]
     p = U[5]
     r = U[6]
-    D = np.empty(2)
     # dα/dt = q + (q̄S/(mV)) C_Z cos α − (g a_x/V) sin α + (g/V)(cos Φ cos Θ cos α + sin Θ sin α)
     D[0] = (
         q
@@ -411,15 +484,20 @@ def alpha_q_derivatives(x, U, C, consts):
     )
     # dq/dt = (q̄ S c̄ C_m + (I_z − I_x) p r + I_xz (r² − p²))/I_y                 [2.9]
     D[1] = (qbar * S * cbar * C[6] + (Iz - Ix) * p * r + Ixz * (r * r - p * p)) / Iy
-    return D
 
 
 @register_jitable
 def alpha_q_outputs(x, U, C, consts):
     """Full output vector of the α–q form (α, q, a_z): a_z = q̄ S C_Z/(m g) in g [2.26]."""
     out = np.empty(3)
+    alpha_q_outputs_into(x, U, C, consts, out)
+    return out
+
+
+@register_jitable
+def alpha_q_outputs_into(x, U, C, consts, out):
+    """``alpha_q_outputs`` written into ``out`` (3 entries)."""
     out[0] = x[0]
     out[1] = x[1]
     # a_z = q̄ S C_Z/(m g)                                             [2.26]
     out[2] = U[1] * consts[5] * C[2] / (consts[0] * consts[9])
-    return out

@@ -43,21 +43,22 @@ from flightid.aircraft.equations import (
     BODY_STATES,
     OUTPUTS,
     SIGNALS,
-    aero_coefficients,
-    alpha_q_derivatives,
-    alpha_q_outputs,
-    alpha_q_signals,
+    aero_coefficients_into,
+    alpha_q_derivatives_into,
+    alpha_q_outputs_into,
+    alpha_q_signals_into,
     alpha_rate,
     beta_rate,
-    body_outputs,
+    body_outputs_into,
     engine_loads,
-    forces_and_moments,
-    rigid_body_derivatives,
-    signals_from_body,
+    forces_and_moments_into,
+    rigid_body_derivatives_into,
+    signals_from_body_into,
     solve_rate_terms,
-    wind_axis_derivatives,
+    wind_axis_derivatives_into,
 )
 from flightid.errors import InputError, InputTypeError, describe
+from flightid.model.forms import with_out_form
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
 from flightid.model.terms import Abs, Spline
@@ -130,17 +131,18 @@ def _extra_constants(airplane: Airplane, reference_speed: float | None, rate_spe
 
 
 @register_jitable
-def body_state_from(x, u, src_state, src_input, wind_index):
-    """Full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) of a body-axis model.
+def body_state_from(x, u, src_state, src_input, wind_index, X):
+    """Full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) of a body-axis model, written
+    into ``X`` (9 entries).
 
     Each entry comes from the model state (``src_state[i] ≥ 0``) or an input
-    (``src_input[i] ≥ 0``). When the lateral model measures V and α instead of u and w
-    (``wind_index`` = input indices of V and α, else −1), with sin β = v/V [2.20]:
+    (``src_input[i] ≥ 0``), else 0. When the lateral model measures V and α instead of u and
+    w (``wind_index`` = input indices of V and α, else −1), with sin β = v/V [2.20]:
 
         u = V cos α cos β,   w = V sin α cos β                          [2.19–2.21]
     """
-    X = np.zeros(9)
     for i in range(9):
+        X[i] = 0.0
         if src_state[i] >= 0:
             X[i] = x[src_state[i]]
         elif src_input[i] >= 0:
@@ -152,18 +154,18 @@ def body_state_from(x, u, src_state, src_input, wind_index):
         cos_beta = math.sqrt(max(0.0, 1.0 - sin_beta * sin_beta))
         X[0] = V * math.cos(alpha) * cos_beta
         X[2] = V * math.sin(alpha) * cos_beta
-    return X
 
 
 @register_jitable
-def _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra):
-    """Loads F = (X, Y, Z, L, M, N): C = aero model of the signals [2.16], forces and moments
-    [2.14–2.15], thrust moment and engine terms (``engine_loads``). ``idx`` = (thrust,
-    propeller torque, engine momentum input indices or −1, lateral flag, α̇ flag, β̇ flag)."""
-    C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
+def _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, C, F):
+    """Loads F = (X, Y, Z, L, M, N) into ``F``: C = aero model of the signals [2.16] (into
+    ``C``), forces and moments [2.14–2.15], thrust moment and engine terms
+    (``engine_loads``). ``idx`` = (thrust, propeller torque, engine momentum input indices or
+    −1, lateral flag, α̇ flag, β̇ flag)."""
+    aero_coefficients_into(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot, C)
     thrust = u[idx[0]] if idx[0] >= 0 else 0.0
-    F = forces_and_moments(C, sig[1], sig[0], thrust, consts)
-    return engine_loads(F, X, u, thrust, idx[1], idx[2], extra)
+    forces_and_moments_into(C, sig[1], sig[0], thrust, consts, F)
+    engine_loads(F, X, u, thrust, idx[1], idx[2], extra)
 
 
 @register_jitable
@@ -173,36 +175,69 @@ def _rate_normaliser(sig, extra, length):
     return length / (2.0 * Vn)
 
 
+# entries of the work array of the body-axis solution: signals (18 + extra inputs) first,
+# then C (8), F (6), D (9), F_α, F_β (6 each), D_α, D_β (9 each), a trial F (6) and D (9)
+_BODY_WORK = 8 + 6 + 9 + 6 + 6 + 9 + 9 + 6 + 9
+
+
 @register_jitable
 def _body_solution(X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
-                   extra):  # fmt: skip
+                   extra, work):  # fmt: skip
     """Signals, loads F and body derivatives D at the body state X, with the α̇ and β̇ terms
-    solved in closed form (equations module docstring): D = D0 + α̇ D_α + β̇ D_β."""
-    sig = signals_from_body(X, u, extra_input, consts[6], consts[7], extra[1], extra[2])
-    F = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra)
-    D = rigid_body_derivatives(X, F, consts)
+    solved in closed form (equations module docstring): D = D0 + α̇ D_α + β̇ D_β.
+
+    Everything is written into ``work`` (18 + len(extra_input) + ``_BODY_WORK`` entries);
+    returns the views (sig, F, D) of it.
+    """
+    n_sig = 18 + extra_input.shape[0]
+    sig = work[:n_sig]
+    C = work[n_sig : n_sig + 8]
+    F = work[n_sig + 8 : n_sig + 14]
+    D = work[n_sig + 14 : n_sig + 23]
+    signals_from_body_into(X, u, extra_input, consts[6], consts[7], extra[1], extra[2], sig)
+    _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, C, F)
+    rigid_body_derivatives_into(X, F, consts, D)
     if idx[4] == 0 and idx[5] == 0:
         return sig, F, D
-    F_alpha = np.zeros(6)
-    F_beta = np.zeros(6)
-    D_alpha = np.zeros(9)
-    D_beta = np.zeros(9)
+    F_alpha = work[n_sig + 23 : n_sig + 29]
+    F_beta = work[n_sig + 29 : n_sig + 35]
+    D_alpha = work[n_sig + 35 : n_sig + 44]
+    D_beta = work[n_sig + 44 : n_sig + 53]
+    F_trial = work[n_sig + 53 : n_sig + 59]
+    D_trial = work[n_sig + 59 : n_sig + 68]
+    for i in range(6):
+        F_alpha[i] = 0.0
+        F_beta[i] = 0.0
+    for i in range(9):
+        D_alpha[i] = 0.0
+        D_beta[i] = 0.0
     # α̇̂ = α̇ c̄/(2V_n), β̇̂ = β̇ b/(2V_n): the signal of a unit rate
     k_alpha = _rate_normaliser(sig, extra, consts[7])
     k_beta = _rate_normaliser(sig, extra, consts[6])
     if idx[4] == 1:
         sig[ALPHADOT_SIGNAL] = k_alpha
-        F_alpha = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
-                         extra) - F  # fmt: skip
+        _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, C,
+               F_trial)  # fmt: skip
         sig[ALPHADOT_SIGNAL] = 0.0
+        for i in range(6):
+            # the loads of a unit α̇
+            F_alpha[i] = F_trial[i] - F[i]
+            F_trial[i] = F[i] + F_alpha[i]
         # D is affine in F: the response to the loads of a unit α̇
-        D_alpha = rigid_body_derivatives(X, F + F_alpha, consts) - D
+        rigid_body_derivatives_into(X, F_trial, consts, D_trial)
+        for i in range(9):
+            D_alpha[i] = D_trial[i] - D[i]
     if idx[5] == 1:
         sig[BETADOT_SIGNAL] = k_beta
-        F_beta = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
-                        extra) - F  # fmt: skip
+        _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, C,
+               F_trial)  # fmt: skip
         sig[BETADOT_SIGNAL] = 0.0
-        D_beta = rigid_body_derivatives(X, F + F_beta, consts) - D
+        for i in range(6):
+            F_beta[i] = F_trial[i] - F[i]
+            F_trial[i] = F[i] + F_beta[i]
+        rigid_body_derivatives_into(X, F_trial, consts, D_trial)
+        for i in range(9):
+            D_beta[i] = D_trial[i] - D[i]
     lateral = idx[3] == 1
     alpha_dot, beta_dot = solve_rate_terms(
         alpha_rate(X, D), alpha_rate(X, D_alpha), alpha_rate(X, D_beta),
@@ -211,130 +246,366 @@ def _body_solution(X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, 
     sig[ALPHADOT_SIGNAL] = alpha_dot * k_alpha
     sig[BETADOT_SIGNAL] = beta_dot * k_beta
     # D = D0 + α̇ D_α + β̇ D_β, F likewise
-    return (
-        sig,
-        F + alpha_dot * F_alpha + beta_dot * F_beta,
-        D + alpha_dot * D_alpha + beta_dot * D_beta,
-    )
+    for i in range(6):
+        F[i] = F[i] + alpha_dot * F_alpha[i] + beta_dot * F_beta[i]
+    for i in range(9):
+        D[i] = D[i] + alpha_dot * D_alpha[i] + beta_dot * D_beta[i]
+    return sig, F, D
 
 
 @register_jitable
-def _wind_body_state(x):
-    """Body state of symmetric flight from (V, α, Θ, q):
+def _wind_body_state(x, X):
+    """Body state of symmetric flight from (V, α, Θ, q), into ``X``:
     u = V cos α, w = V sin α, l_xz = −sin Θ, l_zz = cos Θ."""
-    X = np.zeros(9)
+    for i in range(9):
+        X[i] = 0.0
     X[0] = x[0] * np.cos(x[1])
     X[2] = x[0] * np.sin(x[1])
     X[4] = x[3]
     X[6] = -np.sin(x[2])
     X[8] = np.cos(x[2])
-    return X
 
 
 @register_jitable
-def _select(full, index, scale):
-    """The chosen entries of ``full``, each times its scale (accelerometer sign and unit;
-    1 for the other outputs, see Accelerometer)."""
-    y = np.empty(index.shape[0])
-    for i in range(index.shape[0]):
-        y[i] = full[index[i]] * scale[i]
-    return y
+def _body_f(x, u, theta, src_state, src_input, wind_index, deriv_index, extra_input, idx, tc,
+            tp, fs, fsig, fpow, fspl, fknot, consts, extra, out):  # fmt: skip
+    """dx/dt of a body-axis model into ``out``: the chosen entries of dX/dt."""
+    work = np.empty(9 + 18 + extra_input.shape[0] + _BODY_WORK)
+    X = work[:9]
+    # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
+    body_state_from(x, u, src_state, src_input, wind_index, X)
+    _, _, D = _body_solution(
+        X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra,
+        work[9:],
+    )  # fmt: skip
+    for i in range(deriv_index.shape[0]):
+        out[i] = D[deriv_index[i]]
+
+
+@register_jitable
+def _body_h(x, u, theta, src_state, src_input, wind_index, out_index, out_scale, extra_input,
+            idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out):  # fmt: skip
+    """y of a body-axis model into ``out``: the chosen outputs, each times its scale
+    (accelerometer sign and unit; 1 for the other outputs, see Accelerometer)."""
+    work = np.empty(9 + 14 + 18 + extra_input.shape[0] + _BODY_WORK)
+    X = work[:9]
+    full = work[9:23]
+    body_state_from(x, u, src_state, src_input, wind_index, X)
+    sig, F, D = _body_solution(
+        X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra,
+        work[23:],
+    )  # fmt: skip
+    body_outputs_into(X, F, sig, consts, D[3], D[4], D[5], full)
+    for i in range(out_index.shape[0]):
+        out[i] = full[out_index[i]] * out_scale[i]
 
 
 def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, out_scale,
                     extra_input, idx, tables, consts, extra):  # fmt: skip
-    """f and h closures of a body-axis model (6-DOF or decoupled)."""
+    """f and h closures of a body-axis model (6-DOF or decoupled), return form carrying
+    their out forms (``flightid.model.forms``)."""
     tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
     fsig, fpow = tables.factor_signal, tables.factor_power
     fspl, fknot = tables.factor_spline, tables.factor_knot
-    ones = np.ones(deriv_index.shape[0])
+    n_states = deriv_index.shape[0]
+    n_outputs = out_index.shape[0]
+
+    def f_out(t, x, u, theta, out):
+        _body_f(
+            x,
+            u,
+            theta,
+            src_state,
+            src_input,
+            wind_index,
+            deriv_index,
+            extra_input,
+            idx,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+            extra,
+            out,
+        )
+
+    def h_out(t, x, u, theta, out):
+        _body_h(
+            x,
+            u,
+            theta,
+            src_state,
+            src_input,
+            wind_index,
+            out_index,
+            out_scale,
+            extra_input,
+            idx,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+            extra,
+            out,
+        )
 
     def f(t, x, u, theta):
-        # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
-        X = body_state_from(x, u, src_state, src_input, wind_index)
-        _, _, D = _body_solution(
-            X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
+        out = np.empty(n_states)
+        _body_f(
+            x,
+            u,
+            theta,
+            src_state,
+            src_input,
+            wind_index,
+            deriv_index,
+            extra_input,
+            idx,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+            extra,
+            out,
         )
-        return _select(D, deriv_index, ones)
+        return out
 
     def h(t, x, u, theta):
-        X = body_state_from(x, u, src_state, src_input, wind_index)
-        sig, F, D = _body_solution(
-            X, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
+        out = np.empty(n_outputs)
+        _body_h(
+            x,
+            u,
+            theta,
+            src_state,
+            src_input,
+            wind_index,
+            out_index,
+            out_scale,
+            extra_input,
+            idx,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+            extra,
+            out,
         )
-        full = body_outputs(X, F, sig, consts, D[3], D[4], D[5])
-        return _select(full, out_index, out_scale)
+        return out
 
-    return f, h
+    return with_out_form(f, f_out), with_out_form(h, h_out)
 
 
 @register_jitable
 def _wind_solution(x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
-                   extra):  # fmt: skip
+                   extra, work):  # fmt: skip
     """Body state, signals, loads and d(V, α, Θ, q)/dt of the wind-axis form, with the α̇
-    terms solved in closed form: α̇ = D0[1]/(1 − D_α[1])."""
-    X = _wind_body_state(x)
-    sig = signals_from_body(X, u, extra_input, consts[6], consts[7], extra[1], extra[2])
-    F = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra)
-    D = wind_axis_derivatives(x[0], x[1], x[2], x[3], F, consts)
+    terms solved in closed form: α̇ = D0[1]/(1 − D_α[1]). Everything is written into
+    ``work`` (9 + 18 + len(extra_input) + ``_BODY_WORK`` entries); returns the views
+    (X, sig, F, D)."""
+    n_sig = 18 + extra_input.shape[0]
+    X = work[:9]
+    sig = work[9 : 9 + n_sig]
+    rest = work[9 + n_sig :]
+    C = rest[:8]
+    F = rest[8:14]
+    D = rest[14:18]
+    _wind_body_state(x, X)
+    signals_from_body_into(X, u, extra_input, consts[6], consts[7], extra[1], extra[2], sig)
+    _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, C, F)
+    wind_axis_derivatives_into(x[0], x[1], x[2], x[3], F, consts, D)
     if idx[4] == 1:
+        F_alpha = rest[18:24]
+        F_trial = rest[24:30]
+        D_alpha = rest[30:34]
+        D_trial = rest[34:38]
         # α̇̂ = α̇ c̄/(2V_n) of a unit α̇
         k_alpha = _rate_normaliser(sig, extra, consts[7])
         sig[ALPHADOT_SIGNAL] = k_alpha
-        F_alpha = _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
-                         extra) - F  # fmt: skip
-        D_alpha = wind_axis_derivatives(x[0], x[1], x[2], x[3], F + F_alpha, consts) - D
+        _loads(sig, X, u, theta, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, C,
+               F_trial)  # fmt: skip
+        for i in range(6):
+            F_alpha[i] = F_trial[i] - F[i]
+            F_trial[i] = F[i] + F_alpha[i]
+        wind_axis_derivatives_into(x[0], x[1], x[2], x[3], F_trial, consts, D_trial)
+        for i in range(4):
+            D_alpha[i] = D_trial[i] - D[i]
         # α̇ = D0[1] + α̇ D_α[1]  ⇒  α̇ = D0[1]/(1 − D_α[1])
         alpha_dot = D[1] / (1.0 - D_alpha[1])
         sig[ALPHADOT_SIGNAL] = alpha_dot * k_alpha
-        F = F + alpha_dot * F_alpha
-        D = D + alpha_dot * D_alpha
+        for i in range(6):
+            F[i] = F[i] + alpha_dot * F_alpha[i]
+        for i in range(4):
+            D[i] = D[i] + alpha_dot * D_alpha[i]
     return X, sig, F, D
 
 
+@register_jitable
+def _wind_f(x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra,
+            out):  # fmt: skip
+    """d(V, α, Θ, q)/dt of the wind-axis model into ``out``."""
+    work = np.empty(9 + 18 + extra_input.shape[0] + _BODY_WORK)
+    _, _, _, D = _wind_solution(
+        x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, work
+    )
+    for i in range(4):
+        out[i] = D[i]
+
+
+@register_jitable
+def _wind_h(x, u, theta, out_index, out_scale, extra_input, idx, tc, tp, fs, fsig, fpow, fspl,
+            fknot, consts, extra, out):  # fmt: skip
+    """y of the wind-axis model into ``out`` (chosen outputs times their scales)."""
+    work = np.empty(14 + 9 + 18 + extra_input.shape[0] + _BODY_WORK)
+    full = work[:14]
+    X, sig, F, D = _wind_solution(
+        x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra,
+        work[14:],
+    )  # fmt: skip
+    # symmetric flight: ṗ = ṙ = 0, q̇ = M/I_y
+    body_outputs_into(X, F, sig, consts, 0.0, D[3], 0.0, full)
+    for i in range(out_index.shape[0]):
+        out[i] = full[out_index[i]] * out_scale[i]
+
+
 def _wind_functions(out_index, out_scale, extra_input, idx, tables, consts, extra):
-    """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q)."""
+    """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q), return form
+    carrying their out forms."""
     tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
     fsig, fpow = tables.factor_signal, tables.factor_power
     fspl, fknot = tables.factor_spline, tables.factor_knot
+    n_outputs = out_index.shape[0]
+
+    def f_out(t, x, u, theta, out):
+        _wind_f(
+            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out
+        )
+
+    def h_out(t, x, u, theta, out):
+        _wind_h(
+            x,
+            u,
+            theta,
+            out_index,
+            out_scale,
+            extra_input,
+            idx,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+            extra,
+            out,
+        )
 
     def f(t, x, u, theta):
-        _, _, _, D = _wind_solution(
-            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
+        out = np.empty(4)
+        _wind_f(
+            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out
         )
-        return D
+        return out
 
     def h(t, x, u, theta):
-        X, sig, F, D = _wind_solution(
-            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra
+        out = np.empty(n_outputs)
+        _wind_h(
+            x,
+            u,
+            theta,
+            out_index,
+            out_scale,
+            extra_input,
+            idx,
+            tc,
+            tp,
+            fs,
+            fsig,
+            fpow,
+            fspl,
+            fknot,
+            consts,
+            extra,
+            out,
         )
-        # symmetric flight: ṗ = ṙ = 0, q̇ = M/I_y
-        full = body_outputs(X, F, sig, consts, 0.0, D[3], 0.0)
-        return _select(full, out_index, out_scale)
+        return out
 
-    return f, h
+    return with_out_form(f, f_out), with_out_form(h, h_out)
+
+
+@register_jitable
+def _alpha_q_f(x, u, theta, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out):
+    """d(α, q)/dt of the α–q model into ``out``: signals (α, q̂, inputs…), then C_Z, C_m from
+    the aero tables [2.16] (equations.alpha_q_derivatives)."""
+    work = np.empty(10 + u.shape[0])
+    sig = work[: 2 + u.shape[0]]
+    C = work[2 + u.shape[0] :]
+    alpha_q_signals_into(x, u, consts[7], sig)
+    aero_coefficients_into(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot, C)
+    alpha_q_derivatives_into(x, u, C, consts, out)
+
+
+@register_jitable
+def _alpha_q_h(x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+               out):  # fmt: skip
+    """y of the α–q model into ``out`` (chosen outputs times their scales)."""
+    work = np.empty(13 + u.shape[0])
+    sig = work[: 2 + u.shape[0]]
+    C = work[2 + u.shape[0] : 10 + u.shape[0]]
+    full = work[10 + u.shape[0] :]
+    alpha_q_signals_into(x, u, consts[7], sig)
+    aero_coefficients_into(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot, C)
+    alpha_q_outputs_into(x, u, C, consts, full)
+    for i in range(out_index.shape[0]):
+        out[i] = full[out_index[i]] * out_scale[i]
 
 
 def _alpha_q_functions(out_index, out_scale, tables, consts):
     """f and h closures of the α–q model (states α, q; inputs V, q̄, Θ, Φ, a_x, p, r,
-    controls…; equations.alpha_q_derivatives)."""
+    controls…; equations.alpha_q_derivatives), return form carrying their out forms."""
     tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
     fsig, fpow = tables.factor_signal, tables.factor_power
     fspl, fknot = tables.factor_spline, tables.factor_knot
-    cbar = consts[7]
+    n_outputs = out_index.shape[0]
+
+    def f_out(t, x, u, theta, out):
+        _alpha_q_f(x, u, theta, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out)
+
+    def h_out(t, x, u, theta, out):
+        _alpha_q_h(
+            x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out
+        )
 
     def f(t, x, u, theta):
-        # signals (α, q̂, inputs…), then C_Z, C_m from the aero tables [2.16]
-        sig = alpha_q_signals(x, u, cbar)
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-        return alpha_q_derivatives(x, u, C, consts)
+        out = np.empty(2)
+        _alpha_q_f(x, u, theta, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out)
+        return out
 
     def h(t, x, u, theta):
-        sig = alpha_q_signals(x, u, cbar)
-        C = aero_coefficients(sig, theta, tc, tp, fs, fsig, fpow, fspl, fknot)
-        return _select(alpha_q_outputs(x, u, C, consts), out_index, out_scale)
+        out = np.empty(n_outputs)
+        _alpha_q_h(
+            x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out
+        )
+        return out
 
-    return f, h
+    return with_out_form(f, f_out), with_out_form(h, h_out)
 
 
 # The lateral model's two ways of taking the measured longitudinal motion.

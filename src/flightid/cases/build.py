@@ -452,7 +452,13 @@ def _compiles(fn, n_x: int, n_u: int, n_p: int) -> bool:
 
 
 def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
-    """f, h with the state and output biases added (numba-compilable closures)."""
+    """f, h with the state and output biases added (numba-compilable closures), in return
+    form carrying their out forms (``flightid.model.forms``; built on the base model's out
+    forms, so that a base without allocation stays without)."""
+    from flightid.model.forms import as_out_form, kernel_function, with_out_form
+
+    f_out = kernel_function(getattr(f, "out_form", None) or as_out_form(f), compiled)
+    h_out = kernel_function(getattr(h, "out_form", None) or as_out_form(h), compiled)
     if compiled:
         import numba
 
@@ -477,7 +483,21 @@ def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
             out[j] = y[j] + (theta[by[m, j]] if by[m, j] >= 0 else 0.0)
         return out
 
-    return f_biased, h_biased
+    def f_biased_out(t, x, u, theta, out):
+        m = int(u[n_u] + 0.5) if per_maneuver else 0
+        f_out(t, x, u[:n_u], theta, out)
+        for j in range(n_x):
+            # ẋ_j = f_j + b_x,j
+            out[j] = out[j] + (theta[bx[m, j]] if bx[m, j] >= 0 else 0.0)
+
+    def h_biased_out(t, x, u, theta, out):
+        m = int(u[n_u] + 0.5) if per_maneuver else 0
+        h_out(t, x, u[:n_u], theta, out)
+        for j in range(n_y):
+            # y_j = h_j + b_y,j
+            out[j] = out[j] + (theta[by[m, j]] if by[m, j] >= 0 else 0.0)
+
+    return with_out_form(f_biased, f_biased_out), with_out_form(h_biased, h_biased_out)
 
 
 def build_model(

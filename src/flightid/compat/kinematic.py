@@ -81,6 +81,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from flightid.errors import InputError, InputTypeError, describe
+from flightid.model.forms import with_out_form
 from flightid.model.parameters import Parameter, Parameters
 from flightid.model.statespace import DELAY_CONVENTIONS, StateSpaceModel
 
@@ -318,6 +319,29 @@ def sensor_outputs(y, theta, out_bias, out_scale, out_ref, consts):
     return m
 
 
+@register_jitable
+def _kinematic_f(x, u, theta, src_state, src_input, deriv_index, in_bias, in_scale, in_ref,
+                 consts, out):  # fmt: skip
+    """dx/dt of the kinematic model into ``out``: the chosen entries of dX/dt."""
+    X = full_quantities(x, u, src_state, src_input)
+    c = corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts)
+    d = kinematic_derivatives(X, c, u, consts)
+    for i in range(deriv_index.shape[0]):
+        out[i] = d[deriv_index[i]]
+
+
+@register_jitable
+def _kinematic_h(x, u, theta, src_state, src_input, out_index, in_bias, in_scale, in_ref,
+                 out_bias, out_scale, out_ref, wind, consts, out):  # fmt: skip
+    """y of the kinematic model into ``out``: the chosen sensor outputs."""
+    X = full_quantities(x, u, src_state, src_input)
+    c = corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts)
+    y_true = true_outputs(X, c, theta, wind, consts)
+    m = sensor_outputs(y_true, theta, out_bias, out_scale, out_ref, consts)
+    for i in range(out_index.shape[0]):
+        out[i] = m[out_index[i]]
+
+
 # ------------------------------------------------------------------------------ the model
 
 
@@ -354,7 +378,9 @@ class KinematicSpec:
     consts: np.ndarray
 
     def functions(self):
-        """(f, h): numba-compilable closures over the tables."""
+        """(f, h): numba-compilable closures over the tables, in return form carrying their
+        out forms (``flightid.model.forms``; the out forms still allocate their
+        intermediate vectors, not their result)."""
         src_state, src_input = self.src_state, self.src_input
         deriv_index, out_index = self.deriv_index, self.out_index
         in_bias, in_scale, in_ref = self.in_bias, self.in_scale, self.in_ref
@@ -362,26 +388,35 @@ class KinematicSpec:
         wind, consts = self.wind, self.consts
         n_x, n_y = deriv_index.shape[0], out_index.shape[0]
 
+        def f_out(t, x, u, theta, out):
+            _kinematic_f(
+                x, u, theta, src_state, src_input, deriv_index, in_bias, in_scale, in_ref,
+                consts, out,
+            )  # fmt: skip
+
+        def h_out(t, x, u, theta, out):
+            _kinematic_h(
+                x, u, theta, src_state, src_input, out_index, in_bias, in_scale, in_ref,
+                out_bias, out_scale, out_ref, wind, consts, out,
+            )  # fmt: skip
+
         def f(t, x, u, theta):
-            X = full_quantities(x, u, src_state, src_input)
-            c = corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts)
-            d = kinematic_derivatives(X, c, u, consts)
             dx = np.empty(n_x)
-            for i in range(n_x):
-                dx[i] = d[deriv_index[i]]
+            _kinematic_f(
+                x, u, theta, src_state, src_input, deriv_index, in_bias, in_scale, in_ref,
+                consts, dx,
+            )  # fmt: skip
             return dx
 
         def h(t, x, u, theta):
-            X = full_quantities(x, u, src_state, src_input)
-            c = corrected_inputs(u, theta, in_bias, in_scale, in_ref, consts)
-            y_true = true_outputs(X, c, theta, wind, consts)
-            m = sensor_outputs(y_true, theta, out_bias, out_scale, out_ref, consts)
             y = np.empty(n_y)
-            for i in range(n_y):
-                y[i] = m[out_index[i]]
+            _kinematic_h(
+                x, u, theta, src_state, src_input, out_index, in_bias, in_scale, in_ref,
+                out_bias, out_scale, out_ref, wind, consts, y,
+            )  # fmt: skip
             return y
 
-        return f, h
+        return with_out_form(f, f_out), with_out_form(h, h_out)
 
     def reconstruction_function(self):
         """h_rec(t, x, u, θ) = (states, true outputs (all of ``OUTPUTS``), corrected inputs

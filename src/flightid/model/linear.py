@@ -26,8 +26,10 @@ import re
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba.extending import register_jitable
 
 from flightid.errors import InputError
+from flightid.model.forms import with_out_form
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
 
@@ -125,27 +127,38 @@ def _tables(
     return eq, kind, sig, coef, pa, pb
 
 
+@register_jitable
+def _accumulate_terms(x, u, theta, eq, kind, sig, coef, pa, pb, out):
+    """out_r = Σ_{terms of row r} c·θ_a·θ_b·s, written into ``out``."""
+    for r in range(out.shape[0]):
+        out[r] = 0.0
+    for k in range(eq.shape[0]):
+        c = coef[k]
+        if pa[k] >= 0:
+            c *= theta[pa[k]]
+        if pb[k] >= 0:
+            c *= theta[pb[k]]
+        if kind[k] == 1:
+            c *= x[sig[k]]
+        elif kind[k] == 2:
+            c *= u[sig[k]]
+        # out_r += c · θ_a · θ_b · s
+        out[eq[k]] += c
+
+
 def _term_function(n_rows, eq, kind, sig, coef, pa, pb):
-    """out_r = Σ_{terms of row r} c·θ_a·θ_b·s (numba-compilable closure)."""
-    n_terms = eq.shape[0]
+    """out_r = Σ_{terms of row r} c·θ_a·θ_b·s: the return form (numba-compilable closure),
+    carrying its out form (``flightid.model.forms``)."""
+
+    def evaluate_out(t, x, u, theta, out):
+        _accumulate_terms(x, u, theta, eq, kind, sig, coef, pa, pb, out)
 
     def evaluate(t, x, u, theta):
-        out = np.zeros(n_rows)
-        for k in range(n_terms):
-            c = coef[k]
-            if pa[k] >= 0:
-                c *= theta[pa[k]]
-            if pb[k] >= 0:
-                c *= theta[pb[k]]
-            if kind[k] == 1:
-                c *= x[sig[k]]
-            elif kind[k] == 2:
-                c *= u[sig[k]]
-            # out_r += c · θ_a · θ_b · s
-            out[eq[k]] += c
+        out = np.empty(n_rows)
+        _accumulate_terms(x, u, theta, eq, kind, sig, coef, pa, pb, out)
         return out
 
-    return evaluate
+    return with_out_form(evaluate, evaluate_out)
 
 
 def linear_model(
