@@ -151,6 +151,7 @@ def confirm_convergence(
         outcome, theta, outputs, cost, outcome.converged, outcome.status, outcome.message
     )
     while True:
+        g = None  # the last pass's G goes before the next is computed (one G at a time)
         g, used, failure = _central(objective, theta, outputs, forward)
         forward = None
         if failure is not None:

@@ -145,8 +145,12 @@ def _optimise(
     # Central-difference sensitivities at θ̂: confirm the solver's convergence (continuing
     # with Gauss–Newton passes if it stopped short), then the information matrix.
     updates_before = objective.noise_updates
+    # handed over, not kept: the outcome's sensitivities become the confirmation's, and a
+    # reference held here would keep a second G alive while the confirmation computes anew
+    handed = [outcome]
+    del outcome
     confirmation = confirm_convergence(
-        objective, outcome, noise, fallback=isinstance(solver, MNRES)
+        objective, handed.pop(), noise, fallback=isinstance(solver, MNRES)
     )
     iterations += confirmation.passes
     cycles += objective.noise_updates - updates_before
