@@ -214,7 +214,10 @@ def peak_memory(runner):
 
 def case(n_steps: int, n_free: int, repeat: int, memory: bool) -> list[str]:
     model, data, r_diag, _ = benchmark(0, n_steps, n_free)
-    simulate(model, data)  # compile outside the timings
+    simulate(model, data)  # compile outside the timings: single runs and batches
+    warm = OutputErrorProblem(model, data)
+    for size in (1, 2, 3):
+        warm.run(np.repeat(warm.theta_start[None, :], size, axis=0))
     clock = SimulationClock()
     runners = {
         "plain GN": run_plain(model, data, r_diag),
