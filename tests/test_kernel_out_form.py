@@ -179,6 +179,7 @@ def test_parallel_batch_is_bit_identical_to_serial(stabilized):
         model = with_stabilizing_gain(model, 0.01 * np.ones((2, 3)))
     simulator = Simulator(model, data)
     kernel = simulator._feedback_kernel if stabilized else simulator._kernel
+    kernel.min_parallel_samples = 0  # a small batch, run in parallel all the same
     parallel = simulator.run(thetas)
     kernel.parallel_ok = False
     serial = simulator.run(thetas)

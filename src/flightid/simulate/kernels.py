@@ -54,6 +54,7 @@ __all__ = [
     "step_buffers",
     "record_sample",
     "BatchKernel",
+    "PARALLEL_MIN_SAMPLES",
     "no_state_derivative",
     "EULER",
     "RK4",
@@ -68,6 +69,10 @@ RK4 = 1
 LINEAR = 0
 ZOH = 1
 INTERPOLATIONS = {"linear": LINEAR, "zoh": ZOH}
+# the parallel variants run where a call integrates at least this many samples (trajectories ×
+# samples, or sensitivity columns × samples): below, the threads' start-up and the parallel
+# variant's compilation (several seconds, once per model) cost more than they give
+PARALLEL_MIN_SAMPLES = 20_000
 
 
 def make_step(rate: Callable) -> Callable:
@@ -221,8 +226,9 @@ class BatchKernel:
     or everything when numba has one thread, serially. Both variants compute every
     trajectory with the same operations in the same order: the results are bit-identical.
 
-    The parallel variant is compiled on the first batch that uses it; if numba cannot
-    compile it, the serial one runs instead (a ``RuntimeWarning`` says so).
+    The parallel variant is used for batches of at least ``min_parallel_samples`` samples
+    in all (``PARALLEL_MIN_SAMPLES``) and compiled on the first batch that uses it; if numba
+    cannot compile it, the serial one runs instead (a ``RuntimeWarning`` says so).
     """
 
     def __init__(self, source: Callable) -> None:
@@ -234,20 +240,28 @@ class BatchKernel:
         # False after the parallel variant failed to compile (or to run batches serially)
         self.parallel_ok = True
         self.parallel_runs = 0
+        self.min_parallel_samples = PARALLEL_MIN_SAMPLES
 
     @property
     def stats(self):
         """numba's cache statistics of the serial variant (the one single trajectories use)."""
         return self.serial.stats
 
-    def use_parallel(self, n_batch: int) -> bool:
-        """True if a batch of ``n_batch`` trajectories runs on the numba threads."""
+    def use_parallel(self, n_batch: int, n_samples: int) -> bool:
+        """True if a batch of ``n_batch`` trajectories of ``n_samples`` samples runs on the
+        numba threads."""
         import numba
 
-        return self.parallel_ok and n_batch > 1 and numba.get_num_threads() > 1
+        return (
+            self.parallel_ok
+            and n_batch > 1
+            and n_batch * n_samples >= self.min_parallel_samples
+            and numba.get_num_threads() > 1
+        )
 
     def __call__(self, thetas, *arguments):
-        if self.use_parallel(thetas.shape[0]):
+        # arguments: x0s, t, u, ...
+        if self.use_parallel(thetas.shape[0], arguments[1].shape[0]):
             try:
                 result = self.parallel(thetas, *arguments)
                 self.parallel_runs += 1

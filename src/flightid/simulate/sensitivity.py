@@ -37,7 +37,13 @@ from collections.abc import Callable
 import numpy as np
 from numba import prange
 
-from flightid.simulate.kernels import _identity, make_step, record_sample, step_buffers
+from flightid.simulate.kernels import (
+    PARALLEL_MIN_SAMPLES,
+    _identity,
+    make_step,
+    record_sample,
+    step_buffers,
+)
 
 __all__ = ["make_sensitivity_kernel", "SensitivityKernel"]
 
@@ -214,7 +220,8 @@ def _build(f_out: Callable, h_out: Callable, jit: Callable) -> Callable:
 
 class SensitivityKernel:
     """The sensitivity kernel with the column blocks on the numba threads where there are
-    several threads and at least two free parameters (bit-identical to one block, module
+    several threads, at least two free parameters and at least ``min_parallel_samples``
+    (``PARALLEL_MIN_SAMPLES``) samples × free parameters (bit-identical to one block, module
     docstring).
 
     ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs,
@@ -233,16 +240,17 @@ class SensitivityKernel:
         else:
             self.serial = self.parallel = source
         self._parallel_ok = compiled
+        self.min_parallel_samples = PARALLEL_MIN_SAMPLES
 
     @property
     def stats(self):
         """numba's cache statistics of the serial (one-block) variant."""
         return self.serial.stats
 
-    def n_blocks(self, n_free: int) -> int:
-        """Blocks of columns for ``n_free`` free parameters: one per numba thread, at most
-        one per parameter (1 where the parallel kernel is not used)."""
-        if not self._parallel_ok:
+    def n_blocks(self, n_free: int, n_samples: int) -> int:
+        """Blocks of columns for ``n_free`` free parameters and ``n_samples`` samples: one per
+        numba thread, at most one per parameter (1 where the parallel kernel is not used)."""
+        if not self._parallel_ok or n_free * n_samples < self.min_parallel_samples:
             return 1
         import numba
 
@@ -252,7 +260,7 @@ class SensitivityKernel:
         if len(arguments) == 13:
             # no state correction: an empty gain
             arguments = (*arguments, np.zeros((0, 0)), np.zeros((0, 0)))
-        n_blocks = self.n_blocks(arguments[3].shape[0])
+        n_blocks = self.n_blocks(arguments[3].shape[0], arguments[6].shape[0])
         if n_blocks > 1:
             try:
                 return self.parallel(*arguments, n_blocks)
