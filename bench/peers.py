@@ -1,6 +1,6 @@
 """Peers on a 6-DOF benchmark: flightid MNR and MNRES against scipy, lmfit and DFO-LS.
 
-    python -P bench/peers.py [--seeds 8] [--quick] [--scaling]
+    python -P bench/peers.py [--seeds 8] [--quick] [--variant base|hard40] [--scaling]
 
 The benchmark (issue 14): the Navion 6-DOF model built by ``flightid.aircraft.six_dof_model``
 (9 states u, v, w, p, q, r, l_xz, l_yz, l_zz; Nelson's longitudinal and lateral derivatives,
@@ -19,9 +19,14 @@ Peers: scipy ``least_squares`` (lm, trf; 2-point Jacobian, ftol = xtol = 1e-8), 
 (``leastsq``), DFO-LS (``dfols.solve``, variables scaled by the parameters' typical values).
 A peer whose package is missing is skipped with a printed reason (``pip install -e '.[bench]'``).
 
-``--scaling`` adds the table over N (1e3, 1e4, 1e5 samples, same 20 s manoeuvre) and the number
-of free parameters (5, 10, 20, 40: the first n of the 22, fixed the rest at the truth; 40 adds 18
-terms whose true value is zero) for MNR, MNRES and scipy lm on seed 0; it is slow.
+``--variant hard40``: the hard 40-parameter variant (``benchmark(seed, variant="hard40")``):
+the 22 derivatives + CY_da (true 0) + output biases b_y of the 8 outputs (true values
+``HARD40_BIAS_TRUTH``, start 0) + the initial values of the 9 states (true: the trim; start:
+trim + U(−1, 1)·``HARD40_STATE_TYPICAL``/2) = 40 free parameters.
+
+``--scaling`` adds the table over N (1e3, 1e4, 1e5 samples, same 20 s manoeuvre; ``--sizes``)
+and the number of free parameters (5, 10, 20: the first n of the 22, the rest fixed at the
+truth; 40: the hard40 variant) for MNR, MNRES and scipy lm on seed 0; it is slow.
 """
 
 from __future__ import annotations
@@ -85,8 +90,23 @@ def _doublet(t, start, width, amplitude):
     )
 
 
-def benchmark(seed: int, n_steps: int = 1000, n_free: int = 22, spread: float = 0.5):
-    """(model at the seeded start, data, R diagonal, truth) of the 6-DOF benchmark."""
+def benchmark(
+    seed: int,
+    n_steps: int = 1000,
+    n_free: int = 22,
+    spread: float = 0.5,
+    variant: str = "base",
+):
+    """(model at the seeded start, data, R diagonal, truth) of the 6-DOF benchmark.
+
+    ``variant="base"``: the first ``n_free`` aerodynamic parameters free (22: all of Nelson's;
+    > 22 adds the 18 ``EXTRA`` terms). ``variant="hard40"``: 40 free parameters, see
+    ``HARD40``; ``n_free`` is ignored.
+    """
+    if variant == "hard40":
+        return _hard40(seed, n_steps, spread)
+    if variant != "base":
+        raise ValueError(f"variant: expected one of {VARIANTS}, got {variant!r}")
     lon, lon_values = navion_longitudinal_aero()
     spec = {k: list(v) for k, v in {**lon.spec, **LATERAL}.items()}
     if n_free > 22:
@@ -98,12 +118,7 @@ def benchmark(seed: int, n_steps: int = 1000, n_free: int = 22, spread: float = 
     truth = np.array([values.get(n, 0.0) for n in names])
     full = six_dof_model(navion(), aero, aero.parameters(dict(zip(names, truth, strict=True))))
     trim = trim_level_flight(full, NAVION_TRIM_SPEED)
-    dt = DURATION_S / n_steps
-    t = np.arange(n_steps + 1) * dt
-    inputs = {n: np.full(t.shape, trim.inputs[n]) for n in full.inputs}
-    inputs["de"] = inputs["de"] + _doublet(t, 1.0, 0.5, 0.03) + _doublet(t, 11.0, 1.0, -0.02)
-    inputs["da"] = inputs["da"] + _doublet(t, 3.0, 1.0, 0.06) + _doublet(t, 14.0, 0.5, -0.05)
-    inputs["dr"] = inputs["dr"] + _doublet(t, 6.5, 1.0, 0.06) + _doublet(t, 16.5, 0.7, 0.04)
+    t, inputs = _manoeuvre(full, trim, n_steps)
     truth_model = six_dof_model(
         navion(),
         aero,
@@ -126,6 +141,94 @@ def benchmark(seed: int, n_steps: int = 1000, n_free: int = 22, spread: float = 
     )
     model = six_dof_model(navion(), aero, parameters, outputs=OUTPUTS8, x0=tuple(trim.x))
     return model, data, SIGMA8**2, truth
+
+
+def _manoeuvre(full, trim, n_steps):
+    """Time (s) and inputs of the 20 s doublet manoeuvre about the trim, ``n_steps`` RK4 steps."""
+    dt = DURATION_S / n_steps
+    t = np.arange(n_steps + 1) * dt
+    inputs = {n: np.full(t.shape, trim.inputs[n]) for n in full.inputs}
+    inputs["de"] = inputs["de"] + _doublet(t, 1.0, 0.5, 0.03) + _doublet(t, 11.0, 1.0, -0.02)
+    inputs["da"] = inputs["da"] + _doublet(t, 3.0, 1.0, 0.06) + _doublet(t, 14.0, 0.5, -0.05)
+    inputs["dr"] = inputs["dr"] + _doublet(t, 6.5, 1.0, 0.06) + _doublet(t, 16.5, 0.7, 0.04)
+    return t, inputs
+
+
+def _hard40(seed: int, n_steps: int, spread: float):
+    """The 40-parameter variant (``HARD40``): derivatives, output biases, initial states."""
+    import numba
+
+    from flightid.model import StateSpaceModel
+
+    lon, lon_values = navion_longitudinal_aero()
+    spec = {k: list(v) for k, v in {**lon.spec, **LATERAL}.items()}
+    for coefficient, terms in HARD40_EXTRA_TERMS.items():
+        spec[coefficient].extend(terms)
+    aero = AeroModel(spec)
+    values = {**lon_values, **NAVION_LATERAL}
+    aero_names = aero.parameter_names
+    aero_truth = np.array([values.get(n, 0.0) for n in aero_names])
+    base = six_dof_model(
+        navion(),
+        aero,
+        aero.parameters(dict(zip(aero_names, aero_truth, strict=True))),
+        outputs=OUTPUTS8,
+    )
+    trim = trim_level_flight(base, NAVION_TRIM_SPEED)
+    t, inputs = _manoeuvre(base, trim, n_steps)
+    n_x, n_y, n_a = len(base.states), len(base.outputs), len(aero_names)
+    # θ = (aerodynamic parameters, output biases b_y, initial states x0)
+    bias_names = [f"by_{o}" for o in base.outputs]
+    x0_names = [f"x0_{s}" for s in base.states]
+    names = [*aero_names, *bias_names, *x0_names]
+    truth = np.concatenate([aero_truth, HARD40_BIAS_TRUTH, np.asarray(trim.x, float)])
+    h_base = base.h_out if hasattr(base.h_out, "py_func") else numba.njit(base.h_out)
+
+    def h_biased(t, x, u, theta, out):
+        h_base(t, x, u, theta, out)
+        for j in range(n_y):
+            # y_j = h_j + b_y,j
+            out[j] = out[j] + theta[n_a + j]
+
+    def model_at(theta):
+        # typical values: |truth| with floors (aero 0.05; biases σ of the output; states below)
+        typical = np.concatenate(
+            [np.maximum(np.abs(aero_truth), 0.05), SIGMA8, HARD40_STATE_TYPICAL]
+        )
+        parameters = Parameters(
+            Parameter(n, float(v), free=True, scale=float(s))
+            for n, v, s in zip(names, theta, typical, strict=True)
+        )
+        return StateSpaceModel(
+            base.states, base.inputs, base.outputs, base.f, h_biased, parameters,
+            x0=tuple(x0_names),
+            name="navion 6-DOF hard40",
+        )  # fmt: skip
+
+    clean = simulate(model_at(truth), FlightData(t, inputs))
+    rng = np.random.default_rng(seed)
+    noisy = clean + rng.normal(size=clean.shape) * SIGMA8
+    data = FlightData(t, inputs, {n: noisy[:, k] for k, n in enumerate(OUTPUTS8)})
+    # start: derivatives as in the base variant; biases 0; states trim + U(−1, 1)·typical/2
+    start_aero = aero_truth * (1 + spread * rng.uniform(-1, 1, n_a)) + 0.01 * rng.uniform(
+        -1, 1, n_a
+    )
+    start_x0 = np.asarray(trim.x, float) + 0.5 * HARD40_STATE_TYPICAL * rng.uniform(-1, 1, n_x)
+    start = np.concatenate([start_aero, np.zeros(n_y), start_x0])
+    return model_at(start), data, SIGMA8**2, truth
+
+
+VARIANTS = ("base", "hard40")
+# a simulation of 1e5 RK4 steps takes ~0.5 s: the scaling table runs few free counts there
+LARGE_N = 50_000
+# hard40 = 22 Nelson derivatives + CY_da (true 0: Nelson gives none) + 8 output biases + the
+# initial values of the 9 states = 40 free parameters
+HARD40_EXTRA_TERMS = {"CY": ["da"]}
+# true output biases of V (m/s), α, β, Θ, Φ (rad), p, q, r (rad/s)
+HARD40_BIAS_TRUTH = np.array([0.3, 0.01, -0.005, 0.008, -0.006, 0.003, -0.002, 0.002])
+# typical size of the initial states u, v, w (m/s), p, q, r (rad/s), l_xz, l_yz, l_zz (-):
+# parameter scale and the width of the start's offset from the trim
+HARD40_STATE_TYPICAL = np.array([1.0, 0.5, 0.5, 0.02, 0.02, 0.02, 0.02, 0.02, 0.02])
 
 
 class Recorder:
@@ -283,7 +386,7 @@ def _fmt(value):
     return "-" if value is None else str(value)
 
 
-def seeds_table(recorder, seeds, budget, n_steps):
+def seeds_table(recorder, seeds, budget, n_steps, variant="base"):
     runs = methods(budget)
     for name, runner, reason in runs:
         if runner is None:
@@ -296,7 +399,7 @@ def seeds_table(recorder, seeds, budget, n_steps):
     )
     print("|---:|---|---:|---:|---:|---:|---:|---:|")
     for seed in seeds:
-        model, data, r_diag, _ = benchmark(seed, n_steps)
+        model, data, r_diag, _ = benchmark(seed, n_steps, variant=variant)
         simulate(model, data)  # compile outside the timings
         results = {name: run_one(recorder, runner, model, data, r_diag) for name, runner in active}
         j_star = min(float(np.min(r["history"])) for r in results.values())
@@ -335,7 +438,8 @@ def seeds_table(recorder, seeds, budget, n_steps):
         )
 
 
-def scaling_table(recorder, budget, sizes, free_counts):
+def scaling_table(recorder, budget, sizes, free_counts, large_free=(20,)):
+    """Sizes of ``LARGE_N`` samples and more run only the free counts ``large_free``."""
     chosen = [
         ("MNR", _flightid(MNR(), budget)),
         ("MNRES", _flightid(MNRES(), budget)),
@@ -345,8 +449,11 @@ def scaling_table(recorder, budget, sizes, free_counts):
     print("| N | free parameters | method | sims to J*+0.01 | sims total | wall, s | sim share |")
     print("|---:|---:|---|---:|---:|---:|---:|")
     for n_steps in sizes:
-        for n_free in free_counts:
-            model, data, r_diag, _ = benchmark(0, n_steps, n_free)
+        counts = [n for n in free_counts if n in large_free] if n_steps >= LARGE_N else free_counts
+        for n_free in counts:
+            # 40 free: the hard40 variant (derivatives, output biases, initial states)
+            variant = "hard40" if n_free == 40 else "base"
+            model, data, r_diag, _ = benchmark(0, n_steps, n_free, variant=variant)
             simulate(model, data)
             results = {n: run_one(recorder, r, model, data, r_diag) for n, r in chosen}
             j_star = min(float(np.min(r["history"])) for r in results.values())
@@ -370,6 +477,13 @@ def main() -> None:
         "--quick", action="store_true", help="3 seeds, 300 RK4 steps, budget 1500 simulations"
     )
     parser.add_argument("--scaling", action="store_true", help="also the N × parameters table")
+    parser.add_argument(
+        "--variant",
+        choices=VARIANTS,
+        default="base",
+        help="seeds table: base (22 derivatives) or hard40 (40: derivatives, output biases, "
+        "initial states)",
+    )
     parser.add_argument("--budget", type=int, default=5000, help="simulations per method and run")
     parser.add_argument(
         "--sizes",
@@ -385,20 +499,28 @@ def main() -> None:
         default=[5, 10, 20, 40],
         help="free-parameter counts of the scaling table (5 … 40)",
     )
+    parser.add_argument(
+        "--large-free",
+        type=int,
+        nargs="+",
+        default=[20],
+        help=f"free-parameter counts run at sizes ≥ {LARGE_N} steps (default 20)",
+    )
     args = parser.parse_args()
     recorder = Recorder()
     n_seeds, n_steps, budget = args.seeds, 1000, args.budget
     if args.quick:
         n_seeds, n_steps, budget = min(n_seeds, 3), 300, min(budget, 1500)
+    n_free = 40 if args.variant == "hard40" else 22
     print(
-        f"6-DOF Navion benchmark: {n_steps} RK4 steps, 8 outputs, 22 free parameters, "
-        f"{n_seeds} seeds, budget {budget} simulations"
+        f"6-DOF Navion benchmark ({args.variant}): {n_steps} RK4 steps, 8 outputs, "
+        f"{n_free} free parameters, {n_seeds} seeds, budget {budget} simulations"
     )
     if n_seeds > 0:
-        seeds_table(recorder, range(n_seeds), budget, n_steps)
+        seeds_table(recorder, range(n_seeds), budget, n_steps, args.variant)
     if args.scaling:
         sizes = args.sizes or ((300, 1000) if args.quick else (1000, 10000, 100000))
-        scaling_table(recorder, budget, sizes, args.free)
+        scaling_table(recorder, budget, sizes, args.free, args.large_free)
 
 
 if __name__ == "__main__":
