@@ -436,6 +436,65 @@ def seeds_table(recorder, seeds, budget, n_steps, variant="base"):
             f"{statistics.median(r[4] for r in rows):.3f} | "
             f"{statistics.median(r[5] for r in rows):.2f} |"
         )
+    per_seed_table(per_method, seeds)
+    return per_method
+
+
+def per_seed_table(per_method, seeds) -> None:
+    """Sims to J*+0.01 / wall (s) per seed and method, and the issue-14 checks as PASS/FAIL."""
+    names = list(per_method)
+    print()
+    print("| seed | " + " | ".join(f"{n}: sims to J*+0.01 / wall, s" for n in names) + " |")
+    print("|---:|" + "---:|" * len(names))
+    for i, seed in enumerate(seeds):
+        cells = [f"{_fmt(per_method[n][i][1])} / {per_method[n][i][4]:.3f}" for n in names]
+        print(f"| {seed} | " + " | ".join(cells) + " |")
+    print()
+    for line in seed_checks(per_method):
+        print(line)
+
+
+def _inf(value):
+    return np.inf if value is None else value
+
+
+def seed_checks(per_method) -> list[str]:
+    """The issue-14 part-3 checks on a seeds table, as 'PASS|FAIL: …' lines."""
+    lines = []
+
+    def verdict(ok, text):
+        lines.append(f"{'PASS' if ok else 'FAIL'}: {text}")
+
+    mnres, mnr, lm = (per_method.get(n) for n in ("MNRES", "MNR", "scipy lm"))
+    if mnres is None:
+        return lines
+    sims = [_inf(r[1]) for r in mnres]
+    verdict(
+        all(np.isfinite(sims)),
+        f"MNRES reaches J*+0.01 on every seed ({sum(np.isfinite(sims))}/{len(sims)})",
+    )
+    if lm is not None:
+        lm_sims = [_inf(r[1]) for r in lm]
+        median_mnres, median_lm = statistics.median(sims), statistics.median(lm_sims)
+        verdict(
+            median_mnres <= 0.7 * median_lm,
+            f"median MNRES sims to J*+0.01 ≤ 0.7 × median scipy lm's "
+            f"({median_mnres:g} vs 0.7 × {median_lm:g} = {0.7 * median_lm:g})",
+        )
+        worse = [i for i, (a, b) in enumerate(zip(sims, lm_sims, strict=True)) if a > b]
+        verdict(
+            not worse,
+            "MNRES sims to J*+0.01 ≤ scipy lm's on every seed"
+            + (f" (more on seed index {worse})" if worse else ""),
+        )
+    if mnr is not None:
+        slower = [i for i, (a, b) in enumerate(zip(mnres, mnr, strict=True)) if a[4] > b[4]]
+        verdict(
+            not slower,
+            "MNRES wall ≤ MNR wall on every seed"
+            + (f" (slower on seed index {slower})" if slower else ""),
+        )
+    return lines
 
 
 def scaling_table(recorder, budget, sizes, free_counts, large_free=(20,)):
@@ -448,6 +507,7 @@ def scaling_table(recorder, budget, sizes, free_counts, large_free=(20,)):
     print()
     print("| N | free parameters | method | sims to J*+0.01 | sims total | wall, s | sim share |")
     print("|---:|---:|---|---:|---:|---:|---:|")
+    checks = []
     for n_steps in sizes:
         counts = [n for n in free_counts if n in large_free] if n_steps >= LARGE_N else free_counts
         for n_free in counts:
@@ -457,12 +517,22 @@ def scaling_table(recorder, budget, sizes, free_counts, large_free=(20,)):
             simulate(model, data)
             results = {n: run_one(recorder, r, model, data, r_diag) for n, r in chosen}
             j_star = min(float(np.min(r["history"])) for r in results.values())
+            reached = {}
             for name, r in results.items():
                 to001 = _first_below(r["history"], j_star + 0.01)
+                reached[name] = to001
                 print(
                     f"| {n_steps} | {n_free} | {name} | {_fmt(to001)} | {r['sims']} | "
                     f"{r['wall']:.3f} | {r['share']:.2f} |"
                 )
+            a, b = _inf(reached["MNRES"]), _inf(reached["MNR"])
+            checks.append(
+                f"{'PASS' if a <= b else 'FAIL'}: N = {n_steps + 1}, {n_free} free: MNRES sims "
+                f"to J*+0.01 ≤ MNR's ({_fmt(reached['MNRES'])} vs {_fmt(reached['MNR'])})"
+            )
+    print()
+    for line in checks:
+        print(line)
 
 
 def main() -> None:
