@@ -535,6 +535,104 @@ def scaling_table(recorder, budget, sizes, free_counts, large_free=(20,)):
         print(line)
 
 
+MEMORY_METHODS = ("MNR", "MNRES", "scipy lm")
+MEMORY_FREE = 20
+MEMORY_BUDGET = 3 * (MEMORY_FREE + 1) + 6  # simulations: ~3 Jacobians (the peak is in each)
+
+
+def _memory_runner(name: str, budget: int):
+    if name == "scipy lm":
+        return _scipy("lm", budget)
+    solver = {"MNR": MNR, "MNRES": MNRES}[name]()
+
+    def run(model, data, r_diag, problem):
+        result = estimate(
+            model,
+            data,
+            solver,
+            noise="fixed",
+            R=r_diag,
+            convergence=Convergence(max_iterations=3, max_evaluations=budget),
+        )
+        return result.cost
+
+    return run
+
+
+def memory_one(name: str, n_steps: int) -> dict:
+    """Peak resident-memory increase (ru_maxrss delta) of one short run of ``name``.
+
+    Everything compiled and the data built before the baseline: a warm-up run on a record of
+    min(N, 5000) steps of the same model (long enough for the parallel kernels), then the
+    benchmark at ``n_steps`` and one simulation.
+    """
+    import resource
+
+    runner = _memory_runner(name, MEMORY_BUDGET)
+    small = benchmark(0, min(n_steps, 5000), MEMORY_FREE)
+    runner(small[0], small[1], small[2], OutputErrorProblem(small[0], small[1]))
+    model, data, r_diag, _ = benchmark(0, n_steps, MEMORY_FREE)
+    simulate(model, data)
+    problem = OutputErrorProblem(model, data)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux
+    runner(model, data, r_diag, problem)
+    after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    n_samples = data.n_samples
+    return {
+        "method": name,
+        "n_samples": n_samples,
+        "peak_increase_bytes": (after - before) * 1024,
+        "baseline_bytes": before * 1024,
+        "sensitivity_bytes": n_samples * len(OUTPUTS8) * MEMORY_FREE * 8,
+    }
+
+
+def memory_table(n_steps: int) -> list[str]:
+    """One subprocess per method (peaks do not mix); the table and the part-4 check."""
+    import json
+    import subprocess
+    import sys
+
+    rows = []
+    for name in MEMORY_METHODS:
+        done = subprocess.run(
+            [sys.executable, "-P", __file__, "--memory-one", name, "--memory-steps", str(n_steps)],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        lines = [ln for ln in done.stdout.splitlines() if ln.startswith("{")]
+        if done.returncode != 0 or not lines:
+            print(f"memory {name}: failed (exit {done.returncode}): {done.stderr.strip()[-400:]}")
+            continue
+        rows.append(json.loads(lines[-1]))
+    print()
+    print(
+        f"Peak memory, {MEMORY_FREE} free parameters, one subprocess per method: increase of "
+        "the process's peak resident set (ru_maxrss) over its value after data, compilation "
+        f"and one simulation; {MEMORY_BUDGET} simulations at most (3 passes)."
+    )
+    print()
+    print("| N | method | peak increase, MB | sensitivity array N·n_o·n_f·8, MB | ratio |")
+    print("|---:|---|---:|---:|---:|")
+    lines = []
+    for row in rows:
+        ratio = row["peak_increase_bytes"] / row["sensitivity_bytes"]
+        print(
+            f"| {row['n_samples']} | {row['method']} | {row['peak_increase_bytes'] / 1e6:.1f} | "
+            f"{row['sensitivity_bytes'] / 1e6:.1f} | {ratio:.2f} |"
+        )
+        if row["method"] in ("MNR", "MNRES"):
+            lines.append(
+                f"{'PASS' if ratio <= 2 else 'FAIL'}: {row['method']} peak memory ≤ 2 × the "
+                f"sensitivity array at N = {row['n_samples']} ({ratio:.2f} ×)"
+            )
+    print()
+    for line in lines:
+        print(line)
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -576,7 +674,19 @@ def main() -> None:
         default=[20],
         help=f"free-parameter counts run at sizes ≥ {LARGE_N} steps (default 20)",
     )
+    parser.add_argument(
+        "--memory",
+        action="store_true",
+        help=f"peak memory of {', '.join(MEMORY_METHODS)} at --memory-steps RK4 steps",
+    )
+    parser.add_argument("--memory-steps", type=int, default=100_000, help=argparse.SUPPRESS)
+    parser.add_argument("--memory-one", choices=MEMORY_METHODS, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.memory_one:
+        import json
+
+        print(json.dumps(memory_one(args.memory_one, args.memory_steps)))
+        return
     recorder = Recorder()
     n_seeds, n_steps, budget = args.seeds, 1000, args.budget
     if args.quick:
@@ -591,6 +701,8 @@ def main() -> None:
     if args.scaling:
         sizes = args.sizes or ((300, 1000) if args.quick else (1000, 10000, 100000))
         scaling_table(recorder, budget, sizes, args.free, args.large_free)
+    if args.memory:
+        memory_table(args.memory_steps)
 
 
 if __name__ == "__main__":
