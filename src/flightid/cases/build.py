@@ -439,16 +439,20 @@ def _biases(
     return bx, by, extra, per_maneuver_any
 
 
-def _compiles(fn, n_x: int, n_u: int, n_p: int) -> bool:
-    """True if numba compiles ``fn`` (tried on zeros)."""
-    try:
-        import numba
+def _compiled(fn, n_x: int, n_u: int, n_p: int):
+    """``fn`` compiled by numba (tried on zeros), or None where numba cannot compile it.
 
-        jitted = fn if hasattr(fn, "py_func") else numba.njit(cache=False)(fn)
+    The compiled function is the one of ``compiled_function``: one per process for the same
+    function (a case built twice compiles once) and kept in the on-disk kernel cache.
+    """
+    from flightid.simulate.cache import compiled_function
+
+    try:
+        jitted = compiled_function(fn)
         jitted(0.0, np.zeros(n_x), np.zeros(n_u), np.zeros(n_p))
-        return True
+        return jitted
     except Exception:  # numba typing errors have many classes; a wrong model fails later
-        return False
+        return None
 
 
 def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
@@ -555,12 +559,24 @@ def build_model(
     f, h, inputs = base.f, base.h, base.inputs
     if bias_params:
         n_u = len(base.inputs)
-        compiled = case.estimation.get("compiled", True) and all(
-            _compiles(fn, len(base.states), n_u, len(base.parameters)) for fn in (base.f, base.h)
+        jitted = (
+            [_compiled(fn, len(base.states), n_u, len(base.parameters)) for fn in (base.f, base.h)]
+            if case.estimation.get("compiled", True)
+            else [None]
+        )
+        compiled = all(fn is not None for fn in jitted)
+        # the wrappers call the compiled f and h (their own out forms where they carry one)
+        f_base, h_base = (
+            [
+                fn if getattr(fn, "out_form", None) is not None else fn_jit
+                for fn, fn_jit in zip((base.f, base.h), jitted, strict=True)
+            ]
+            if compiled
+            else (base.f, base.h)
         )
         f, h = _biased_functions(
-            base.f,
-            base.h,
+            f_base,
+            h_base,
             len(base.states),
             len(base.outputs),
             n_u,

@@ -42,12 +42,13 @@ import itertools
 import os
 import secrets
 import types
+import weakref
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-__all__ = ["cached_njit", "kernel_digest"]
+__all__ = ["cached_njit", "kernel_digest", "compiled_function", "content_key"]
 
 # modules whose classes may appear in a closure or as a global (their behaviour is versioned
 # with the library, which numba's cache index records)
@@ -172,6 +173,48 @@ def kernel_digest(py_func: Callable) -> str | None:
         # ValueError: an empty closure cell (a function defined before its helper)
         return None
     return hasher.hexdigest()
+
+
+# content_key: fn -> key, forgotten with fn
+_CONTENT_KEYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# compiled_function: content key -> dispatcher
+_COMPILED_FUNCTIONS: dict[Any, Callable] = {}
+
+
+def content_key(fn: Callable | None) -> Any:
+    """A key that is equal for two functions computing the same thing: ``("digest", d)``
+    with the ``kernel_digest`` d of ``fn``, or, where there is no digest, ``("id", id(fn))``
+    (the function itself, then). Remembered per function object (a digest walks the whole
+    call tree once)."""
+    if fn is None:
+        return ("none",)
+    try:
+        return _CONTENT_KEYS[fn]
+    except (KeyError, TypeError):  # TypeError: no weak reference to fn possible
+        pass
+    digest = kernel_digest(fn)
+    # the id of a function is unique while it lives; a kernel keyed on it keeps it alive
+    key = ("digest", digest) if digest is not None else ("id", id(fn))
+    try:
+        _CONTENT_KEYS[fn] = key
+    except TypeError:
+        pass
+    return key
+
+
+def compiled_function(py_func: Callable) -> Callable:
+    """The numba dispatcher of ``py_func`` (a plain Python function), one per process for
+    all functions with the same ``content_key`` (a case built twice compiles its model
+    functions once) and kept on disk like the kernels (``cached_njit``). A dispatcher is
+    returned as it is."""
+    if hasattr(py_func, "py_func"):
+        return py_func
+    key = content_key(py_func)
+    dispatcher = _COMPILED_FUNCTIONS.get(key)
+    if dispatcher is None:
+        dispatcher = cached_njit(py_func)
+        _COMPILED_FUNCTIONS[key] = dispatcher
+    return dispatcher
 
 
 def _cache_enabled() -> bool:

@@ -148,9 +148,10 @@ def delayed_inputs(
     return np.ascontiguousarray(out)
 
 
-# Kernels are kept per (f, h) pair so that repeated estimations in a process reuse them
-# (across processes the compiled code is kept on disk: flightid.simulate.cache).
-_KERNEL_CACHE: dict[tuple, tuple] = {}
+# Kernels are kept per content of (f, h) (cache.content_key) so that repeated estimations in
+# a process reuse them (across processes the compiled code is kept on disk:
+# flightid.simulate.cache).
+_KERNEL_CACHE: dict[tuple, object] = {}
 
 
 @dataclass(frozen=True)
@@ -323,14 +324,18 @@ class Simulator:
     # --------------------------------------------------------------------- kernels
     def _memo(self, kind: tuple, build):
         """The kernel ``kind`` of this model's (f, h): built once per process by ``build()``,
-        then reused by every simulator of the same functions."""
-        key = (id(self.model.f), id(self.model.h), *kind)
-        entry = _KERNEL_CACHE.get(key)
-        # the ids of collected functions can be reused: the entry keeps the functions
-        if entry is None or entry[0] is not self.model.f or entry[1] is not self.model.h:
-            entry = (self.model.f, self.model.h, build())
-            _KERNEL_CACHE[key] = entry
-        return entry[2]
+        then reused by every simulator of functions that compute the same: the key is the
+        content of the out forms the kernels call (``flightid.simulate.cache.content_key``:
+        their code, constants and closure values), not the function objects, so a case
+        builder making new closures of the same model gets the kernel already compiled."""
+        from flightid.simulate.cache import content_key
+
+        key = (content_key(self.model.f_out), content_key(self.model.h_out), *kind)
+        kernel = _KERNEL_CACHE.get(key)
+        if kernel is None:
+            kernel = build()
+            _KERNEL_CACHE[key] = kernel
+        return kernel
 
     def _get_kernel(self, compiled: bool):
         def build():
