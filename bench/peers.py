@@ -1,6 +1,8 @@
 """Peers on a 6-DOF benchmark: flightid MNR and MNRES against scipy, lmfit and DFO-LS.
 
+    python -P bench/peers.py --all          # everything below, about 15 min on 2 quiet cores
     python -P bench/peers.py [--seeds 8] [--quick] [--variant base|hard40] [--scaling]
+                             [--memory] [--cases [CASE ...]]
 
 The benchmark (issue 14): the Navion 6-DOF model built by ``flightid.aircraft.six_dof_model``
 (9 states u, v, w, p, q, r, l_xz, l_yz, l_zz; Nelson's longitudinal and lateral derivatives,
@@ -26,7 +28,19 @@ trim + U(−1, 1)·``HARD40_STATE_TYPICAL``/2) = 40 free parameters.
 
 ``--scaling`` adds the table over N (1e3, 1e4, 1e5 samples, same 20 s manoeuvre; ``--sizes``)
 and the number of free parameters (5, 10, 20: the first n of the 22, the rest fixed at the
-truth; 40: the hard40 variant) for MNR, MNRES and scipy lm on seed 0; it is slow.
+truth; 40: the hard40 variant) for MNR, MNRES and scipy lm on seed 0; it is slow. At sizes of
+``LARGE_N`` steps and more only the ``--large-free`` counts run (default 20).
+
+Each seeds table ends with a per-seed table (sims to J*+0.01 / wall per method) and the
+issue-14 checks as PASS/FAIL lines; the scaling table with MNRES ≤ MNR (sims to J*+0.01).
+
+``--memory``: peak memory at N = 1e5, 20 free parameters, of MNR, MNRES and scipy lm, each in
+its own subprocess: the increase of ru_maxrss over a run of at most 3 passes, after data,
+compilation and one simulation; against the sensitivity array N·n_o·n_f·8 bytes.
+
+``--cases``: the standard cases (``STANDARD_CASES``), MNR and MNRES: process time of
+``flightid run`` (cold: empty NUMBA_CACHE_DIR; warm: second run) and the warm in-process
+estimate time (``Estimate.wall_time_s``).
 """
 
 from __future__ import annotations
@@ -633,6 +647,129 @@ def memory_table(n_steps: int) -> list[str]:
     return lines
 
 
+# the standard cases (docs/cases.md "The standard cases", plus the built-in-model HFB-320 and
+# the Y-13 AUS output-error case): output error with a solver, each under ~60 s
+STANDARD_CASES = (
+    "hfb320_longitudinal",
+    "hfb320_longitudinal_builtin",
+    "attas_lateral",
+    "attas_lateral_two_maneuvers",
+    "attas_short_period",
+    "twin_otter_longitudinal",
+    "y13aus_lateral_output_error",
+)
+CASE_TIMEOUT_S = 120.0
+
+
+def _case_copy(path, solver: str, folder) -> object:
+    """A copy of the case file in ``folder`` with every ``solver = …`` set to ``solver``
+    (inserted under [estimation] where the case relies on the default) and relative model
+    modules made absolute."""
+    import re
+    from pathlib import Path
+
+    text = Path(path).read_text()
+    if re.search(r"^\s*solver\s*=", text, flags=re.M):
+        text = re.sub(r'^(\s*)solver\s*=\s*"[a-z]+"', rf'\1solver = "{solver}"', text, flags=re.M)
+    else:
+        text = re.sub(
+            r"^\[estimation\]\s*$", f'[estimation]\nsolver = "{solver}"', text, flags=re.M
+        )
+
+    def absolute(match):
+        return f'{match.group(1)}"{(Path(path).parent / match.group(2)).resolve()}"'
+
+    text = re.sub(r'^(\s*module\s*=\s*)"([^"]+)"', absolute, text, flags=re.M)
+    copy = Path(folder) / f"{Path(path).stem}_{solver}.toml"
+    copy.write_text(text)
+    return copy
+
+
+def _process_time(case_file, data_dir, cache_dir, out_dir) -> float | None:
+    """Wall time (s) of ``flightid run CASE --out … --json`` in a fresh process (None: failed
+    or over ``CASE_TIMEOUT_S``)."""
+    import shutil
+    import subprocess
+
+    shutil.rmtree(out_dir, ignore_errors=True)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir)}
+    command = ["flightid", "run", str(case_file), "--out", str(out_dir), "--json", "--quiet"]
+    command += ["--accuracy", "cr", "--data-dir", str(data_dir)]
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(
+            command, env=env, capture_output=True, text=True, timeout=CASE_TIMEOUT_S, check=False
+        )
+    except subprocess.TimeoutExpired:
+        return None
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        print(f"<!-- {case_file}: exit {done.returncode}: {done.stderr.strip()[-300:]} -->")
+        return None
+    return wall
+
+
+def cases_table(names=STANDARD_CASES) -> None:
+    """Process time (cold, warm) and warm in-process estimate time of the standard cases,
+    MNR and MNRES."""
+    import dataclasses
+    import tempfile
+    from pathlib import Path
+
+    from flightid.cases import load_case, run_case
+
+    cases_dir = Path(__file__).resolve().parents[1] / "examples" / "cases"
+    data_dir = Path(os.environ.get("FLIGHTID_DATA", cases_dir / "../../../shared/data")).resolve()
+    print()
+    print(
+        "Standard cases. Process: `flightid run CASE --out DIR --json --accuracy cr` in a new "
+        "process, cold = empty NUMBA_CACHE_DIR (every kernel compiled), warm = the second run on "
+        f"that cache (runs over {CASE_TIMEOUT_S:.0f} s: '>'). Estimate: "
+        "Estimate.wall_time_s of a second in-process run_case (accuracy none) after a first "
+        "that compiled everything."
+    )
+    print()
+    print(
+        "| case | solver | process cold, s | process warm, s | warm estimate, s | "
+        "simulations | cost |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|")
+    checks = []
+    with tempfile.TemporaryDirectory(prefix="flightid_cases_") as tmp:
+        for name in names:
+            path = cases_dir / f"{name}.toml"
+            walls = {}
+            for solver in ("mnr", "mnres"):
+                copy = _case_copy(path, solver, tmp)
+                cache = Path(tmp) / f"cache_{name}_{solver}"
+                out = Path(tmp) / "out"
+                cold = _process_time(copy, data_dir, cache, out)
+                warm = _process_time(copy, data_dir, cache, out)
+                spec = load_case(path)
+                spec = dataclasses.replace(spec, estimation={**spec.estimation, "solver": solver})
+                run_case(spec, data_dir=data_dir, accuracy="none")  # compiles
+                result = run_case(spec, data_dir=data_dir, accuracy="none").estimate
+                walls[solver] = result.wall_time_s
+
+                def fmt(v):
+                    return f"> {CASE_TIMEOUT_S:.0f}" if v is None else f"{v:.2f}"
+
+                print(
+                    f"| {name} | {solver.upper()} | {fmt(cold)} | {fmt(warm)} | "
+                    f"{result.wall_time_s:.3f} | {result.equivalent_evaluations} | "
+                    f"{result.cost:.6g} |",
+                    flush=True,
+                )
+            ok = walls["mnres"] <= walls["mnr"]
+            checks.append(
+                f"{'PASS' if ok else 'FAIL'}: {name}: MNRES warm estimate ≤ MNR's "
+                f"({walls['mnres']:.3f} vs {walls['mnr']:.3f} s)"
+            )
+    print()
+    for line in checks:
+        print(line)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -679,6 +816,19 @@ def main() -> None:
         action="store_true",
         help=f"peak memory of {', '.join(MEMORY_METHODS)} at --memory-steps RK4 steps",
     )
+    parser.add_argument(
+        "--cases",
+        nargs="*",
+        default=None,
+        metavar="CASE",
+        help="standard cases table: process and warm estimate times, MNR and MNRES "
+        f"(names from examples/cases; default {' '.join(STANDARD_CASES)})",
+    )
+    parser.add_argument(
+        "--all",
+        action="store_true",
+        help="everything: seeds tables of both variants, --scaling, --memory, --cases",
+    )
     parser.add_argument("--memory-steps", type=int, default=100_000, help=argparse.SUPPRESS)
     parser.add_argument("--memory-one", choices=MEMORY_METHODS, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -687,22 +837,43 @@ def main() -> None:
 
         print(json.dumps(memory_one(args.memory_one, args.memory_steps)))
         return
+    if args.all:
+        args.scaling, args.memory = True, True
+        args.cases = [] if args.cases is None else args.cases
+        print(
+            "--all: seeds tables (base and hard40), scaling, memory, standard cases; "
+            "about 15 min on 2 quiet cores (--quick: about 5 min)"
+        )
     recorder = Recorder()
     n_seeds, n_steps, budget = args.seeds, 1000, args.budget
     if args.quick:
         n_seeds, n_steps, budget = min(n_seeds, 3), 300, min(budget, 1500)
-    n_free = 40 if args.variant == "hard40" else 22
-    print(
-        f"6-DOF Navion benchmark ({args.variant}): {n_steps} RK4 steps, 8 outputs, "
-        f"{n_free} free parameters, {n_seeds} seeds, budget {budget} simulations"
-    )
-    if n_seeds > 0:
-        seeds_table(recorder, range(n_seeds), budget, n_steps, args.variant)
+    started = time.perf_counter()
+    variants = VARIANTS if args.all else (args.variant,)
+    for variant in variants if n_seeds > 0 else ():
+        n_free = 40 if variant == "hard40" else 22
+        print()
+        print(
+            f"6-DOF Navion benchmark ({variant}): {n_steps} RK4 steps, 8 outputs, "
+            f"{n_free} free parameters, {n_seeds} seeds, budget {budget} simulations"
+        )
+        print()
+        seeds_table(recorder, range(n_seeds), budget, n_steps, variant)
+        _elapsed(started)
     if args.scaling:
         sizes = args.sizes or ((300, 1000) if args.quick else (1000, 10000, 100000))
         scaling_table(recorder, budget, sizes, args.free, args.large_free)
+        _elapsed(started)
     if args.memory:
-        memory_table(args.memory_steps)
+        memory_table(10_000 if args.quick else args.memory_steps)
+        _elapsed(started)
+    if args.cases is not None:
+        cases_table(args.cases or (STANDARD_CASES[:2] if args.quick else STANDARD_CASES))
+        _elapsed(started)
+
+
+def _elapsed(started: float) -> None:
+    print(f"\n(elapsed {time.perf_counter() - started:.0f} s)", flush=True)
 
 
 if __name__ == "__main__":
