@@ -118,7 +118,7 @@ def test_secant_mnres_on_example1_one_simulation_per_pass_after_the_sweep():
 
 def test_secant_settings_and_surface_forms():
     assert MNRES().settings()["form"] == "secant"
-    assert MNRES()._perturbation() == 1e-6
+    assert MNRES()._perturbation() == 1e-3
     assert MNRES(form="algebraic")._perturbation() == 1e-3
     assert MNRES()._max_rejections() == 1
     assert MNRES(form="recursive")._max_rejections() == 2
