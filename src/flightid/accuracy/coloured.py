@@ -134,16 +134,25 @@ def coloured_covariance(
     # A_i = R⁻¹ G_i
     a = g[:, :, ok] / np.asarray(r_diag, dtype=float)[None, :, None]
     gamma = residual_autocovariance(nu, lag, maneuver_index)
+    n_o = a.shape[1]
     middle = np.zeros((int(ok.sum()),) * 2)
     for segment in _segments(maneuver_index, n):
-        part = a[segment]
-        m = part.shape[0]
-        for k in range(min(lag, m - 1) + 1):
-            # S_k = Σ_i A_iᵀ R̂_ν(k) A_{i+k}
-            s_k = np.tensordot(
-                part[: m - k], np.einsum("oq,iqr->ior", gamma[k], part[k:]), axes=([0, 1], [0, 1])
-            )
-            middle += s_k if k == 0 else s_k + s_k.T
+        # output-major copy (n_o, m, n_f): the rows of one output at lags k … m−1 are one
+        # contiguous block, so R̂_ν(k) A_{i+k} for all i is a single matrix product
+        part = np.ascontiguousarray(a[segment].transpose(1, 0, 2))
+        m, n_p = part.shape[1], part.shape[2]
+        # H_i = Σ_{k=0}^{L} R̂_ν(k) A_{i+k}   (terms with i + k beyond the maneuver left out)
+        h = (gamma[0] @ part.reshape(n_o, m * n_p)).reshape(n_o, m, n_p)
+        forward = np.zeros_like(h)  # the k ≥ 1 terms of H_i
+        for k in range(1, min(lag, m - 1) + 1):
+            shifted = gamma[k] @ part[:, k:, :].reshape(n_o, (m - k) * n_p)
+            forward[:, : m - k, :] += shifted.reshape(n_o, m - k, n_p)
+        # S_0 = Σ_i A_iᵀ R̂_ν(0) A_i,  Σ_{k≥1} S_k = Σ_i A_iᵀ Σ_{k≥1} R̂_ν(k) A_{i+k}
+        flat = part.reshape(n_o * m, n_p)
+        s_0 = flat.T @ h.reshape(n_o * m, n_p)
+        s_forward = flat.T @ forward.reshape(n_o * m, n_p)
+        # S_0 + Σ_{k=1}^{L} (S_k + S_kᵀ)
+        middle += s_0 + s_forward + s_forward.T
     # Cov = M⁻¹ [Σ_i Σ_j G_iᵀ R⁻¹ R̂_ν(i − j) R⁻¹ G_j] M⁻¹
     sandwich = c @ middle @ c
     result[np.ix_(ok, ok)] = 0.5 * (sandwich + sandwich.T)

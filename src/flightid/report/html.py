@@ -153,10 +153,21 @@ def _autocorrelation(run, lag_used: int) -> tuple[np.ndarray, float]:
     return residual_autocorrelation(est.residuals, lags, est.maneuver_index)
 
 
+# (estimate, accuracy, ColouredSigma) of the last _coloured call: the figures and the page
+# of one report ask for the same run's corrected σ
+_LAST_COLOURED: list[tuple] = []
+
+
 def _coloured(run):
     from flightid.report.diagnostics import coloured_sigma
 
-    return coloured_sigma(run.estimate, getattr(run, "accuracy", None))
+    estimate, accuracy = run.estimate, getattr(run, "accuracy", None)
+    for kept_estimate, kept_accuracy, result in _LAST_COLOURED:
+        if kept_estimate is estimate and kept_accuracy is accuracy:
+            return result
+    result = coloured_sigma(estimate, accuracy)
+    _LAST_COLOURED[:] = [(estimate, accuracy, result)]
+    return result
 
 
 def _img(figure: tuple[str, bytes] | None, alt: str, width: str = "100%") -> str:
