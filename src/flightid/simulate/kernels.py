@@ -27,9 +27,17 @@ A trajectory whose state or output becomes non-finite stops there; its ``diverge
 gives the sample index (−1 where the whole trajectory is finite) and the remaining outputs are
 left as NaN for the caller to report — they never reach an estimate.
 
-``integration_step`` is the one stepping routine (Euler or RK4, with the input rule above): the
-state kernel here steps x with f, the sensitivity kernel (``flightid.simulate.sensitivity``)
-steps the stacked (x, S) with the sensitivity equations.
+``make_step`` is the stepping routine (Euler or RK4, with the input rule above) of the
+feedback, filter and sensitivity kernels (the latter steps the stacked (x, S) with the
+sensitivity equations, ``flightid.simulate.sensitivity``). The plain state kernel writes the
+same stages out in its loop, with the same arithmetic (bit-identical results): a call of the
+step per sample cost as much as a cheap model's f (issue 14).
+
+Model functions are called in their out form ``f(t, x, u, θ, out)`` (``flightid.model.forms``);
+the stages k1…k4, the stage state and the half-step input live in arrays allocated once per
+trajectory, so integrating allocates nothing per step. Batches run their trajectories in a
+``prange``: in parallel (``BatchKernel``) for batches of at least ``PARALLEL_MIN_SAMPLES``
+samples in all, each trajectory with its own arrays, bit-identical to the serial run.
 
 A model without states (``StateSpaceModel(states=(), f=None, ...)``) is not integrated: its
 kernel (``stateless=True``) evaluates y_k = h(t_k, [], u_k, θ) at every sample, with x an
