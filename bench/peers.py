@@ -379,7 +379,15 @@ def run_one(recorder, runner, model, data, r_diag):
     problem = OutputErrorProblem(model, data)
     recorder.reset(problem.measured, r_diag)
     start = time.perf_counter()
-    cost = runner(model, data, r_diag, problem)
+    try:
+        cost = runner(model, data, r_diag, problem)
+    except Exception as error:  # a peer that gives up (lmfit on a NaN residual) is a result
+        print(
+            f"<!-- {getattr(runner, '__name__', 'method')} stopped: {type(error).__name__}: "
+            f"{str(error)[:120]} -->"
+        )
+        finite = [c for c in recorder.costs if np.isfinite(c)]
+        cost = min(finite) if finite else float("inf")
     wall = time.perf_counter() - start - recorder.record_s
     recorder.measured = None  # simulations outside a method's run are not recorded
     return {
