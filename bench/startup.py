@@ -108,7 +108,9 @@ def main() -> None:
             jobs.append((path.stem, ["run", str(path)]))
     for example in PAPER_EXAMPLES:
         if names is None or example in names:
-            jobs.append((f"paper {example}", ["paper", example]))
+            # example 3 needs its noise case (1: no noise)
+            extra = ["--case", "1"] if example == "example3" else []
+            jobs.append((f"paper {example}", ["paper", example, *extra]))
 
     header = (
         f"{'case':40s} {'wall 1st':>8s} {'comp 1st':>8s} {'n 1st':>5s}"
