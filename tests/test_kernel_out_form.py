@@ -422,3 +422,45 @@ def test_builtin_airplane_model_out_form_matches_its_return_form():
         out = np.full(size, np.nan)
         as_out_form(fn)(0.0, x, u, theta, out)
         np.testing.assert_array_equal(out, expected)
+
+
+def test_a_parallel_variant_numba_cannot_compile_falls_back_to_serial_with_a_warning():
+    """Both the batch and the sensitivity kernel run their serial variant, say so, and stop
+    trying the parallel one, when numba rejects the parallel variant; other errors propagate."""
+    from numba.core.errors import TypingError
+
+    from flightid.simulate.kernels import run_parallel_variant
+
+    def numba_rejects(*arguments):
+        raise TypingError("parallel variant rejected (test)")
+
+    def python_error(*arguments):
+        raise ValueError("not numba's")
+
+    with pytest.warns(RuntimeWarning, match="the parallel batch kernel did not compile"):
+        assert run_parallel_variant(numba_rejects, (), "batch kernel", "serially") == (
+            False,
+            None,
+        )
+    with pytest.raises(ValueError, match="not numba's"):
+        run_parallel_variant(python_error, (), "batch kernel", "serially")
+    assert run_parallel_variant(lambda a, b: a + b, (1, 2), "batch kernel", "serially") == (
+        True,
+        3,
+    )
+
+    data = _data(301)
+    model = _model(_oscillator_out, _outputs_return)
+    thetas = _thetas(model, 21)
+    simulator = Simulator(model, data)
+    serial = simulator.run(thetas).outputs
+    kernel = simulator._kernel
+    kernel.min_parallel_samples = 0
+    kernel.parallel, kept = numba_rejects, kernel.parallel
+    try:
+        with pytest.warns(RuntimeWarning, match="running batches serially"):
+            fallback = simulator.run(thetas).outputs
+        assert kernel.parallel_ok is False
+        np.testing.assert_array_equal(fallback, serial)
+    finally:
+        kernel.parallel, kernel.parallel_ok = kept, True

@@ -307,23 +307,34 @@ class BatchKernel:
     def __call__(self, thetas, *arguments):
         # arguments: x0s, t, u, ...
         if self.use_parallel(thetas.shape[0], arguments[1].shape[0]):
-            try:
-                result = self.parallel(thetas, *arguments)
+            self.parallel_ok, result = run_parallel_variant(
+                self.parallel, (thetas, *arguments), "batch kernel", "running batches serially"
+            )
+            if self.parallel_ok:
                 self.parallel_runs += 1
                 return result
-            except Exception as exc:  # numba compilation errors have many classes
-                if not type(exc).__module__.startswith("numba"):
-                    raise
-                import warnings
-
-                warnings.warn(
-                    f"the parallel batch kernel did not compile ({type(exc).__name__}); "
-                    "running batches serially",
-                    RuntimeWarning,
-                    stacklevel=2,
-                )
-                self.parallel_ok = False
         return self.serial(thetas, *arguments)
+
+
+def run_parallel_variant(
+    parallel: Callable, arguments: tuple, kernel_name: str, fallback: str
+) -> tuple[bool, object]:
+    """``(True, parallel(*arguments))``, or ``(False, None)`` where numba cannot compile the
+    parallel variant: a ``RuntimeWarning`` then names ``kernel_name`` and the ``fallback``
+    (the caller runs its serial variant). Errors that are not numba's propagate."""
+    try:
+        return True, parallel(*arguments)
+    except Exception as exc:  # numba compilation errors have many classes
+        if not type(exc).__module__.startswith("numba"):
+            raise
+        import warnings
+
+        warnings.warn(
+            f"the parallel {kernel_name} did not compile ({type(exc).__name__}); {fallback}",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return False, None
 
 
 def make_kernel(

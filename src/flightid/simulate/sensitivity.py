@@ -42,6 +42,7 @@ from flightid.simulate.kernels import (
     _identity,
     make_step,
     record_sample,
+    run_parallel_variant,
     step_buffers,
 )
 
@@ -262,20 +263,11 @@ class SensitivityKernel:
             arguments = (*arguments, np.zeros((0, 0)), np.zeros((0, 0)))
         n_blocks = self.n_blocks(arguments[3].shape[0], arguments[6].shape[0])
         if n_blocks > 1:
-            try:
-                return self.parallel(*arguments, n_blocks)
-            except Exception as exc:  # numba compilation errors have many classes
-                if not type(exc).__module__.startswith("numba"):
-                    raise
-                import warnings
-
-                warnings.warn(
-                    f"the parallel sensitivity kernel did not compile ({type(exc).__name__}); "
-                    "running it serially",
-                    RuntimeWarning,
-                    stacklevel=2,
-                )
-                self._parallel_ok = False
+            self._parallel_ok, result = run_parallel_variant(
+                self.parallel, (*arguments, n_blocks), "sensitivity kernel", "running it serially"
+            )
+            if self._parallel_ok:
+                return result
         return self.serial(*arguments, 1)
 
 
