@@ -37,3 +37,40 @@ def test_the_shipped_cases_give_no_data_dir():
     cases = Path(__file__).resolve().parents[1] / "examples" / "cases"
     for case in sorted(cases.glob("*.toml")):
         assert "data_dir" not in case.read_text(), case.name
+
+
+# ---------------------------------------------------------------- through the case builder
+# resolve_data_dir is what `flightid run` / run_case use; it once passed the default folder
+# as if the case had named it, so FLIGHTID_DATA never reached the shipped cases.
+_SHIPPED = Path(__file__).resolve().parents[1] / "examples" / "cases" / "hfb320_longitudinal.toml"
+
+
+def test_a_shipped_case_reads_flightid_data(tmp_path, monkeypatch):
+    from flightid.cases import load_case, resolve_data_dir
+
+    monkeypatch.setenv("FLIGHTID_DATA", str(tmp_path / "env"))
+    assert resolve_data_dir(load_case(_SHIPPED)) == tmp_path / "env"
+
+
+def test_data_dir_on_the_command_line_beats_flightid_data(tmp_path, monkeypatch):
+    from flightid.cases import load_case, resolve_data_dir
+
+    monkeypatch.setenv("FLIGHTID_DATA", str(tmp_path / "env"))
+    assert resolve_data_dir(load_case(_SHIPPED), tmp_path / "cli") == tmp_path / "cli"
+
+
+def test_a_shipped_case_without_flightid_data_reads_the_default(monkeypatch):
+    from flightid.cases import load_case, resolve_data_dir
+
+    monkeypatch.delenv("FLIGHTID_DATA", raising=False)
+    expected = (_SHIPPED.parent / Path(DEFAULT_DATA_DIR)).resolve()
+    assert resolve_data_dir(load_case(_SHIPPED)) == expected
+
+
+def test_a_case_data_dir_beats_flightid_data(tmp_path, monkeypatch):
+    from flightid.cases import load_case, resolve_data_dir
+
+    case_file = tmp_path / "beside.toml"
+    case_file.write_text(_SHIPPED.read_text().replace("[data]\n", '[data]\ndata_dir = "."\n', 1))
+    monkeypatch.setenv("FLIGHTID_DATA", str(tmp_path / "env"))
+    assert resolve_data_dir(load_case(case_file)) == tmp_path.resolve()

@@ -25,7 +25,7 @@ from flightid.cases.spec import Case, CaseError, ManeuverSpec
 from flightid.cases.usermodel import load_user_model
 from flightid.data.flightdata import FlightData
 from flightid.data.loaders import read_table, to_flight_data
-from flightid.data.location import DEFAULT_DATA_DIR, data_directory
+from flightid.data.location import data_directory
 from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence
 from flightid.model.parameters import Parameter, Parameters
@@ -45,10 +45,12 @@ MANEUVER_CHANNEL = "maneuver_number"
 
 
 def resolve_data_dir(case: Case, override: str | Path | None = None) -> Path:
-    """The data directory: ``override`` (CLI --data-dir), env FLIGHTID_DATA, ``[data].data_dir``
-    relative to the case file, else ``../../../shared/data`` relative to the case file."""
-    given = case.data.get("data_dir", DEFAULT_DATA_DIR)
-    if not isinstance(given, str):
+    """The data directory: ``override`` (CLI --data-dir), ``[data].data_dir`` relative to the
+    case file, env FLIGHTID_DATA, else ``../../../shared/data`` relative to the case file
+    (``flightid.data.location``). A case without ``data_dir`` passes None, so that
+    FLIGHTID_DATA applies to it."""
+    given = case.data.get("data_dir")
+    if given is not None and not isinstance(given, str):
         raise CaseError(f"data.data_dir: expected a path string, got {given!r}")
     return data_directory(case.directory, given, override)
 

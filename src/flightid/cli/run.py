@@ -40,8 +40,8 @@ def add_data_dir_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--data-dir",
         default=None,
-        help="directory holding the data files (default: $FLIGHTID_DATA, then the case's "
-        "data.data_dir, then ../../../shared/data relative to the case file)",
+        help="directory holding the data files (default: the case's data.data_dir, then "
+        "$FLIGHTID_DATA, then ../../../shared/data relative to the case file)",
     )
 
 
