@@ -22,6 +22,7 @@ from flightid.estimation.gauss_newton import (
     information_matrix,
     triangular_factor,
 )
+from flightid.estimation.objective import Objective
 from flightid.model.statespace import StateSpaceModel
 
 N = 1500  # 2 outputs: three blocks of samples in the blockwise factor (512, 512, 476)
@@ -203,3 +204,37 @@ def test_user_steps_are_not_taken_for_the_confirmation_half(linear_case):
     )
     assert est.converged
     assert est.accuracy_evaluations == 2 * 5
+
+
+def test_confirmation_steps_on_forward_differences_and_decides_on_central_ones():
+    # MNR with the paper's tests at 0.5 stops short (measured: 7 passes, 36 integrations,
+    # its last forward differences at θ̂); the confirmation then takes its passes on forward
+    # differences (n_f + 1 integrations each: no backward half where a full step lowers the
+    # cost) and completes only the end point's to central ones (n_f more), which decide
+    # "converged" and give the Cramér–Rao matrix. Before: 2·n_f + 1 per pass.
+    loose = Convergence(cost_rtol=0.5, param_rtol=0.5)
+    model, data = pendulum_model((6.0, 0.8, 0.1, 3.0)), pendulum_data()
+    r_diag = np.array([0.01, 0.05]) ** 2  # pendulum_data's noise variances
+    problem = OutputErrorProblem(model, data)
+    objective = Objective(problem, r_diag, "fixed", loose)
+    stop = MNR().minimize(objective, problem.theta_start)
+    solver_evaluations, n_f = problem.evaluations, problem.n_free
+    assert stop.converged and stop.differences is not None  # the solver's forward half at θ̂
+
+    est = estimate(model, data, MNR(), noise="fixed", R=r_diag, convergence=loose)
+    passes = est.iterations - stop.iterations
+    assert est.converged and passes >= 1, est.message
+    assert est.optimality_sigma <= loose.confirm_sigma
+    # per pass: one integration at the full step, then the forward half at the new point;
+    # at the end point its backward half. The end point's two halves are the accuracy G's.
+    total = est.equivalent_evaluations + est.accuracy_evaluations
+    assert total == solver_evaluations + passes * (1 + n_f) + n_f
+    assert est.accuracy_evaluations == 2 * n_f
+    # the Cramér–Rao sensitivities are the central differences at θ̂, to rounding
+    theta_hat = est.values[problem.free_index]
+    central, _ = problem.sensitivities(theta_hat, relative_step=1e-6, central=True)
+    forward, _ = problem.sensitivities(theta_hat, relative_step=1e-6)
+    scale = np.abs(central).max(axis=(0, 1))
+    agreement = np.abs(est.sensitivities - central).max(axis=(0, 1)) / scale
+    one_sided = np.abs(forward - central).max(axis=(0, 1)) / scale
+    assert np.all(agreement < 1e-7) and np.all(one_sided > 100 * agreement)

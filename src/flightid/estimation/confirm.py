@@ -8,16 +8,17 @@ takes the Gauss–Newton step Δθ they give, with parameters on an active bound
 
     √(ΔθᵀMΔθ) ≤ confirm_sigma     →  confirmed (the optimum is within that many σ)
 
-Otherwise it continues with Gauss–Newton passes on central differences (step halving along
-the projected path; under the MAX / MAXLIK policies R is re-estimated [3.45] after each
-pass) until the test holds, no step lowers the cost (``stalled``), or the passes or the
-evaluation budget run out. A solver that *stalled* is continued the same way, and so is MNRES
-when it reached ``max_iterations`` (it falls back to finite-difference Gauss–Newton steps,
-within ``max_confirmation_passes``). A solver that spent the evaluation budget, or MNR / FPS
-at ``max_iterations``, is not continued. Whatever the solver said, its end point counts as
-converged exactly when the test holds there; otherwise its status stands and the message
-says how far the optimum may be, in σ. M is weighted by the residuals' own R̂ (see
-``Convergence``), so the σ are those of the data's noise even under a fixed R.
+Otherwise it continues with Gauss–Newton passes (on central differences, or on their forward
+half, below; step halving along the projected path; under the MAX / MAXLIK policies R is
+re-estimated [3.45] after each pass) until the test holds, no step lowers the cost
+(``stalled``), or the passes or the evaluation budget run out. A solver that *stalled* is
+continued the same way, and so is MNRES when it reached ``max_iterations`` (it falls back to
+finite-difference Gauss–Newton steps, within ``max_confirmation_passes``). A solver that
+spent the evaluation budget, or MNR / FPS at ``max_iterations``, is not continued. Whatever
+the solver said, its end point counts as converged exactly when the test holds there;
+otherwise its status stands and the message says how far the optimum may be, in σ. M is
+weighted by the residuals' own R̂ (see ``Convergence``), so the σ are those of the data's
+noise even under a fixed R.
 
 Central differences at the end point, half of them already paid for: when the solver's last
 pass took forward differences at that very point with the confirmation's own steps
@@ -28,6 +29,18 @@ is the central difference, equal to rounding to the one computed from scratch
 from an earlier point), so the test means what it meant. The relative step 10⁻⁶ (10⁻⁷
 before issue 14): the central difference's error is about δ²·|y‴|/6 + ε·|y|/δ, and at 10⁻⁷
 the rounding term is ten times that at 10⁻⁶ while the truncation term is negligible at both.
+
+Forward half first (issue 14): where the forward differences can be completed, the forward
+half is taken first (n_f integrations, or the solver's) and the Gauss–Newton step on it
+judged. If it fails the test, its *full* step is tried (one integration); a step that lowers
+the cost shows the point was not the minimum, so it is taken and the backward half there is
+never run — n_f + 1 integrations for the pass instead of 2·n_f + 1, the cost of an MNR pass.
+The forward differences are completed to central ones when their step passes the test, or
+when the full step does not lower the cost (then central differences, with halving and
+damping, decide every later pass too). So "converged" is still decided only on central
+differences at the end point, and the Cramér–Rao bounds use them; forward differences only
+choose steps that lower the cost, as in MNR. Not for problems with bounds (their differences
+are not ``FiniteDifferences.plain``), analytic sensitivities, or a solver that stalled.
 """
 
 from __future__ import annotations
@@ -58,9 +71,11 @@ class Confirmation:
     sensitivities: np.ndarray  # central-difference G at outcome.theta (N, n_o, n_f)
     step: GaussNewtonStep  # the Gauss–Newton step from there
     passes: int  # Gauss–Newton passes taken after the solver stopped
-    initial_sigma: float  # √(ΔθᵀMΔθ) where the solver stopped
+    initial_sigma: float  # √(ΔθᵀMΔθ) where the solver stopped (on the first G taken there)
     sigma: float  # √(ΔθᵀMΔθ) at the end point (M weighted by R̂)
-    sensitivity_evaluations: int  # integrations of the last central-difference G
+    sensitivity_evaluations: int  # integrations of the last central-difference G (both
+    # halves when the confirmation took its forward half; the backward half alone when the
+    # solver's last pass had taken the forward one)
 
 
 def _reusable(problem, forward: FiniteDifferences | None, theta: np.ndarray) -> bool:
@@ -147,13 +162,55 @@ def confirm_convergence(
     initial = float("nan")
     # the solver's last forward differences at θ (consumed: completed in place, then dropped)
     forward = outcome.differences
+    forward_used = 0  # integrations this confirmation spent on ``forward`` (0: the solver's)
+    # steps on forward differences (module docstring): where they can be completed, while a
+    # step is possible at all, and until a full step on them fails to lower the cost
+    # (not after a stall: the solver's own step on its forward differences failed there)
+    on_forward = (
+        may_continue
+        and outcome.status != "stalled"
+        and problem.finite_differences
+        and not problem.bounded
+    )
     outcome = _replace(
         outcome, theta, outputs, cost, outcome.converged, outcome.status, outcome.message
     )
     while True:
         g = None  # the last pass's G goes before the next is computed (one G at a time)
+        if on_forward and forward is None and not objective.budget_exhausted():
+            before = problem.evaluations
+            try:
+                forward = problem.differences(theta, outputs, _CENTRAL_STEP, central=False)
+            except SimulationError:
+                forward = None  # central differences below say what diverges
+            forward_used = problem.evaluations - before
+        if on_forward and _reusable(problem, forward, theta):
+            gn = bounded_gauss_newton_step(objective, forward.g, outputs, theta)
+            distance = _sigma_distance(problem, forward.g, gn.step, outputs)
+            if np.isnan(initial):
+                initial = distance
+            if (
+                not conv.confirmed(distance, gn, problem.magnitude(theta))
+                and passes < conv.max_confirmation_passes
+            ):
+                # far enough that forward differences can tell: the full step, if it lowers
+                # the cost, is taken without the backward half
+                accepted = halving_search(objective, theta, cost, gn.step, 0)
+                if accepted is not None:
+                    forward = None
+                    theta, cost, outputs, _ = accepted
+                    passes += 1
+                    objective.record(theta, cost)
+                    if policy != "fixed":
+                        objective.update_noise(outputs)
+                        cost = float(objective.costs_of(outputs)[0])
+                    continue
+                # it did not: central differences decide from here on
+                on_forward = False
         g, used, failure = _central(objective, theta, outputs, forward)
-        forward = None
+        # the forward half taken here at this point belongs to the end point's G too
+        used += forward_used
+        forward, forward_used = None, 0
         if failure is not None:
             # no sensitivities here: nothing can be confirmed, and there are no CR bounds
             gn = GaussNewtonStep(np.zeros(problem.n_free), 0, float("inf"), float("nan"))
@@ -166,7 +223,7 @@ def confirm_convergence(
             return Confirmation(outcome, g, gn, passes, initial, distance, used)
         gn = bounded_gauss_newton_step(objective, g, outputs, theta)
         distance = _sigma_distance(problem, g, gn.step, outputs)
-        if passes == 0:
+        if np.isnan(initial):
             initial = distance
         if conv.confirmed(distance, gn, problem.magnitude(theta)):
             if _noise_settled(objective, policy, outputs):
@@ -215,8 +272,8 @@ def confirm_convergence(
     if confirmed and passes:
         message = (
             f"converged after {passes} further Gauss–Newton pass"
-            f"{'es' if passes > 1 else ''} on central differences (the solver had stopped "
-            f"short of the optimum: {outcome.message})"
+            f"{'es' if passes > 1 else ''}, confirmed on central differences (the solver had "
+            f"stopped short of the optimum: {outcome.message})"
         )
         outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
     elif confirmed and not outcome.converged:
