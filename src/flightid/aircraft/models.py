@@ -35,6 +35,7 @@ from numba.extending import register_jitable
 from flightid.aircraft.accelerometer import Accelerometer
 from flightid.aircraft.aero import AeroModel
 from flightid.aircraft.airplane import Airplane, AirplaneDataError
+from flightid.aircraft.codegen import ModelSpec, model_source, uncovered
 from flightid.aircraft.equations import (
     ALPHA_Q_INPUTS,
     ALPHA_Q_OUTPUTS,
@@ -57,6 +58,7 @@ from flightid.aircraft.equations import (
     solve_rate_terms,
     wind_axis_derivatives_into,
 )
+from flightid.aircraft.generated import load_source
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.model.forms import with_out_form
 from flightid.model.parameters import Parameters
@@ -650,9 +652,12 @@ def _build(
     measured: Sequence[str] | None = None,
     reference_speed: float | None = None,
     rate_speed: str = "V",
+    code: str = "generated",
 ) -> StateSpaceModel:
     """The model of ``kind`` (a key of ``_KINDS``): checked arguments, input and output
-    names, parameters, then the f and h closures over the numeric tables."""
+    names, parameters, then f and h from the numeric tables (``_model_functions``)."""
+    if code not in MODEL_CODES:
+        raise InputError(f"code: expected one of {list(MODEL_CODES)}, got {describe(code)}")
     if not isinstance(airplane, Airplane):
         raise InputTypeError(f"airplane: expected an Airplane, got {describe(airplane)}")
     if not isinstance(aero, AeroModel):
@@ -669,7 +674,7 @@ def _build(
     parameters = _model_parameters(aero, parameters)
     f, h = _model_functions(
         kind, airplane, aero, parameters, states, inputs, outputs, measured, accelerometer,
-        _extra_constants(airplane, reference_speed, rate_speed),
+        _extra_constants(airplane, reference_speed, rate_speed), code,
     )  # fmt: skip
     return StateSpaceModel(
         states=states,
@@ -890,10 +895,12 @@ def _model_functions(
     measured: tuple[str, ...],
     accelerometer,
     extra_consts: np.ndarray,
+    code: str = "generated",
 ):
-    """f and h of the model: the index maps from names to positions, the aerodynamic
-    tables and the airplane constants, closed over by ``_wind_functions`` /
-    ``_body_functions``."""
+    """f and h of the model from the index maps from names to positions, the aerodynamic
+    tables and the airplane constants: generated straight-line code (``code="generated"``,
+    where ``codegen`` covers the model) or the table path closing over them
+    (``_alpha_q_functions``, ``_wind_functions``, ``_body_functions``)."""
     if kind == "alpha_q":
         # signal list: α, q̂, then every input (V, q̄, Θ, Φ, a_x, p, r, controls…)
         tables = aero.tables(("alpha", "qhat", *inputs), parameters)
@@ -901,7 +908,10 @@ def _model_functions(
         out_index = np.array([ALPHA_Q_OUTPUTS.index(o) for o in outputs], dtype=np.int64)
         # per output: s_z·k for az (Accelerometer.factors), 1 for alpha and q
         out_scale = np.array([az_scale if o == "az" else 1.0 for o in outputs])
-        return _alpha_q_functions(out_index, out_scale, tables, _constants(airplane))
+        spec = ModelSpec(kind, tables, _constants(airplane), out_index, out_scale)
+        return _chosen_functions(
+            spec, code, lambda: _alpha_q_functions(out_index, out_scale, tables, spec.consts)
+        )
     # signal list: the standard signals, then the non-standard inputs (controls, thrust)
     extra = [i for i, n in enumerate(inputs) if n not in SIGNALS]
     signal_names = SIGNALS + tuple(inputs[i] for i in extra)
@@ -930,7 +940,15 @@ def _model_functions(
         [accel[("ax", "ay", "az").index(o)] if o in ("ax", "ay", "az") else 1.0 for o in outputs]
     )
     if kind == "wind":
-        return _wind_functions(out_index, out_scale, extra_input, idx, tables, consts, extra_consts)
+        spec = ModelSpec(
+            kind, tables, consts, out_index, out_scale, extra_consts, extra_input, idx
+        )  # fmt: skip
+        return _chosen_functions(
+            spec, code,
+            lambda: _wind_functions(
+                out_index, out_scale, extra_input, idx, tables, consts, extra_consts
+            ),
+        )  # fmt: skip
     src_state = np.array(
         [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
     )
@@ -943,10 +961,37 @@ def _model_functions(
         dtype=np.int64,
     )
     deriv_index = np.array([BODY_STATES.index(s) for s in states], dtype=np.int64)
-    return _body_functions(
-        src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
-        idx, tables, consts, extra_consts,
+    spec = ModelSpec(
+        kind, tables, consts, out_index, out_scale, extra_consts, extra_input, idx, src_state,
+        src_input, wind_index, deriv_index,
     )  # fmt: skip
+    return _chosen_functions(
+        spec, code,
+        lambda: _body_functions(
+            src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
+            idx, tables, consts, extra_consts,
+        ),
+    )  # fmt: skip
+
+
+# the two implementations of a built-in model's f and h (builders' ``code`` argument)
+MODEL_CODES = ("generated", "tables")
+
+
+def _chosen_functions(spec: ModelSpec, code: str, table_functions):
+    """f and h (return form carrying the out form) of the model ``spec``: the generated
+    straight-line module (``codegen``, ``generated``) where ``code`` is "generated" and
+    ``codegen.uncovered(spec)`` is None, else the table path ``table_functions()``. Each
+    function says which in its attribute ``model_code`` ("generated" or "tables")."""
+    if code == "generated" and uncovered(spec) is None:
+        module = load_source(model_source(spec))
+        f = with_out_form(module.f, module.f_out)
+        h = with_out_form(module.h, module.h_out)
+        f.model_code = h.model_code = "generated"
+        return f, h
+    f, h = table_functions()
+    f.model_code = h.model_code = "tables"
+    return f, h
 
 
 def _model_builder(kind: str, name: str, doc: str):
@@ -966,10 +1011,11 @@ def _model_builder(kind: str, name: str, doc: str):
         measured: Sequence[str] | None = None,
         reference_speed: float | None = None,
         rate_speed: str = "V",
+        code: str = "generated",
     ) -> StateSpaceModel:
         return _build(
             kind, airplane, aero, parameters, controls, outputs, x0, name, accelerometer,
-            measured, reference_speed, rate_speed,
+            measured, reference_speed, rate_speed, code,
         )  # fmt: skip
 
     build.__name__ = build.__qualname__ = name
@@ -999,6 +1045,9 @@ six_dof_model = _model_builder(
             for ``rate_speed = "V0"``.
         rate_speed: "V" (default: p̂ = p b/2V, q̂ = q c̄/2V, r̂, α̇̂ = α̇ c̄/2V, β̇̂ = β̇ b/2V)
             or "V0" (the same with the constant V0).
+        code: "generated" (default: f and h as straight-line code written for this model,
+            ``flightid.aircraft.codegen``, where it covers the model, else the table path)
+            or "tables" (the reference: f and h walking the aerodynamic term tables).
 
     Outputs may include pdot, qdot, rdot (rad/s², the angular accelerations). Terms in
     alphadot_hat (6-DOF, longitudinal, wind-axis models) and betadot_hat (6-DOF, lateral)
