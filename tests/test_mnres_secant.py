@@ -15,15 +15,14 @@ from flightid.paper.examples12 import EXAMPLE1_CONVERGENCE, example1_data, examp
 from flightid.paper.linear_system import TRUE_VALUES
 
 
-def _state(rng, n_samples=50, n_outputs=3, n_free=5):
+def _state(rng, n_samples=50, n_outputs=3, n_free=5, scale=None):
     jacobian = rng.normal(size=(n_samples, n_outputs, n_free))
-    return _SecantState(
-        theta=np.zeros(n_free),
-        outputs=np.zeros((n_samples, n_outputs)),
-        cost=0.0,
-        scale=np.ones(n_free),
-        jacobian=jacobian,
-        normal_by_output=_exact_normal(jacobian),
+    return _SecantState.from_jacobian(
+        np.zeros(n_free),
+        np.zeros((n_samples, n_outputs)),
+        0.0,
+        np.ones(n_free) if scale is None else scale,
+        jacobian,
     )
 
 
@@ -122,3 +121,132 @@ def test_secant_settings_and_surface_forms():
     assert MNRES(form="algebraic")._perturbation() == 1e-3
     assert MNRES()._max_rejections() == 1
     assert MNRES(form="recursive")._max_rejections() == 2
+
+
+def test_secant_update_is_least_change_in_the_scaled_coordinates():
+    # G is kept in θ units, the update is Broyden's in ϑ = θ / scale: G_ϑ = G S must equal
+    # G_ϑ + u Δϑᵀ/‖Δϑ‖² with u = Δy − G_ϑΔϑ, computed here independently in ϑ
+    rng = np.random.default_rng(5)
+    scale = np.array([0.1, 2.0, 50.0, 1e-3, 1.0])
+    state = _state(rng, scale=scale)
+    g_theta = state.jacobian.copy()
+    step = rng.normal(size=5) * scale  # Δθ
+    change = rng.normal(size=(50, 3))
+    MNRES._secant_update(state, step, change)
+    g_vartheta = g_theta * scale
+    d_vartheta = step / scale
+    u = change - g_vartheta @ d_vartheta
+    expected = g_vartheta + u[..., None] * (d_vartheta / (d_vartheta @ d_vartheta))
+    np.testing.assert_allclose(state.jacobian * scale, expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(state.jacobian @ step, change, rtol=1e-10, atol=1e-12)
+    exact = _exact_normal(state.jacobian)
+    np.testing.assert_allclose(state.normal_by_output, exact, rtol=1e-10, atol=1e-10)
+
+
+def test_sweep_sensitivities_are_kept_once_and_updated_in_place():
+    # a finite-difference G is a view of a C-ordered (n_f, N, n_o) array: the state keeps
+    # that memory (no copy), and the rank-one updates write into it
+    rng = np.random.default_rng(6)
+    columns = rng.normal(size=(5, 40, 3))
+    g = np.moveaxis(columns, 0, -1)
+    state = _SecantState.from_jacobian(np.zeros(5), np.zeros((40, 3)), 0.0, np.ones(5), g)
+    assert np.shares_memory(state.columns, columns)
+    MNRES._secant_update(state, rng.normal(size=5), rng.normal(size=(40, 3)))
+    assert np.shares_memory(state.columns, columns)
+    np.testing.assert_array_equal(state.jacobian, g)
+    # blocks from the columns equal those of the (N, n_o, n_f) array
+    np.testing.assert_allclose(_exact_normal(state.columns, 3), _exact_normal(g), rtol=1e-12)
+
+
+def test_damped_step_after_a_failure_when_the_radius_is_a_small_part_of_gauss_newton():
+    # ill-conditioned M: the Gauss–Newton step is dominated by the weak direction
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(300, 4))
+    a[:, 3] = a[:, 2] + 1e-4 * rng.normal(size=300)
+    b = rng.normal(size=300)
+    normal, gradient = a.T @ a, a.T @ b
+    held = np.zeros(4, dtype=bool)
+    gn, _ = _secant_step(normal, gradient, held, np.inf)
+    length = np.linalg.norm(gn)
+    radius = length / 20.0
+    _, shortened = _secant_step(normal, gradient, held, radius)
+    _, damped = _secant_step(normal, gradient, held, radius, damped=True)
+    np.testing.assert_allclose(shortened, gn / 20.0, rtol=1e-9)
+    # Levenberg–Marquardt: length Δ and (M + μI)Δϑ = c for one μ > 0
+    np.testing.assert_allclose(np.linalg.norm(damped), radius, rtol=1e-5)
+    mu = -((normal @ damped - gradient) @ damped) / (damped @ damped)
+    assert mu > 0
+    np.testing.assert_allclose(normal @ damped + mu * damped, gradient, rtol=1e-4, atol=1e-8)
+
+    # it predicts a larger drop than the shortened Gauss–Newton step of the same length
+    def drop(step):
+        return 2.0 * gradient @ step - step @ normal @ step
+
+    assert drop(damped) > drop(shortened)
+    # a radius that keeps more than 1/8 of the Gauss–Newton step: still shortened Gauss–Newton
+    _, kept = _secant_step(normal, gradient, held, length / 4.0, damped=True)
+    np.testing.assert_allclose(kept, gn / 4.0, rtol=1e-9)
+
+
+def _long_linear_problem(duration_s=1000.0):
+    from flightid.estimation import OutputErrorProblem
+    from flightid.paper.examples12 import _measured
+
+    t = np.arange(0.0, duration_s + 1e-9, 0.01)
+    data = _measured(t, np.sin(t), 0.0, 0)
+    return OutputErrorProblem(example_model(), data, method="euler")
+
+
+def test_a_new_sweep_holds_one_sensitivity_array_at_a_time():
+    # Before: the carried G stayed alive while the sweep differenced into a new array and
+    # scaled it into a third (peak ≈ 2 G above the carried one; measured 665 MB for a
+    # 128 MB G at N = 1e5, bench/peers.py --memory). Now the carried G goes first.
+    import tracemalloc
+
+    from flightid.estimation import Convergence
+    from flightid.estimation.objective import Objective
+
+    problem = _long_linear_problem()
+    objective = Objective(problem, np.ones(problem.n_outputs), "fixed", Convergence())
+    theta = problem.theta_start
+    cost, outputs = objective.evaluate_start(theta)
+    solver = MNRES()
+    tracemalloc.start()  # before the first G exists, so that freeing it counts
+    try:
+        first = solver._sweep(objective, theta, outputs, cost, None)
+        g_bytes = first.columns.nbytes
+        base = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        second = solver._sweep(objective, theta, outputs, cost, first)
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    assert g_bytes > 5e6
+    assert first.columns is None
+    # Differencing itself holds the new G and a batch of perturbed outputs and states (here,
+    # N = 1e5 and n_f = 6, the whole batch: 2 G) at once; minus the carried G freed first:
+    # ≈ 2 G. Keeping the carried G (the former code): ≈ 3 G.
+    assert peak <= 2.5 * g_bytes, peak / g_bytes
+    assert second.columns.nbytes == g_bytes
+
+
+def test_the_last_sweep_is_handed_to_the_confirmation_when_the_solver_stops_there():
+    # started at the optimum of noise-free data: the first sweep settles it; the outcome
+    # carries that sweep's forward differences (G itself, not a copy) for the confirmation
+    from flightid.estimation import Convergence, OutputErrorProblem
+    from flightid.estimation.objective import Objective
+
+    data = example1_data()
+    problem = OutputErrorProblem(example_model(TRUE_VALUES), data, method="euler")
+    objective = Objective(problem, np.ones(problem.n_outputs), "fixed", EXAMPLE1_CONVERGENCE)
+    outcome = MNRES().minimize(objective, problem.theta_start)
+    assert outcome.converged, outcome.message
+    record = outcome.differences
+    assert record is not None
+    np.testing.assert_array_equal(record.theta, outcome.theta)
+    assert np.shares_memory(record.g, outcome.state.columns)
+    # after a secant update the record no longer describes G: it is not handed over
+    state = outcome.state
+    MNRES._secant_update(state, 1e-3 * np.ones(problem.n_free), np.ones_like(state.outputs))
+    assert state.differences is None
+    assert Convergence  # imported for the objective's type

@@ -135,6 +135,7 @@ import scipy.linalg.blas
 from flightid.errors import EstimationError, InputError, SimulationError
 from flightid.estimation.gauss_newton import GaussNewtonStep, information_matrix
 from flightid.estimation.objective import Objective, SolverOutcome
+from flightid.estimation.problem import FiniteDifferences
 from flightid.estimation.solvers.common import (
     bounded_gauss_newton_step,
     budget_status,
@@ -154,6 +155,9 @@ _SECANT_STEP = 1e-3
 _SURFACE_PERTURBATION = 1e-3
 _RESWEEP_STEP = 1e-6
 _SECANT_STALL = 30
+# secant form: after a rejected trial on swept sensitivities, a radius below 1/_DAMPED_RATIO of
+# the Gauss–Newton step's length takes the Levenberg–Marquardt step instead (see _secant_step)
+_DAMPED_RATIO = 8.0
 
 
 @dataclass
@@ -180,17 +184,23 @@ class _PointSet:
 class _SecantState:
     """The secant form's model: θ, its outputs and cost, and the estimated sensitivities.
 
-    ``jacobian`` holds ∂y/∂ϑ (N, n_o, n_f) in the coordinates ϑ = θ / scale fixed at the
-    last finite-difference sweep; ``normal_by_output`` the n_o blocks J_kᵀJ_k (n_o, n_f, n_f),
-    so M = Σ_k J_kᵀJ_k / R_kk costs O(n_o·n_f²) when R changes.
+    ``columns`` holds the sensitivities ∂y/∂θ once, parameter by parameter: (n_f, N·n_o),
+    C-ordered — the array the finite-difference sweep differenced into, updated in place by
+    the secant updates (``jacobian`` is the (N, n_o, n_f) view of it, no copy).
+    ``normal_by_output`` the n_o blocks G_kᵀG_k (n_o, n_f, n_f) in θ units, so
+    M = Σ_k G_kᵀG_k / R_kk costs O(n_o·n_f²) when R changes. ``scale`` fixes the trust-region
+    coordinates ϑ = θ / scale at the last sweep. ``differences``: the sweep's record while G
+    is still exactly what it differenced (no secant update since), handed to the driver's
+    confirmation when the solver stops at that point.
     """
 
     theta: np.ndarray
     outputs: np.ndarray
     cost: float
     scale: np.ndarray
-    jacobian: np.ndarray
-    normal_by_output: np.ndarray
+    columns: np.ndarray | None
+    normal_by_output: np.ndarray | None
+    differences: FiniteDifferences | None = None
     fresh: bool = True  # the sensitivities were swept at θ (no secant update since)
     proven: bool = False  # the last accepted step realised its predicted drop (|ρ − 1| ≤ 0.1)
     radius: float = math.inf  # trust radius Δ in ϑ units
@@ -199,14 +209,79 @@ class _SecantState:
     last_length: float = 0.0  # ‖Δϑ‖ of the last accepted step
     sweeps: int = 0
 
+    @property
+    def jacobian(self) -> np.ndarray:
+        """G = ∂y/∂θ as an (N, n_o, n_f) view of ``columns``."""
+        n_samples, n_outputs = self.outputs.shape
+        return np.moveaxis(self.columns.reshape(-1, n_samples, n_outputs), 0, -1)
 
-def _exact_normal(jacobian: np.ndarray) -> np.ndarray:
-    """J_kᵀJ_k for every output k (n_o, n_f, n_f): O(N·n_o·n_f²)."""
-    return np.stack([jacobian[:, k, :].T @ jacobian[:, k, :] for k in range(jacobian.shape[1])])
+    @classmethod
+    def from_jacobian(
+        cls, theta: np.ndarray, outputs: np.ndarray, cost: float, scale: np.ndarray, g
+    ) -> _SecantState:
+        """A state whose sensitivities are ``g`` (N, n_o, n_f): ``g``'s own memory when it is
+        a view of a C-ordered (n_f, N, n_o) array (finite differences), else one copy."""
+        columns = _columns_of(np.asarray(g, dtype=float))
+        normal = _exact_normal(columns, outputs.shape[1])
+        return cls(theta.copy(), outputs, float(cost), scale, columns, normal)
+
+
+def _columns_of(g: np.ndarray) -> np.ndarray:
+    """(n_f, N·n_o) C-ordered columns of G (N, n_o, n_f): a view where G is laid out so."""
+    columns = np.moveaxis(g, -1, 0)
+    if not columns.flags.c_contiguous:
+        columns = np.ascontiguousarray(columns)
+    return columns.reshape(columns.shape[0], -1)
+
+
+def _exact_normal(columns: np.ndarray, n_outputs: int | None = None) -> np.ndarray:
+    """G_kᵀG_k for every output k (n_o, n_f, n_f) from the columns (n_f, N·n_o): O(N·n_o·n_f²).
+
+    ``columns`` may also be given as G itself (N, n_o, n_f)."""
+    if columns.ndim == 3:
+        g = columns
+        return np.stack([g[:, k, :].T @ g[:, k, :] for k in range(g.shape[1])])
+    n_free = columns.shape[0]
+    by_output = columns.reshape(n_free, -1, n_outputs)
+    n_o = by_output.shape[2]
+    normal = np.empty((n_o, n_free, n_free))
+    for k in range(n_o):
+        # one output's (n_f, N) block, copied contiguous (N·n_f·8 bytes) for the product
+        block = np.ascontiguousarray(by_output[:, :, k])
+        normal[k] = block @ block.T
+    return normal
+
+
+def _damped_step(
+    normal: np.ndarray, gradient: np.ndarray, moving: np.ndarray, radius: float
+) -> np.ndarray:
+    """Levenberg–Marquardt step on the radius (ϑ units) for the ``moving`` parameters.
+
+    Δϑ(μ) = (M + μI)⁻¹c = V diag(1 / (λ + μ)) Vᵀc  (M = VΛVᵀ), whose length falls with μ;
+    μ by bisection on log μ so that ‖Δϑ(μ)‖ = Δ (the caller uses it only when the
+    Gauss–Newton step is longer than Δ).
+    """
+    lam, vec = np.linalg.eigh(normal[np.ix_(moving, moving)])
+    lam = np.maximum(lam, 0.0)
+    projected = vec.T @ gradient[moving]
+
+    def step(mu: float) -> np.ndarray:
+        # Δϑ(μ) = V diag(1 / (λ + μ)) Vᵀc
+        return vec @ (projected / (lam + mu))
+
+    # ‖Δϑ(μ)‖ ≤ ‖c‖ / μ: the upper end of the bracket is inside the radius
+    low = max(1e-16 * float(lam[-1]), 1e-300)
+    high = float(np.linalg.norm(projected)) / radius + float(lam[-1])
+    for _ in range(200):
+        if high / low < 1.0 + 1e-6:
+            break
+        mid = math.sqrt(low * high)
+        low, high = (mid, high) if np.linalg.norm(step(mid)) > radius else (low, mid)
+    return step(high)
 
 
 def _secant_step(
-    normal: np.ndarray, gradient: np.ndarray, held: np.ndarray, radius: float
+    normal: np.ndarray, gradient: np.ndarray, held: np.ndarray, radius: float, damped: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """(Gauss–Newton step, trust-region step) in ϑ from M and c = JᵀR⁻¹ν.
 
@@ -238,6 +313,10 @@ def _secant_step(
     length = float(np.linalg.norm(gn))
     if length <= radius:
         return gn, gn.copy()
+    if damped and length > _DAMPED_RATIO * radius:
+        # the Gauss–Newton direction failed, and the radius keeps only a small part of it
+        step[moving] = _damped_step(normal, gradient, moving, radius)
+        return gn, step
     # the Gauss–Newton direction kept, shortened to the radius (MNR's halving, remembered)
     return gn, gn * (radius / length)
 
@@ -495,13 +574,18 @@ class MNRES:
         # the first sweep differences widely (sees past local curvature far from the
         # optimum); later ones, near it, with MNR's step
         relative = self._sweep_step() if previous is None else _RESWEEP_STEP
-        g, _ = problem.sensitivities(theta, outputs, relative)
-        scale = problem.magnitude(theta)
-        # ∂y/∂ϑ = ∂y/∂θ · scale
-        jacobian = np.ascontiguousarray(g * scale)
-        state = _SecantState(
-            theta.copy(), outputs, float(cost), scale, jacobian, _exact_normal(jacobian)
-        )
+        if previous is not None:
+            # one G at a time: the carried sensitivities go before the sweep differences anew
+            previous.columns = previous.normal_by_output = previous.differences = None
+        differences = None
+        if problem.finite_differences:
+            differences = problem.differences(theta, outputs, relative)
+            g = differences.g
+        else:
+            g, _ = problem.sensitivities(theta, outputs, relative)
+        state = _SecantState.from_jacobian(theta, outputs, cost, problem.magnitude(theta), g)
+        del g
+        state.differences = differences
         if previous is not None:
             # the radius is kept (what the fresh model learnt about the nonlinearity), but
             # never below twice the last accepted step (carried-model failures shrink it)
@@ -527,31 +611,46 @@ class MNRES:
 
     @staticmethod
     def _secant_update(state: _SecantState, step: np.ndarray, change: np.ndarray) -> None:
-        """Broyden's rank-one update with the step Δϑ and the output change Δy it caused.
+        """Broyden's rank-one update with the step Δθ and the output change Δy it caused,
+        least change in the trust-region coordinates ϑ = θ / scale:
 
-            u = Δy − JΔϑ,  v = Δϑ/‖Δϑ‖²:   J ← J + u vᵀ   (now JΔϑ = Δy exactly)
-            J_kᵀJ_k ← J_kᵀJ_k + p_k vᵀ + v p_kᵀ + ‖u_k‖² v vᵀ,  p_k = J_kᵀu_k (old J)
+            u = Δy − GΔθ,  w = S⁻²Δθ / (ΔθᵀS⁻²Δθ)  (S = diag scale):   G ← G + u wᵀ
+            (G_ϑ = G S ← G_ϑ + u Δϑᵀ/‖Δϑ‖²; now GΔθ = Δy exactly)
+            G_kᵀG_k ← G_kᵀG_k + p_k wᵀ + w p_kᵀ + ‖u_k‖² w wᵀ,  p_k = G_kᵀu_k (old G)
 
-        O(N·n_o·n_f); J_kᵀJ_k is recomputed exactly every n_f updates (amortised the same),
-        so rounding does not accumulate.
+        In place on ``state.columns``; O(N·n_o·n_f) and no temporary of G's size. G_kᵀG_k is
+        recomputed exactly every n_f updates (amortised the same), so rounding does not
+        accumulate. The sweep's record (``differences``) no longer describes G afterwards.
         """
-        n_samples, n_outputs, n_free = state.jacobian.shape
-        flat = state.jacobian.reshape(-1, n_free)
-        u = (change.reshape(-1) - flat @ step).reshape(n_samples, n_outputs)
-        v = step / float(step @ step)
-        if state.updates + 1 >= n_free:
-            scipy.linalg.blas.dger(1.0, v, u.reshape(-1), a=flat.T, overwrite_a=1)
-            state.normal_by_output = _exact_normal(state.jacobian)
+        columns = state.columns
+        n_free = columns.shape[0]
+        n_samples, n_outputs = state.outputs.shape
+        # u = Δy − GΔθ  (N·n_o,)
+        u = change.reshape(-1) - columns.T @ step
+        scaled = step / state.scale**2
+        # w = S⁻²Δθ / (ΔθᵀS⁻²Δθ)
+        w = scaled / float(step @ scaled)
+        state.differences = None
+        exact = state.updates + 1 >= n_free
+        if not exact:
+            # p_k = G_kᵀu_k, column by column (each column contiguous: no copy of G)
+            u_by_output = u.reshape(n_samples, n_outputs)
+            p = np.empty((n_outputs, n_free))
+            for j in range(n_free):
+                p[:, j] = np.einsum(
+                    "ik,ik->k", columns[j].reshape(n_samples, n_outputs), u_by_output
+                )
+            q = np.sum(u_by_output**2, axis=0)
+        # G ← G + u wᵀ in place (BLAS rank-one update of the Fortran-ordered (N·n_o, n_f) view)
+        scipy.linalg.blas.dger(1.0, u, w, a=columns.T, overwrite_a=1)
+        if exact:
+            state.normal_by_output = _exact_normal(columns, n_outputs)
             state.updates = 0
             return
-        p = np.stack([state.jacobian[:, k, :].T @ u[:, k] for k in range(n_outputs)])
-        q = np.sum(u**2, axis=0)
-        # J ← J + u vᵀ in place (BLAS rank-one update on the transposed, Fortran-ordered view)
-        scipy.linalg.blas.dger(1.0, v, u.reshape(-1), a=flat.T, overwrite_a=1)
         state.normal_by_output += (
-            p[:, :, None] * v[None, None, :]
-            + v[None, :, None] * p[:, None, :]
-            + q[:, None, None] * np.outer(v, v)[None]
+            p[:, :, None] * w[None, None, :]
+            + w[None, :, None] * p[:, None, :]
+            + q[:, None, None] * np.outer(w, w)[None]
         )
         state.updates += 1
 
@@ -590,6 +689,11 @@ class MNRES:
         fresh_failures = 0  # rejected trials in a row on freshly swept sensitivities
 
         def finish(iterations: int, converged: bool, status: str, message: str):
+            # the sweep's forward differences at the end point, if G is still exactly them:
+            # the confirmation completes them to central ones with n_f more integrations
+            record = current.differences
+            if record is not None and not np.array_equal(record.theta, current.theta):
+                record = None
             return SolverOutcome(
                 current.theta,
                 current.outputs,
@@ -599,6 +703,7 @@ class MNRES:
                 status,
                 message,
                 state=current,
+                differences=record,
             )
 
         def sweep() -> SolverOutcome | None:
@@ -621,6 +726,11 @@ class MNRES:
             fresh_failures = 0
             return None
 
+        if current.columns is None:
+            # the sensitivities were dropped (a sweep that failed): sweep again
+            stop = sweep()
+            if stop is not None:
+                return stop
         while objective.evaluations - spent_before < allowance:
             if objective.budget_exhausted():
                 return finish(passes, False, *budget_status(objective))
@@ -631,17 +741,20 @@ class MNRES:
                 current.scale,
             )
             weights = 1.0 / objective.r_diag
-            # M = Σ_k J_kᵀJ_k / R_kk,  c = Σ_i J_iᵀR⁻¹ν_i  (ϑ units)
+            # M = S (Σ_k G_kᵀG_k / R_kk) S,  c = S Σ_i G_iᵀR⁻¹ν_i  (ϑ units, S = diag scale)
             normal = np.tensordot(weights, current.normal_by_output, axes=1)
+            normal *= np.outer(scale, scale)
             nu = problem.residuals(outputs)
-            flat = current.jacobian.reshape(-1, problem.n_free)
-            gradient = flat.T @ (nu * weights[None, :]).reshape(-1)
+            gradient = scale * (current.columns @ (nu * weights[None, :]).reshape(-1))
             # active set: a parameter on a bound whose Gauss–Newton step points outwards
             held = np.zeros(problem.n_free, dtype=bool)
             on_lower = theta <= problem.lower
             on_upper = theta >= problem.upper
             for _ in range(problem.n_free + 1):
-                gn, step = _secant_step(normal, gradient, held, current.radius)
+                # after a rejected trial on swept sensitivities: the damped step if the
+                # radius has become a small part of the Gauss–Newton step (_secant_step)
+                damped = current.fresh and fresh_failures > 0
+                gn, step = _secant_step(normal, gradient, held, current.radius, damped)
                 outward = (on_lower & (gn < 0)) | (on_upper & (gn > 0))
                 if not np.any(outward & ~held):
                     break
@@ -690,7 +803,7 @@ class MNRES:
             # Jacobian at θ is the better local model than a secant over a step too long.
             if new_outputs is not None and math.isfinite(new_cost):
                 if accepted or not was_fresh:
-                    self._secant_update(current, taken, new_outputs - outputs)
+                    self._secant_update(current, trial - theta, new_outputs - outputs)
             if accepted:
                 passes += 1
                 current.theta, current.outputs, current.cost = trial, new_outputs, new_cost
