@@ -1,8 +1,20 @@
 """State-space models of an airplane: 6-DOF, decoupled longitudinal and lateral, wind axes.
 
-Every builder returns a ``flightid.model.StateSpaceModel`` whose ``f`` and ``h`` are fresh
-closures over numeric tables only (constants, index maps, the aerodynamic term tables), so the
-simulator can numba-compile them and the pure-Python path runs the very same code.
+Every builder turns the model into numeric tables only (constants, index maps from the
+model's states and inputs to the body state, the aerodynamic term tables, ``ModelSpec``) and
+returns a ``flightid.model.StateSpaceModel`` whose ``f`` and ``h`` are made from them in one
+of two ways (the builders' ``code`` argument):
+
+* ``"generated"`` (default): straight-line scalar code written for this model by
+  ``flightid.aircraft.codegen`` and imported from a content-named file
+  (``flightid.aircraft.generated``, so numba's disk cache keeps it between processes);
+  about as fast as hand-written code in the simulation kernel;
+* ``"tables"``: the reference implementation, closures over the tables evaluated by the
+  ``register_jitable`` helpers of ``flightid.aircraft.equations`` at every call. A model the
+  generator does not cover (``codegen.uncovered``) takes this path too.
+
+Either way the simulator can numba-compile ``f``/``h`` and the pure-Python path runs the
+same code; ``f.model_code`` says which path a model has.
 
 Models (RP-1153 §2.A, METHOD.md §3):
 
