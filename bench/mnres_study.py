@@ -1,13 +1,16 @@
 """MNRES study (issue 14): the secant MNRES against the surface MNRES, MNR and scipy lm.
 
-    python -P bench/mnres_study.py [--seeds 8] [--steps 1000] [--free 22] [--cases]
+    python -P bench/mnres_study.py [--seeds 8] [--steps 1000] [--free 22]
+                                   [--variant base|hard40] [--cases]
 
 Same 6-DOF Navion benchmark and accounting as ``bench/peers.py`` (imported from it): every
 integration through ``Simulator.run`` is recorded; "sims to J*+0.01" counts simulations until
 the first whose cost is within 0.01 of the lowest any method reached on that seed. Methods:
 MNRES (default: secant form), MNRES surface (``form="algebraic"``, the form before issue 14),
 MNR, scipy lm. ``--cases`` runs the standard example cases (examples/cases/*.toml that name
-solver mnres) with MNRES and MNR and prints simulations and wall time.
+solver mnres) with MNRES and MNR and prints simulations and wall time. ``--variant hard40``:
+the 40-parameter variant of bench/peers.py (derivatives, output biases, initial states;
+``--free`` ignored).
 """
 
 from __future__ import annotations
@@ -52,14 +55,15 @@ def methods(budget: int):
     ]
 
 
-def seeds_table(recorder, seeds, n_steps, n_free, budget, names):
+def seeds_table(recorder, seeds, n_steps, n_free, budget, names, variant="base"):
     chosen = [(n, r) for n, r in methods(budget) if names is None or n in names]
     rows = {n: [] for n, _ in chosen}
-    print(f"N = {n_steps + 1} samples, {n_free} free parameters, budget {budget}")
+    free = "40 (hard40)" if variant == "hard40" else str(n_free)
+    print(f"N = {n_steps + 1} samples, {free} free parameters, budget {budget}")
     print("| seed | method | sims to J*+0.01 | sims total | final J − J* | wall, s |")
     print("|---:|---|---:|---:|---:|---:|")
     for seed in seeds:
-        model, data, r_diag, _ = peers.benchmark(seed, n_steps, n_free)
+        model, data, r_diag, _ = peers.benchmark(seed, n_steps, n_free, variant=variant)
         simulate(model, data)
         results = {n: peers.run_one(recorder, r, model, data, r_diag) for n, r in chosen}
         j_star = min(float(np.min(r["history"])) for r in results.values())
@@ -114,6 +118,7 @@ def main() -> None:
     parser.add_argument("--free", type=int, default=22)
     parser.add_argument("--budget", type=int, default=5000)
     parser.add_argument("--methods", nargs="+", default=None)
+    parser.add_argument("--variant", choices=peers.VARIANTS, default="base")
     parser.add_argument("--cases", action="store_true")
     args = parser.parse_args()
     if args.cases:
@@ -121,7 +126,7 @@ def main() -> None:
         return
     recorder = peers.Recorder()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    seeds_table(recorder, seeds, args.steps, args.free, args.budget, args.methods)
+    seeds_table(recorder, seeds, args.steps, args.free, args.budget, args.methods, args.variant)
 
 
 if __name__ == "__main__":

@@ -18,11 +18,11 @@ n_p + 1 integrations per pass [4.9–4.15] — kept, its algebra changed. With �
    short-period test of tests/test_honest_convergence.py ended 0.1 σ from the constrained
    optimum (the later sweeps, near the optimum, need the accurate slopes). This
    pass equals the paper's initialisation and one finite-difference MNR pass. The
-   per-output blocks J_kᵀJ_k are formed once (O(N·n_o·n_f²), amortised over the n_f
-   simulations of the sweep).
+   per-output blocks are formed once (O(N·n_o·n_f²), amortised over the n_f simulations of
+   the sweep).
 2. Pass: M = Σ_k J_kᵀJ_k / R_kk, c = JᵀR⁻¹ν; the trust-region step Δϑ (the Gauss–Newton
-   step M⁺c, shortened to length Δ if longer, its direction kept); one integration at
-   θ + Δθ.
+   step M⁺c, shortened to length Δ if longer, its direction kept; see step control for the
+   damped step); one integration at θ + Δθ.
 3. Broyden's rank-one update with the output change Δy that step caused:
 
        u = Δy − JΔϑ,   J ← J + u Δϑᵀ / ‖Δϑ‖²          (afterwards JΔϑ = Δy exactly)
@@ -38,24 +38,55 @@ n_p + 1 integrations per pass [4.9–4.15] — kept, its algebra changed. With �
    only a carried J — a J swept at θ is the better local model than a secant over a step
    that was too long.
 
+Memory: one sensitivity array. J is stored as G = ∂y/∂θ = J S⁻¹ (S = diag scale) in the
+very (n_f, N·n_o) array the sweep differenced into (``_SecantState.columns``; no scaled
+copy); the scaling enters only the n_f × n_f matrices (M_ϑ = S M_θ S, c_ϑ = S c_θ) and the
+update (G ← G + u wᵀ, w = S⁻²Δθ / ΔθᵀS⁻²Δθ, the same least-change update in ϑ); the update
+runs in place (BLAS rank one) and p_k = G_kᵀu_k column by column, so a pass allocates only
+vectors of N·n_o. The carried G is released before a new sweep differences into a new
+array. Measured (``bench/peers.py --memory``, N = 1e5, 20 free, G = 128 MB): peak increase
+664 MB (5.2 G: the carried G, the differenced one and its scaled copy at once) before,
+190 MB (1.49 G) after.
+
 Step control (trust region, ρ = realised / predicted drop, predicted = 2cᵀΔϑ − ΔϑᵀMΔϑ):
 on a freshly swept J, a rejected or disappointing step (ρ < 0.25) halves the radius to
 ½‖Δϑ‖ (MNR's halving); ρ > 0.75 at the radius doubles it. On a carried J, a disappointing
 step blames the model, not the radius: after ``max_rejections`` (default 1) such passes in a
 row J is swept again at the best point (the hybrid: one finite-difference sweep when the
-secant model is poor), the radius only halved by a rejected step. A sweep resets the radius
-(the first step on new sensitivities is the full Gauss–Newton step, as MNR's).
+secant model is poor), the radius only halved by a rejected step. A sweep keeps the radius
+(what the fresh model learnt about the nonlinearity) but never below twice the last accepted
+step; it starts unbounded (the full Gauss–Newton step) at the first sweep and in each noise
+cycle.
+
+The damped step: after a trial on freshly swept J was rejected, a radius below 1/8 of the
+Gauss–Newton step's length takes the Levenberg–Marquardt step on the radius,
+Δϑ = (M + μI)⁻¹c with ‖Δϑ‖ = Δ, instead of the shortened Gauss–Newton direction. Why
+(hard40 benchmark of bench/peers.py, seed 6: 5968 simulations to J* + 0.01 where scipy lm
+needs 290): near J = 9300 the normal matrix has condition 3e9, the Gauss–Newton step (4.5 in
+ϑ) is dominated by a weakly determined combination of the output biases of V, α, Θ (the
+ϑ of a bias is in units of its output's σ: steps of 30–300 σ) with initial states, and the
+cost is curved along it: every shortened step down to 1/25 of it was rejected, so each sweep
+bought one tiny step. The damped step turns away from the weak directions. Applied after
+every fresh rejection (or in every pass) it cost 2–4× the simulations on hard40 seeds 0, 1,
+2, 5 (e.g. seed 1: 259 → 689); with the 1/8 guard the other 15 seeds of both variants are
+unchanged and seed 6 takes 1470 (still 5× lm's: afterwards every sweep pays for a step that
+gains ~10 % of the remaining cost drop — a linear rate along a curved valley).
 
 Convergence is claimed only from a freshly swept J, or from one whose last step realised its
 predicted drop (|ρ − 1| ≤ 0.1); a carried J that says "settled" triggers a sweep first. On a
 fresh J, ``fresh_rejections`` rejected trials in a row end the search as converged if the
 step is below the parameter tolerance or its predicted drop below the cost tolerance;
 30 such trials as stalled. The driver then confirms with central differences
-(``flightid.estimation.confirm``) whatever the solver said.
+(``flightid.estimation.confirm``) whatever the solver said. When the solver stops where
+it last swept, with G still exactly that sweep's (MNR's step 1e-6, no update since), the
+outcome hands the sweep's forward differences over (``SolverOutcome.differences``), and the
+confirmation completes them to central ones with n_f integrations instead of 2·n_f, as it
+does for MNR (hfb320_longitudinal: 226 → 203 simulations in all, MNR 205, measured in one
+tree; base seed 7: 149 → 127).
 
-Measured (bench/mnres_study.py, docs/method.md): on the 22-parameter 6-DOF benchmark the
-secant form reaches J* + 0.01 in a median 79.5 simulations against 116 for MNR and scipy's
-``least_squares`` (lm), and 89.5 for the surface form.
+Measured (bench/peers.py, 6-DOF Navion, 8 seeds, sims to J* + 0.01): base (22 free) median
+81.5 against 116 for MNR and scipy's ``least_squares`` (lm); hard40 median 325 against MNR
+663 and lm 517 (per seed in docs/method.md).
 
 Surface forms
 -------------
