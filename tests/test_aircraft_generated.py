@@ -122,6 +122,7 @@ def _compare(generated, tables, exact, seed=0, n=25):
         for key in ("f_out", "h_out")
     }
     sizes = {"f_out": len(generated.states), "h_out": len(generated.outputs)}
+    returns = {key: numba.njit(getattr(generated, key)) for key in ("f", "h")}
     for _ in range(n):
         x, u = _state_and_inputs(generated, rng)
         theta = rng.uniform(-0.5, 0.5, n_theta)
@@ -135,6 +136,11 @@ def _compare(generated, tables, exact, seed=0, n=25):
             else:
                 scale = max(np.max(np.abs(b)), 1.0)
                 np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * scale, err_msg=key)
+        # the return forms compile too (nopython: they call the register_jitable out form)
+        for key, fn in returns.items():
+            a, b = np.empty(sizes[key + "_out"]), fn(0.0, x, u, theta)
+            jit[key + "_out"][0](0.0, x, u, theta, a)
+            np.testing.assert_array_equal(a, b)
         for key in ("f", "h"):
             a = getattr(generated, key)(0.0, x, u, theta)
             b = getattr(tables, key)(0.0, x, u, theta)

@@ -227,7 +227,7 @@ class _Aero:
             local = f"spline_{len(self.factors)}" if kind == 1 else f"abs_{len(self.factors)}"
             if kind == 1:
                 # (x − k)₊ = max(x − k, 0)
-                expr, comment = f"max({name} - {_lit(knot)}, 0.0)", f"({name} − {knot!r})₊"
+                expr, comment = f"max({name} - {_lit(knot)}, 0.0)", f"({name} − {float(knot)!r})₊"
             else:
                 expr, comment = f"abs({name})", f"|{name}|"
             self.factors[key] = local
