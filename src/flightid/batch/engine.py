@@ -1,0 +1,149 @@
+"""The engines a batch runs on: this process (serial) or Dask distributed.
+
+Both take the same tasks (``flightid.batch.task.CaseTask``) and the same function
+(``run_task``) and yield the records as the tasks finish, so a batch gives the same results
+on either; only the order of completion differs.
+
+* ``SerialEngine``: one task after the other in this process.
+* ``DaskEngine``: a ``dask.distributed.Client`` on a ``LocalCluster(n_workers=N,
+  threads_per_worker=1)`` (one process per worker: the estimation holds the GIL in Python
+  and numba code alike, so threads would not run in parallel) or on a running scheduler
+  (``--scheduler tcp://host:8786``). Each case is one task (``pure=False``: every submission
+  runs). A worker that dies (killed, out of memory) is replaced by its nanny, and the
+  scheduler runs its tasks again elsewhere (up to ``distributed.scheduler.allowed-failures``
+  times, 3 by default): a task's result folder is written atomically, so a task killed
+  half-way leaves nothing behind and its rerun starts clean.
+
+``make_engine(workers, scheduler)`` picks one: Dask when a scheduler is given or ``workers``
+is more than 1 (None: as many workers as the machine has cores), serial for ``workers=1`` or
+when Dask is not installed (``pip install flightid[dask]``); ``engine.description`` says which
+ran, for the progress line.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+from flightid.errors import InputError
+
+__all__ = ["DaskEngine", "SerialEngine", "dask_available", "make_engine"]
+
+
+def dask_available() -> bool:
+    """True when ``dask.distributed`` can be imported."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class SerialEngine:
+    """Runs the tasks one after the other in this process."""
+
+    def __init__(self, note: str = "") -> None:
+        self.description = "serial (this process" + (f"; {note})" if note else ")")
+        self.workers = 1
+
+    def map_unordered(
+        self, fn: Callable[[Any], Any], tasks: Iterable[Any]
+    ) -> Iterator[tuple[Any, Any, BaseException | None]]:
+        """Yield ``(task, fn(task), None)`` for each task in order, ``(task, None, exc)`` where
+        ``fn`` raised an ``Exception``."""
+        for task in tasks:
+            try:
+                yield task, fn(task), None
+            except Exception as exc:
+                yield task, None, exc
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class DaskEngine:
+    """Runs the tasks on a Dask distributed cluster (a LocalCluster, or a scheduler address).
+
+    Args:
+        workers: worker processes of the LocalCluster (ignored with ``scheduler``).
+        scheduler: address of a running scheduler (``tcp://host:8786``), or None.
+        client: an existing ``distributed.Client`` to use (not closed by ``close``).
+    """
+
+    def __init__(
+        self, workers: int | None = None, scheduler: str | None = None, client: Any = None
+    ) -> None:
+        from distributed import Client, LocalCluster
+
+        self._own = client is None
+        self._cluster = None
+        if client is not None:
+            self.client = client
+        elif scheduler is not None:
+            try:
+                self.client = Client(scheduler, timeout="20s")
+            except (OSError, TimeoutError) as exc:
+                raise InputError(
+                    f"--scheduler {scheduler}: no Dask scheduler answered ({exc})"
+                ) from None
+        else:
+            n = workers or os.cpu_count() or 1
+            self._cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+            )
+            self.client = Client(self._cluster)
+        self.workers = len(self.client.scheduler_info().get("workers", {}))
+        where = scheduler or ("LocalCluster" if self._cluster is not None else "client")
+        self.description = f"dask distributed ({where}, {self.workers} worker(s))"
+
+    def map_unordered(
+        self, fn: Callable[[Any], Any], tasks: Iterable[Any]
+    ) -> Iterator[tuple[Any, Any, BaseException | None]]:
+        """Submit ``fn(task)`` for every task; yield ``(task, result, None)`` as they finish,
+        ``(task, None, exc)`` for a task that raised or could not run (``KilledWorker`` after
+        too many lost workers)."""
+        from distributed import as_completed
+
+        tasks = list(tasks)
+        futures = [self.client.submit(fn, task, pure=False) for task in tasks]
+        of = {future.key: task for future, task in zip(futures, tasks, strict=True)}
+        try:
+            for future in as_completed(futures):
+                try:
+                    yield of[future.key], future.result(), None
+                except Exception as exc:
+                    yield of[future.key], None, exc
+        finally:
+            for future in futures:
+                future.cancel()
+
+    def close(self) -> None:
+        """Close the client and the LocalCluster this engine made."""
+        if self._own:
+            self.client.close()
+            if self._cluster is not None:
+                self._cluster.close()
+
+
+def make_engine(
+    workers: int | None = None, scheduler: str | None = None
+) -> SerialEngine | DaskEngine:
+    """The engine for ``--workers`` / ``--scheduler`` (see the module docstring).
+
+    Raises:
+        InputError: ``workers`` < 1, both options given, or a scheduler without Dask.
+    """
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers: expected a number ≥ 1, got {workers}")
+    if workers is not None and scheduler is not None:
+        raise InputError("give --workers or --scheduler, not both")
+    if scheduler is None and workers == 1:
+        return SerialEngine("--workers 1")
+    if not dask_available():
+        if scheduler is not None:
+            raise InputError(
+                f"--scheduler {scheduler}: Dask is not installed (pip install 'flightid[dask]')"
+            )
+        return SerialEngine("Dask is not installed: pip install 'flightid[dask]'")
+    return DaskEngine(workers, scheduler)
