@@ -353,11 +353,31 @@ def _forces(body: _Body, C: list[str | None], suffix: str, thrust: str | None) -
         (f"qbar * S * CBAR * {C[6]}" if C[6] else None, None),
         (f"qbar * S * B * {C[7]}" if C[7] else None, None),
     ]
+    if suffix:
+        # loads per unit rate: no thrust or engine part; None where zero
+        first = True
+        for load, (expr, _) in zip(("FX", "FY", "FZ", "FL", "FM", "FN"), exprs, strict=True):
+            comment = "their loads [2.14–2.15] (no thrust or engine part)" if first else None
+            names.append(body.let(load + suffix, expr, comment) if expr else None)
+            first = first and not expr
+        return names
     for load, (expr, comment) in zip(("FX", "FY", "FZ", "FL", "FM", "FN"), exprs, strict=True):
-        if suffix and comment:
-            comment += " (of the coefficients per unit rate, no thrust)"
-        names.append(body.let(load + suffix, expr or "0.0", comment))
+        names.append(body.let(load, expr or "0.0", comment))
     return names
+
+
+def _linear(*terms: tuple[str, str | None]) -> str | None:
+    """Σ coefficient·name over the terms whose name is not None (a coefficient "-c"
+    subtracts, "" is 1); None if there are none (zero)."""
+    parts = []
+    for coefficient, name in terms:
+        if name is None:
+            continue
+        negative = coefficient.startswith("-")
+        coefficient = coefficient.lstrip("-")
+        text = f"{coefficient} * {name}" if coefficient else name
+        parts.append(f"- {text}" if negative else text)
+    return _sum(parts) if parts else None
 
 
 def _engine(body: _Body, spec: ModelSpec, F: list[str], thrust: str | None) -> list[str]:
@@ -409,29 +429,45 @@ def _rigid_body(body: _Body, F: list[str], suffix: str = "") -> list[str]:
     return names[:3] + names[5:]
 
 
-def _rigid_body_response(body: _Body, F: list[str], suffix: str) -> list[str | None]:
-    """The part of dX/dt linear in the loads F (the response to the loads of a unit rate);
-    None where it is zero."""
-    let = body.let
-    return [
-        let("du" + suffix, f"{F[0]} / M", f"D{suffix}: the part of dX/dt linear in the loads"),
-        let("dv" + suffix, f"{F[1]} / M"),
-        let("dw" + suffix, f"{F[2]} / M"),
-        let("dp" + suffix, f"(IZ * {F[3]} + IXZ * {F[5]}) / GAMMA"),
-        let("dq" + suffix, f"{F[4]} / IY"),
-        let("dr" + suffix, f"(IXZ * {F[3]} + IX * {F[5]}) / GAMMA"),
-        None, None, None,
-    ]  # fmt: skip
+def _rigid_body_response(body: _Body, F: list[str | None], suffix: str) -> list[str | None]:
+    """The part of dX/dt linear in the loads F (the response to the loads of a unit rate;
+    F entries None where zero); None where it is zero."""
+    rows = [
+        ("du", _linear(("", F[0])), "/ M"),
+        ("dv", _linear(("", F[1])), "/ M"),
+        ("dw", _linear(("", F[2])), "/ M"),
+        ("dp", _linear(("IZ", F[3]), ("IXZ", F[5])), "/ GAMMA"),
+        ("dq", _linear(("", F[4])), "/ IY"),
+        ("dr", _linear(("IXZ", F[3]), ("IX", F[5])), "/ GAMMA"),
+    ]
+    names: list[str | None] = []
+    comment = f"D{suffix}: the part of dX/dt linear in the loads"
+    for name, numerator, divisor in rows:
+        if numerator is None:
+            names.append(None)
+            continue
+        numerator = numerator if " " not in numerator else f"({numerator})"
+        names.append(body.let(name + suffix, f"{numerator} {divisor}", comment))
+        comment = None
+    return names + [None, None, None]
 
 
-def _rate_lines(body: _Body, D: list[str], suffix: str, lateral: bool) -> tuple[str, str]:
-    """α̇ and β̇ of the derivatives D (equations.alpha_rate, beta_rate), names a…, b…."""
-    a = body.let(f"a{suffix}", f"(ub * {D[2]} - wb * {D[0]}) / (ub * ub + wb * wb)")
-    if lateral:
-        b = f"{D[1]} * math.sqrt(uw2) / V2"
-    else:
-        b = f"({D[1]} * uw2 - vb * (ub * {D[0]} + wb * {D[2]})) / (V2 * math.sqrt(uw2))"
-    return a, body.let(f"b{suffix}", b)
+def _rate_lines(body: _Body, D: list[str | None], suffix: str, lateral: bool) -> tuple[str, str]:
+    """α̇ and β̇ of the derivatives D (equations.alpha_rate, beta_rate; D entries None where
+    zero), names a…, b…; "0.0" where zero."""
+    numerator = _linear(("ub", D[2]), ("-wb", D[0]))
+    a = "0.0"
+    if numerator is not None:
+        a = body.let(f"a{suffix}", f"({numerator}) / (ub * ub + wb * wb)")
+    b = "0.0"
+    if lateral and D[1] is not None:
+        b = body.let(f"b{suffix}", f"{D[1]} * math.sqrt(uw2) / V2")
+    elif not lateral:
+        inner = _linear(("ub", D[0]), ("wb", D[2]))
+        numerator = _linear(("uw2", D[1]), ("-vb", f"({inner})" if inner else None))
+        if numerator is not None:
+            b = body.let(f"b{suffix}", f"({numerator}) / (V2 * math.sqrt(uw2))")
+    return a, b
 
 
 def _solve_rates(body: _Body, spec: ModelSpec, aero: _Aero, F, D, lateral: bool):
@@ -469,10 +505,14 @@ def _superpose(body: _Body, F, D, parts, n_d: int):
     """F = F0 + α̇ F_α + β̇ F_β and D likewise, for the rates in ``parts``."""
     names = ("FX", "FY", "FZ", "FL", "FM", "FN")
     F_out, D_out = [], []
+    comment = "F = F0 + α̇ F_α + β̇ F_β, D likewise"
     for i in range(6):
-        expr = F[i] + "".join(f" + {rate} * {Fr[i]}" for rate, Fr, _ in parts)
-        comment = "F = F0 + α̇ F_α + β̇ F_β, D likewise" if i == 0 else None
-        F_out.append(body.let(names[i] + "_t", expr, comment))
+        terms = [f" + {rate} * {Fr[i]}" for rate, Fr, _ in parts if Fr[i] is not None]
+        if not terms:
+            F_out.append(F[i])
+            continue
+        F_out.append(body.let(names[i] + "_t", F[i] + "".join(terms), comment))
+        comment = None
     for i in range(n_d):
         terms = [f" + {rate} * {Dr[i]}" for rate, _, Dr in parts if Dr[i] is not None]
         D_out.append(body.let(f"D{i}_t", D[i] + "".join(terms)) if terms else D[i])
@@ -540,14 +580,21 @@ def _wind_model(body: _Body, spec: ModelSpec, aero: _Aero, F):
     ]  # fmt: skip
     if aero.has(1):
         Fa = _forces(body, aero.emit(1, "_a"), "_a", None)
-        Da = [
-            let("dV_a", f"({Fa[0]} * ca_w + {Fa[2]} * sa_w) / M",
-                "D_α: the part linear in the loads"),
-            let("dalpha_a", f"({Fa[2]} * ca_w - {Fa[0]} * sa_w) / (M * x[0])"),
-            None,
-            let("dq_a", f"{Fa[4]} / IY"),
-        ]  # fmt: skip
-        let("alpha_dot", f"{D[1]} / (1.0 - {Da[1]})", "α̇ = D0[1]/(1 − D_α[1])")
+        rows = [
+            ("dV_a", _linear(("ca_w", Fa[0]), ("sa_w", Fa[2])), "M"),
+            ("dalpha_a", _linear(("ca_w", Fa[2]), ("-sa_w", Fa[0])), "(M * x[0])"),
+            ("dtheta_a", None, None),
+            ("dq_a", Fa[4], "IY"),
+        ]
+        Da: list[str | None] = []
+        comment = "D_α: the part linear in the loads"
+        for name, numerator, divisor in rows:
+            if numerator is None:
+                Da.append(None)
+                continue
+            Da.append(let(name, f"({numerator}) / {divisor}", comment))
+            comment = None
+        let("alpha_dot", f"{D[1]} / (1.0 - {Da[1] or '0.0'})", "α̇ = D0[1]/(1 − D_α[1])")
         F, D = _superpose(body, F, D, [("alpha_dot", Fa, Da)], 4)
     f_lines = [(D[i], f"d{name}/dt") for i, name in enumerate(("V", "α", "Θ", "q"))]
     # symmetric flight: ṗ = ṙ = 0, q̇ = M/I_y
