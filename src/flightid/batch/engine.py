@@ -90,7 +90,7 @@ class DaskEngine:
         else:
             n = workers or os.cpu_count() or 1
             self._cluster = LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
             )
             self.client = Client(self._cluster)
         self.workers = len(self.client.scheduler_info().get("workers", {}))
