@@ -120,6 +120,12 @@ def test_secant_settings_and_surface_forms():
     assert MNRES()._perturbation() == 1e-3
     assert MNRES(form="algebraic")._perturbation() == 1e-3
     assert MNRES()._max_rejections() == 1
+    # secant default: one disappointing carried pass per 20 free parameters before a sweep
+    assert MNRES()._max_rejections(22) == 1
+    assert MNRES()._max_rejections(39) == 1
+    assert MNRES()._max_rejections(40) == 2
+    assert MNRES(max_rejections=1)._max_rejections(40) == 1
+    assert MNRES(form="algebraic")._max_rejections(40) == 2
     assert MNRES(form="recursive")._max_rejections() == 2
 
 
@@ -159,10 +165,14 @@ def test_sweep_sensitivities_are_kept_once_and_updated_in_place():
 
 
 def test_damped_step_after_a_failure_when_the_radius_is_a_small_part_of_gauss_newton():
-    # ill-conditioned M: the Gauss–Newton step is dominated by the weak direction
+    # ill-conditioned M: two weak directions (columns 0/1 and 2/3 nearly collinear), the
+    # second pair 100× larger, so the column metric D = diag √M_jj is far from a multiple
+    # of I and an identity-damped step differs (there ‖(M + μD²)Δϑ − c‖ ≈ 0.1 for any μ)
     rng = np.random.default_rng(7)
     a = rng.normal(size=(300, 4))
-    a[:, 3] = a[:, 2] + 1e-4 * rng.normal(size=300)
+    a[:, 1] = a[:, 0] + 1e-3 * rng.normal(size=300)
+    a[:, 3] = a[:, 2] + 1e-3 * rng.normal(size=300)
+    a[:, 2:] *= 100.0
     b = rng.normal(size=300)
     normal, gradient = a.T @ a, a.T @ b
     held = np.zeros(4, dtype=bool)
@@ -172,11 +182,14 @@ def test_damped_step_after_a_failure_when_the_radius_is_a_small_part_of_gauss_ne
     _, shortened = _secant_step(normal, gradient, held, radius)
     _, damped = _secant_step(normal, gradient, held, radius, damped=True)
     np.testing.assert_allclose(shortened, gn / 20.0, rtol=1e-9)
-    # Levenberg–Marquardt: length Δ and (M + μI)Δϑ = c for one μ > 0
+    # Levenberg–Marquardt in the column metric: length Δ and (M + μD²)Δϑ = c for one μ > 0
     np.testing.assert_allclose(np.linalg.norm(damped), radius, rtol=1e-5)
-    mu = -((normal @ damped - gradient) @ damped) / (damped @ damped)
+    d2 = np.diag(normal)
+    direction = d2 * damped
+    mu = -((normal @ damped - gradient) @ direction) / (direction @ direction)
     assert mu > 0
-    np.testing.assert_allclose(normal @ damped + mu * damped, gradient, rtol=1e-4, atol=1e-8)
+    atol = 1e-6 * np.max(np.abs(gradient))
+    np.testing.assert_allclose(normal @ damped + mu * direction, gradient, rtol=0, atol=atol)
 
     # it predicts a larger drop than the shortened Gauss–Newton step of the same length
     def drop(step):

@@ -51,26 +51,30 @@ array. Measured (``bench/peers.py --memory``, N = 1e5, 20 free, G = 128 MB): pea
 Step control (trust region, ρ = realised / predicted drop, predicted = 2cᵀΔϑ − ΔϑᵀMΔϑ):
 on a freshly swept J, a rejected or disappointing step (ρ < 0.25) halves the radius to
 ½‖Δϑ‖ (MNR's halving); ρ > 0.75 at the radius doubles it. On a carried J, a disappointing
-step blames the model, not the radius: after ``max_rejections`` (default 1) such passes in a
-row J is swept again at the best point (the hybrid: one finite-difference sweep when the
-secant model is poor), the radius only halved by a rejected step. A sweep keeps the radius
-(what the fresh model learnt about the nonlinearity) but never below twice the last accepted
-step; it starts unbounded (the full Gauss–Newton step) at the first sweep and in each noise
-cycle.
+step blames the model, not the radius: after ``max_rejections`` such passes in a row J is
+swept again at the best point (the hybrid: one finite-difference sweep when the secant model
+is poor), the radius only halved by a rejected step. Default: one such pass per 20 free
+parameters, at least one — a sweep costs n_f simulations, a second chance for the carried
+model one. Measured (bench/peers.py, 8 seeds, sims to J* + 0.01): with 22 free parameters
+two passes raised the median from 81.5 to 91 (base) — one it is; with 40 (hard40) two
+lowered it from 338.5 to 230 and every seed but one to at most scipy lm's (seed 4: 305 →
+229, seed 6: 528 → 337). A sweep keeps the radius (what the fresh model learnt about the
+nonlinearity) but never below twice the last accepted step; it starts unbounded (the full
+Gauss–Newton step) at the first sweep and in each noise cycle.
 
 The damped step: after a trial on freshly swept J was rejected, a radius below 1/8 of the
-Gauss–Newton step's length takes the Levenberg–Marquardt step on the radius,
-Δϑ = (M + μI)⁻¹c with ‖Δϑ‖ = Δ, instead of the shortened Gauss–Newton direction. Why
-(hard40 benchmark of bench/peers.py, seed 6: 5968 simulations to J* + 0.01 where scipy lm
-needs 290): near J = 9300 the normal matrix has condition 3e9, the Gauss–Newton step (4.5 in
-ϑ) is dominated by a weakly determined combination of the output biases of V, α, Θ (the
-ϑ of a bias is in units of its output's σ: steps of 30–300 σ) with initial states, and the
-cost is curved along it: every shortened step down to 1/25 of it was rejected, so each sweep
-bought one tiny step. The damped step turns away from the weak directions. Applied after
-every fresh rejection (or in every pass) it cost 2–4× the simulations on hard40 seeds 0, 1,
-2, 5 (e.g. seed 1: 259 → 689); with the 1/8 guard the other 15 seeds of both variants are
-unchanged and seed 6 takes 1470 (still 5× lm's: afterwards every sweep pays for a step that
-gains ~10 % of the remaining cost drop — a linear rate along a curved valley).
+Gauss–Newton step's length takes the Levenberg–Marquardt step on the radius instead of the
+shortened Gauss–Newton direction, damped in the metric of the columns (MINPACK's):
+Δϑ = (M + μD²)⁻¹c, D = diag √M_jj, ‖Δϑ‖ = Δ. Why (hard40 seed 6, 5968 simulations to
+J* + 0.01 where scipy lm needs 290): near J = 9300 the normal matrix has condition 3e9, the
+Gauss–Newton step (4.5 in ϑ) is dominated by a weakly determined combination of the output
+biases of V, α, Θ (a bias's ϑ is in units of its output's σ: steps of 30–300 σ) with
+initial states, and the cost is curved along it: every shortened step down to 1/25 of it
+was rejected, so each sweep bought one tiny step. The damped step turns away from the weak
+directions. Damped with D = I (in ϑ): seed 6 1470; with D: 528 (337 with two carried
+passes, above). Applied after every fresh rejection, or in every pass, it cost 2–4× the
+simulations on hard40 seeds 0, 1, 2, 5 (e.g. seed 1: 259 → 689); with the 1/8 guard the
+other 15 seeds of both variants were unchanged.
 
 Convergence is claimed only from a freshly swept J, or from one whose last step realised its
 predicted drop (|ρ − 1| ≤ 0.1); a carried J that says "settled" triggers a sweep first. On a
@@ -85,7 +89,7 @@ does for MNR (hfb320_longitudinal: 226 → 203 simulations in all, MNR 205, meas
 tree; base seed 7: 149 → 127).
 
 Measured (bench/peers.py, 6-DOF Navion, 8 seeds, sims to J* + 0.01): base (22 free) median
-81.5 against 116 for MNR and scipy's ``least_squares`` (lm); hard40 median 325 against MNR
+81.5 against 116 for MNR and scipy's ``least_squares`` (lm); hard40 median 230 against MNR
 663 and lm 517 (per seed in docs/method.md).
 
 Surface forms
@@ -189,6 +193,9 @@ _SECANT_STALL = 30
 # secant form: after a rejected trial on swept sensitivities, a radius below 1/_DAMPED_RATIO of
 # the Gauss–Newton step's length takes the Levenberg–Marquardt step instead (see _secant_step)
 _DAMPED_RATIO = 8.0
+# secant form, default max_rejections: disappointing passes on carried sensitivities before a
+# sweep, one per this many free parameters (a sweep costs n_f simulations; module docstring)
+_PARAMETERS_PER_REJECTION = 20
 
 
 @dataclass
@@ -286,23 +293,31 @@ def _exact_normal(columns: np.ndarray, n_outputs: int | None = None) -> np.ndarr
 def _damped_step(
     normal: np.ndarray, gradient: np.ndarray, moving: np.ndarray, radius: float
 ) -> np.ndarray:
-    """Levenberg–Marquardt step on the radius (ϑ units) for the ``moving`` parameters.
+    """Levenberg–Marquardt step of length ``radius`` (ϑ units) for the ``moving`` parameters,
+    damped in the metric of the columns (MINPACK's scaling, D = diag √M_jj):
 
-    Δϑ(μ) = (M + μI)⁻¹c = V diag(1 / (λ + μ)) Vᵀc  (M = VΛVᵀ), whose length falls with μ;
+        Δϑ(μ) = (M + μD²)⁻¹c = D⁻¹ V diag(1 / (λ + μ)) Vᵀ D⁻¹c,   D⁻¹MD⁻¹ = VΛVᵀ
+
     μ by bisection on log μ so that ‖Δϑ(μ)‖ = Δ (the caller uses it only when the
-    Gauss–Newton step is longer than Δ).
+    Gauss–Newton step is longer than Δ). D measures each parameter by how much it moves the
+    weighted outputs, so the damping does not depend on the units of ϑ (an output bias's
+    unit is its output's σ). Measured on hard40 seed 6 (see the module docstring): damped
+    with D = I instead, 1470 simulations to J* + 0.01; with D, 528.
     """
-    lam, vec = np.linalg.eigh(normal[np.ix_(moving, moving)])
+    m = normal[np.ix_(moving, moving)]
+    diagonal = np.diag(m).copy()
+    d = np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    lam, vec = np.linalg.eigh(m / np.outer(d, d))
     lam = np.maximum(lam, 0.0)
-    projected = vec.T @ gradient[moving]
+    projected = vec.T @ (gradient[moving] / d)
 
     def step(mu: float) -> np.ndarray:
-        # Δϑ(μ) = V diag(1 / (λ + μ)) Vᵀc
-        return vec @ (projected / (lam + mu))
+        # Δϑ(μ) = D⁻¹ V diag(1 / (λ + μ)) Vᵀ D⁻¹c
+        return (vec @ (projected / (lam + mu))) / d
 
-    # ‖Δϑ(μ)‖ ≤ ‖c‖ / μ: the upper end of the bracket is inside the radius
+    # ‖Δϑ(μ)‖ ≤ ‖Vᵀ D⁻¹c‖ / (μ min_j d_j): the upper end of the bracket is inside the radius
     low = max(1e-16 * float(lam[-1]), 1e-300)
-    high = float(np.linalg.norm(projected)) / radius + float(lam[-1])
+    high = float(np.linalg.norm(projected)) / (radius * float(d.min())) + float(lam[-1])
     for _ in range(200):
         if high / low < 1.0 + 1e-6:
             break
@@ -368,7 +383,8 @@ class MNRES:
         importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7; surface forms).
         max_rejections: disappointing passes in a row on sensitivities carried along the
             path before they are renewed (secant: a sweep; surface forms: a restart).
-            None: 1 (secant), 2 (surface forms).
+            None: one per 20 free parameters, at least 1 (secant: 1 up to 39 free
+            parameters, 2 from 40), 2 (surface forms).
         fresh_rejections: rejected trials in a row on freshly swept / (re)initialised
             sensitivities before the convergence checks (secant) or a restart (surface).
         max_relative_step: no parameter moves more than this fraction of max(|θ_j|, scale_j)
@@ -426,7 +442,9 @@ class MNRES:
             "window": self.window,
             "initial_perturbation": self._perturbation(),
             "importance_scaling": self.importance_scaling,
-            "max_rejections": self._max_rejections(),
+            "max_rejections": self._max_rejections()
+            if self.max_rejections is not None or self.form != "secant"
+            else f"1 per {_PARAMETERS_PER_REJECTION} free parameters (at least 1)",
             "fresh_rejections": self.fresh_rejections,
             "max_relative_step": None
             if math.isinf(self.max_relative_step)
@@ -628,11 +646,14 @@ class MNRES:
     def _sweep_step(self) -> float:
         return self._perturbation()
 
-    def _max_rejections(self) -> int:
-        """``max_rejections``, or its default: 1 (secant), 2 (surface forms)."""
+    def _max_rejections(self, n_free: int | None = None) -> int:
+        """``max_rejections``, or its default: secant one per ``_PARAMETERS_PER_REJECTION``
+        free parameters, at least 1 (1 without ``n_free``); surface forms 2."""
         if self.max_rejections is not None:
             return max(int(self.max_rejections), 1)
-        return 1 if self.form == "secant" else 2
+        if self.form != "secant":
+            return 2
+        return 1 if n_free is None else max(1, n_free // _PARAMETERS_PER_REJECTION)
 
     def _perturbation(self) -> float:
         """``initial_perturbation``, or its default (1e-3, both families)."""
@@ -894,7 +915,7 @@ class MNRES:
                     )
                 continue
             # carried sensitivities that mislead max_rejections passes in a row are renewed
-            if not current.fresh and current.poor >= self._max_rejections():
+            if not current.fresh and current.poor >= self._max_rejections(problem.n_free):
                 stop = sweep()
                 if stop is not None:
                     return stop
