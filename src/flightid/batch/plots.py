@@ -73,7 +73,7 @@ def carpet_plots(
                 elinewidth=4,
                 label="±σ coloured",
             )
-        ax.errorbar(xs, ys, yerr=sd, fmt="o-", capsize=3, label="estimate ±σ (Cramér–Rao)")
+        ax.errorbar(xs, ys, yerr=sd, fmt="o", capsize=3, label="estimate ±σ (Cramér–Rao)")
         unit = pts[0][4]
         ax.set_xlabel(column)
         ax.set_ylabel(f"{name} ({unit})" if unit else name)
