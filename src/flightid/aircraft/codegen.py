@@ -312,16 +312,16 @@ def _body_signals(body: _Body, spec: ModelSpec, extra_names: list[str]) -> None:
     body.let("V", "math.sqrt(ub * ub + vb * vb + wb * wb)", "V = sqrt(u² + v² + w²)  [2.19]")
     body.let("alpha", "math.atan2(wb, ub)", "α = atan(w/u)  [2.21]")
     body.let("beta", "math.asin(vb / V)", "β = asin(v/V)  [2.20]")
-    body.let("phat", f"p * B / (2.0 * {Vn})", "p̂ = p b/2V_n, q̂ = q c̄/2V_n, r̂ = r b/2V_n")
-    body.let("qhat", f"q * CBAR / (2.0 * {Vn})")
-    body.let("rhat", f"r * B / (2.0 * {Vn})")
+    body.let("phat", f"p * B / (2.0 * {Vn})", "p̂ = p b/2V_n")
+    body.let("qhat", f"q * CBAR / (2.0 * {Vn})", "q̂ = q c̄/2V_n")
+    body.let("rhat", f"r * B / (2.0 * {Vn})", "r̂ = r b/2V_n")
     body.let("theta_pitch", "math.asin(max(-1.0, min(1.0, -lxz)))", "Θ = asin(−l_xz)  [2.22]")
     body.let("phi", "math.atan2(lyz, lzz)", "Φ = atan(l_yz/l_zz)  [2.23]")
-    body.let("Vrel", f"V / {_lit(V0)}" if V0 > 0 else "0.0", "V/V0 and (V − V0)/V0")
-    body.let("dVrel", f"(V - {_lit(V0)}) / {_lit(V0)}" if V0 > 0 else "0.0")
+    body.let("Vrel", f"V / {_lit(V0)}" if V0 > 0 else "0.0", "V/V0")
+    body.let("dVrel", f"(V - {_lit(V0)}) / {_lit(V0)}" if V0 > 0 else "0.0", "(V − V0)/V0")
     # α̇̂ = α̇ c̄/(2V_n) and β̇̂ = β̇ b/(2V_n) of a unit rate
-    body.let("k_alpha", f"CBAR / (2.0 * {Vn})", "α̇̂, β̇̂ per unit α̇, β̇")
-    body.let("k_beta", f"B / (2.0 * {Vn})")
+    body.let("k_alpha", f"CBAR / (2.0 * {Vn})", "α̇̂ per unit α̇: c̄/2V_n")
+    body.let("k_beta", f"B / (2.0 * {Vn})", "β̇̂ per unit β̇: b/2V_n")
     for j, name in enumerate(extra_names):
         body.let(name, f"u[{int(spec.extra_input[j])}]", "input signals" if j == 0 else None)
 
@@ -349,9 +349,9 @@ def _forces(body: _Body, C: list[str | None], suffix: str, thrust: str | None) -
         (fx, f"X = q̄S(C_X + C_L sin α − C_D cos α){' + T cos α_T' if thrust else ''}"),
         (f"qbar * S * {C[1]}" if C[1] else None, "Y = q̄S C_Y"),
         (fz, f"Z = q̄S(C_Z − C_L cos α − C_D sin α){' − T sin α_T' if thrust else ''}"),
-        (f"qbar * S * B * {C[5]}" if C[5] else None, "L = q̄Sb C_l, M = q̄Sc̄ C_m, N = q̄Sb C_n"),
-        (f"qbar * S * CBAR * {C[6]}" if C[6] else None, None),
-        (f"qbar * S * B * {C[7]}" if C[7] else None, None),
+        (f"qbar * S * B * {C[5]}" if C[5] else None, "L = q̄Sb C_l"),
+        (f"qbar * S * CBAR * {C[6]}" if C[6] else None, "M = q̄Sc̄ C_m"),
+        (f"qbar * S * B * {C[7]}" if C[7] else None, "N = q̄Sb C_n"),
     ]
     if suffix:
         # loads per unit rate: no thrust or engine part; None where zero
