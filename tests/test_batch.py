@@ -225,7 +225,9 @@ def test_rerun_skips_unchanged_cases_and_reruns_a_changed_one(tmp_path):
     again = run_batch([a, b], out, workers=1, data_dir=DATA)
     assert again.ran == () and again.skipped == ("attas_short_period", "attas_fpr_biases")
     assert {p: p.stat().st_mtime_ns for p in out.glob("cases/*/batch.json")} == stamps
-    assert again.records == first.records
+    assert [(r["fingerprint"], r["rows"]) for r in again.records] == [
+        (r["fingerprint"], r["rows"]) for r in first.records
+    ]
     # one case's text changes (a comment is enough: the case text is in the fingerprint)
     changed = BatchCase(b.name, b.text + "# changed\n", b.path, {}, b.path)
     third = run_batch([a, changed], out, workers=1, data_dir=DATA)
@@ -295,3 +297,28 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert main(["batch", str(tmp_path / "b.toml"), "--out", str(tmp_path / "o")]) == 1
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert line.startswith("flightid: error: batch file") and "row 1" in line and "nope" in line
+
+
+ENVELOPE = ROOT / "examples" / "batch" / "envelope.toml"
+
+
+def test_the_shipped_envelope_expands_to_valid_cases():
+    cases = plan_cases([ENVELOPE])
+    assert [c.name for c in cases] == ["attas_elv1", "attas_elv2", "hfb320_3211"]
+    for case in cases:
+        parsed = parse_case(tomllib.loads(case.text), case.path)
+        assert parsed.model["module"] == "../models/attas_short_period.py"
+        assert isinstance(case.conditions["V_mps"], float)
+    hfb = parse_case(tomllib.loads(cases[2].text), cases[2].path)
+    assert hfb.maneuvers[0].file == "fvsysid/hfb320_1_10.asc"
+    assert hfb.data["outputs"]["alpha"] == {"column": 6, "unit": "rad", "to": "rad"}
+
+
+@pytest.mark.slow
+@needs_data
+def test_the_shipped_envelope_runs(tmp_path):
+    result = run_batch([ENVELOPE], tmp_path, workers=1, data_dir=DATA, plot_against="V_mps")
+    assert result.failed == ()
+    rows = _read_csv(tmp_path / "estimates.csv")
+    assert len(rows) == 3 * 8 and all(r["status"] == "converged" for r in rows)
+    assert (tmp_path / "plots" / "Ma_vs_V_mps.png").is_file()

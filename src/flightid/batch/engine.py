@@ -7,7 +7,9 @@ on either; only the order of completion differs.
 * ``SerialEngine``: one task after the other in this process.
 * ``DaskEngine``: a ``dask.distributed.Client`` on a ``LocalCluster(n_workers=N,
   threads_per_worker=1)`` (one process per worker: the estimation holds the GIL in Python
-  and numba code alike, so threads would not run in parallel) or on a running scheduler
+  and numba code alike, so threads would not run in parallel; numba's own thread pool for
+  the parallel batch kernels gets ``cores // N`` threads per worker, ``worker_environment``)
+  or on a running scheduler
   (``--scheduler tcp://host:8786``). Each case is one task (``pure=False``: every submission
   runs). A worker that dies (killed, out of memory) is replaced by its nanny, and the
   scheduler runs its tasks again elsewhere (up to ``distributed.scheduler.allowed-failures``
@@ -62,6 +64,16 @@ class SerialEngine:
         """Nothing to release."""
 
 
+def worker_environment(n_workers: int) -> dict[str, str]:
+    """Environment of the LocalCluster's worker processes: numba's thread pool (the parallel
+    batch kernels of ``flightid.simulate.kernels``) shares the cores among the workers,
+    ``NUMBA_NUM_THREADS = max(1, cores // n_workers)``, unless it is set already. Without
+    it, N workers would each start one thread per core and contend for them."""
+    if "NUMBA_NUM_THREADS" in os.environ:
+        return {}
+    return {"NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // n_workers))}
+
+
 class DaskEngine:
     """Runs the tasks on a Dask distributed cluster (a LocalCluster, or a scheduler address).
 
@@ -90,7 +102,11 @@ class DaskEngine:
         else:
             n = workers or os.cpu_count() or 1
             self._cluster = LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",
+                env=worker_environment(n),
             )
             self.client = Client(self._cluster)
         self.workers = len(self.client.scheduler_info().get("workers", {}))

@@ -2,7 +2,8 @@
 
     fingerprint = SHA-256 of { case text (after substitution), the case's path,
                                SHA-256 of each data file (estimation and prediction maneuvers)
-                               and of the model module, flightid version, accuracy option }
+                               and of the model module, flightid version and the SHA-256 of
+                               its Python sources, accuracy option }
 
 A case whose fingerprint equals the one stored with its result (``cases/<name>/batch.json``)
 is not run again. A data file that cannot be found enters as ``"missing"``: the case fails
@@ -12,6 +13,7 @@ case enters with its text only (its run reports the error).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import tomllib
@@ -31,6 +33,21 @@ def file_sha256(path: Path) -> str:
                 digest.update(block)
     except OSError:
         return "missing"
+    return digest.hexdigest()
+
+
+@functools.cache
+def code_digest() -> str:
+    """SHA-256 of the flightid package's Python sources (the code that computes a result):
+    a changed solver, model builder or report changes every fingerprint, also where the
+    version string stays the same (a development checkout). Computed once per process."""
+    import flightid
+
+    root = Path(flightid.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode("utf-8") + b"\0")
+        digest.update(path.read_bytes())
     return digest.hexdigest()
 
 
@@ -73,6 +90,7 @@ def fingerprint(case: BatchCase, data_dir: str | Path | None, accuracy: str | No
         "path": str(case.path),
         "files": _input_files(case, data_dir),
         "flightid": __version__,
+        "code": code_digest(),
         "accuracy": accuracy,
     }
     return hashlib.sha256(json.dumps(document, sort_keys=True).encode("utf-8")).hexdigest()

@@ -195,9 +195,12 @@ def run_task(task: CaseTask) -> dict[str, Any]:
         (directory / "case.toml").write_text(case.text, encoding="utf-8")
         (directory / RECORD_FILE).write_text(_record_json(record), encoding="utf-8")
 
+    written = time.perf_counter()
     folder = ResultFolder.open(task.folder, overwrite=True, label="batch case folder")
     try:
         folder.write(write)
     finally:
         folder.release()
+    # the time spent writing the report (not in batch.json: it is known only afterwards)
+    record["write_s"] = time.perf_counter() - written
     return record
