@@ -263,3 +263,21 @@ def test_the_last_sweep_is_handed_to_the_confirmation_when_the_solver_stops_ther
     MNRES._secant_update(state, 1e-3 * np.ones(problem.n_free), np.ones_like(state.outputs))
     assert state.differences is None
     assert Convergence  # imported for the objective's type
+
+
+def test_rank_one_kernel_equals_the_numpy_update_and_reduction():
+    # one pass of the compiled kernel: p_k = G_kᵀu_k with the old G, then G ← G + u wᵀ
+    from flightid.estimation.solvers.mnres import _rank_one_kernel, _rank_one_update
+
+    rng = np.random.default_rng(8)
+    n_free, n_samples, n_outputs = 6, 37, 3
+    columns = rng.normal(size=(n_free, n_samples * n_outputs))
+    u, w = rng.normal(size=n_samples * n_outputs), rng.normal(size=n_free)
+    g_old = np.moveaxis(columns.reshape(n_free, n_samples, n_outputs), 0, -1).copy()
+    expected_p = np.einsum("ikj,ik->kj", g_old, u.reshape(n_samples, n_outputs))
+    expected_columns = columns + np.outer(w, u)
+    for kernel in (_rank_one_kernel(), _rank_one_update):  # compiled and plain Python
+        c, p = columns.copy(), np.zeros((n_outputs, n_free))
+        kernel(c, u, w, p, n_outputs)
+        np.testing.assert_allclose(p, expected_p, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(c, expected_columns, rtol=1e-12, atol=1e-12)
