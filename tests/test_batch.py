@@ -161,6 +161,8 @@ def test_case_files_plan_by_stem_and_names_must_be_unique(tmp_path):
 def test_engine_choice():
     assert isinstance(make_engine(1), SerialEngine)
     assert "--workers 1" in make_engine(1).description
+    # by default one worker per core, at most one per case: one case runs here
+    assert "one case to run" in make_engine(None, None, n_tasks=1).description
     with pytest.raises(BatchError.__mro__[1], match="--workers: expected a number"):
         make_engine(0)
 

@@ -143,3 +143,19 @@ def test_workers_load_kernels_from_the_shared_disk_cache(tmp_path):
     assert first.records[0]["numba_compilations"] > 0 and any(cache.rglob("*.nbi"))
     assert second.records[0]["numba_compilations"] == 0
     assert second.records[0]["rows"] == first.records[0]["rows"]
+
+
+def test_cli_on_a_running_scheduler(client, tmp_path, capsys):
+    from flightid.cli.main import main
+
+    case = tmp_path / "attas_short_period.toml"
+    case.write_text(
+        _fast("attas_short_period").text.replace('"../models/attas_short_period.py"', f'"{MODEL}"')
+    )
+    address = client.scheduler.address
+    argv = ["batch", str(case), "--scheduler", address, "--out", str(tmp_path / "out")]
+    assert main([*argv, "--data-dir", str(DATA)]) == 0
+    captured = capsys.readouterr()
+    assert f"engine dask distributed ({address}" in captured.err
+    assert "1 case(s): 1 run, 0 skipped (up to date), 0 failed" in captured.out
+    assert (tmp_path / "out" / "estimates.csv").is_file()

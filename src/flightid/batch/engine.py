@@ -16,10 +16,11 @@ on either; only the order of completion differs.
   times, 3 by default): a task's result folder is written atomically, so a task killed
   half-way leaves nothing behind and its rerun starts clean.
 
-``make_engine(workers, scheduler)`` picks one: Dask when a scheduler is given or ``workers``
-is more than 1 (None: as many workers as the machine has cores), serial for ``workers=1`` or
-when Dask is not installed (``pip install flightid[dask]``); ``engine.description`` says which
-ran, for the progress line.
+``make_engine(workers, scheduler, n_tasks)`` picks one: Dask when a scheduler is given or
+``workers`` is more than 1 (None: one worker per core, at most one per task), serial for
+``workers=1`` (or one task, or one core) or when Dask is not installed
+(``pip install flightid[dask]``); ``engine.description`` says which ran, for the progress
+line.
 """
 
 from __future__ import annotations
@@ -143,9 +144,11 @@ class DaskEngine:
 
 
 def make_engine(
-    workers: int | None = None, scheduler: str | None = None
+    workers: int | None = None, scheduler: str | None = None, n_tasks: int | None = None
 ) -> SerialEngine | DaskEngine:
-    """The engine for ``--workers`` / ``--scheduler`` (see the module docstring).
+    """The engine for ``--workers`` / ``--scheduler`` (see the module docstring). Without
+    either, a LocalCluster of ``min(cores, n_tasks)`` workers (serial where that is 1: one
+    case to run, or one core).
 
     Raises:
         InputError: ``workers`` < 1, both options given, or a scheduler without Dask.
@@ -156,6 +159,10 @@ def make_engine(
         raise InputError("give --workers or --scheduler, not both")
     if scheduler is None and workers == 1:
         return SerialEngine("--workers 1")
+    if scheduler is None and workers is None:
+        workers = max(1, min(os.cpu_count() or 1, n_tasks or os.cpu_count() or 1))
+        if workers == 1:
+            return SerialEngine("one case to run" if n_tasks == 1 else "one core")
     if not dask_available():
         if scheduler is not None:
             raise InputError(

@@ -178,7 +178,7 @@ def run_batch(
         try:
             if tasks:
                 own = engine is None
-                engine = engine or make_engine(workers, scheduler)
+                engine = engine or make_engine(workers, scheduler, len(tasks))
                 description = engine.description
                 say(f"batch: engine {description}")
                 started = time.monotonic()
