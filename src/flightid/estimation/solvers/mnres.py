@@ -42,11 +42,11 @@ Memory: one sensitivity array. J is stored as G = ∂y/∂θ = J S⁻¹ (S = dia
 very (n_f, N·n_o) array the sweep differenced into (``_SecantState.columns``; no scaled
 copy); the scaling enters only the n_f × n_f matrices (M_ϑ = S M_θ S, c_ϑ = S c_θ) and the
 update (G ← G + u wᵀ, w = S⁻²Δθ / ΔθᵀS⁻²Δθ, the same least-change update in ϑ); the update
-runs in place (BLAS rank one) and p_k = G_kᵀu_k column by column, so a pass allocates only
-vectors of N·n_o. The carried G is released before a new sweep differences into a new
-array. Measured (``bench/peers.py --memory``, N = 1e5, 20 free, G = 128 MB): peak increase
-664 MB (5.2 G: the carried G, the differenced one and its scaled copy at once) before,
-190 MB (1.49 G) after.
+and p_k = G_kᵀu_k run in place in one compiled pass over G (``_rank_one_update``), so a
+pass allocates only vectors of N·n_o. The carried G is released before a new sweep
+differences into a new array. Measured (``bench/peers.py --memory``, N = 1e5, 20 free,
+G = 128 MB): peak increase 664 MB (5.2 G: the carried G, the differenced one and its scaled
+copy at once) before, 190 MB (1.48 G) after.
 
 Step control (trust region, ρ = realised / predicted drop, predicted = 2cᵀΔϑ − ΔϑᵀMΔϑ):
 on a freshly swept J, a rejected or disappointing step (ρ < 0.25) halves the radius to
