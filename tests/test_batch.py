@@ -283,7 +283,8 @@ def test_template_batch_plots_and_no_parquet_notice(tmp_path, monkeypatch):
     assert "pyarrow is not installed" in notice and "\n" not in notice
     plots = sorted(p.name for p in (tmp_path / "out" / "plots").iterdir())
     assert "Ma_vs_mach.png" in plots and len(plots) == 8
-    assert "plots/Ma_vs_mach.png" in (tmp_path / "out" / "index.html").read_text()
+    index = (tmp_path / "out" / "index.html").read_text()
+    assert "plots/Ma_vs_mach.png" in index and "estimates.parquet" not in index
     with pytest.raises(BatchError, match="--plot-against 'altitude': no such column"):
         run_batch([_template(tmp_path)], tmp_path / "out", workers=1, plot_against="altitude")
 

@@ -63,7 +63,12 @@ def write_index(
         f"<p>{len(records)} case(s), {n_failed} failed"
         + (f"; engine: {html.escape(engine)}" if engine else "")
         + ". Table: <a href='estimates.csv'>estimates.csv</a>"
-        " (<a href='estimates.parquet'>Parquet</a>).</p>"
+        + (
+            " (<a href='estimates.parquet'>Parquet</a>)"
+            if (out / "estimates.parquet").is_file()
+            else ""
+        )
+        + ".</p>"
         "<table><tr>"
         + "".join(f"<th>{html.escape(h)}</th>" for h in head)
         + "</tr>"
