@@ -159,3 +159,34 @@ def test_cli_on_a_running_scheduler(client, tmp_path, capsys):
     assert f"engine dask distributed ({address}" in captured.err
     assert "1 case(s): 1 run, 0 skipped (up to date), 0 failed" in captured.out
     assert (tmp_path / "out" / "estimates.csv").is_file()
+
+
+def test_a_case_that_kills_every_worker_is_recorded_failed(tmp_path):
+    """A case whose worker dies each time (here: at once, no retry allowed) is recorded as
+    failed with what happened; the other case finishes."""
+    import dask
+
+    module = tmp_path / "attas_always_kills.py"
+    module.write_text("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n")
+    text = (CASES / "attas_short_period.toml").read_text(encoding="utf-8")
+    text = text.replace('"../models/attas_short_period.py"', f'"{module}"')
+    cases = [_fast("attas_short_period", text), _fast("twin_otter_longitudinal")]
+    cases[0] = BatchCase("killer", cases[0].text, cases[0].path, {}, None)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        cluster = LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+        )
+    client = Client(cluster)
+    try:
+        client.wait_for_workers(2, timeout=30)
+        # one task per worker: the killer's deaths do not touch the other case's worker
+        result = run_batch(cases, tmp_path / "out", engine=DaskEngine(client=client), data_dir=DATA)
+    finally:
+        client.close()
+        cluster.close()
+    assert result.failed == ("killer",)
+    killer, other = result.records
+    assert "the worker processes running it died" in killer["error"]
+    assert other["status"] == "converged"
+    # a lost task leaves no folder: the next batch runs it again
+    assert not (tmp_path / "out" / "cases" / "killer").exists()

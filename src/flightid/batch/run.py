@@ -87,7 +87,13 @@ def _locked(out: Path) -> Iterator[None]:
 def _failed_record(case: BatchCase, fp: str, exc: BaseException) -> dict[str, Any]:
     from flightid.cli.main import error_line
 
-    message = error_line(exc).removeprefix("flightid: error: ")
+    if type(exc).__name__ == "KilledWorker":  # distributed.KilledWorker
+        message = (
+            "the worker processes running it died each time it ran (killed, out of memory, "
+            "or a crash in compiled code); see distributed.scheduler.allowed-failures"
+        )
+    else:
+        message = error_line(exc).removeprefix("flightid: error: ")
     return {
         "version": 1,
         "case": case.name,
