@@ -9,7 +9,8 @@ Modules, one job each:
 * ``table``: estimates.csv / estimates.parquet, one row per case and parameter;
 * ``plots``: carpet plots of each derivative against a flight-condition column;
 * ``index``: index.html linking every case's report;
-* ``run``: ``run_batch``, which ties them together.
+* ``run``: ``run_batch``, which ties them together;
+* ``multistart``: one case from many start points on the same engine, optima clustered.
 
 See docs/batch.md.
 """
