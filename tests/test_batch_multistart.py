@@ -108,3 +108,23 @@ def test_multistart_on_two_workers_equals_serial():
     assert "dask" in parallel.engine
     assert parallel.runs == serial.runs
     assert parallel.clusters == serial.clusters
+
+
+@needs_data
+def test_cli_multistart_writes_the_table(tmp_path, capsys):
+    import csv
+
+    from flightid.cli.main import main
+
+    argv = ["batch", str(CASE), "--multistart", "2", "--workers", "1", "--seed", "5"]
+    assert main([*argv, "--out", str(tmp_path), "--data-dir", str(DATA), "--quiet"]) == 0
+    assert "2 starts, 2 finished, 1 optimum" in capsys.readouterr().out
+    with (tmp_path / "multistart.csv").open() as stream:
+        rows = list(csv.DictReader(stream))
+    assert len(rows) == 2 * 8 and {r["cluster"] for r in rows} == {"1"}
+    assert {r["start"] for r in rows} == {"0", "1"}
+    # two case files are refused with one line
+    assert main(["batch", str(CASE), str(CASE), "--multistart", "2", "--out", str(tmp_path)]) == 1
+    assert capsys.readouterr().err.strip() == (
+        "flightid: error: --multistart: expected one case file, got 2"
+    )

@@ -37,7 +37,14 @@ import numpy as np
 
 from flightid.batch.plan import BatchError
 
-__all__ = ["Cluster", "MultistartResult", "cluster_optima", "multistart", "start_points"]
+__all__ = [
+    "Cluster",
+    "MultistartResult",
+    "cluster_optima",
+    "multistart",
+    "start_points",
+    "write_multistart_csv",
+]
 
 
 @dataclass(frozen=True)
@@ -263,3 +270,52 @@ def multistart(
             engine.close()
     runs.sort(key=lambda r: r["index"])
     return MultistartResult(tuple(runs), tuple(cluster_optima(runs, tol_sigma)), engine.description)
+
+
+def write_multistart_csv(result: MultistartResult, path: Path) -> Path:
+    """Write one row per start and free parameter: ``start`` (index), ``cluster`` (1 = the
+    best optimum; empty for a failed start), ``parameter``, ``start_value``, ``value``,
+    ``std`` (parameter units), ``neg_log_likelihood``, ``converged``, ``status``, ``error``.
+    Written to a temporary name and renamed into place; returns ``path``."""
+    import csv
+    import io
+    import os
+
+    cluster_of = {m: i for i, c in enumerate(result.clusters, start=1) for m in c.members}
+    columns = [
+        "start",
+        "cluster",
+        "parameter",
+        "start_value",
+        "value",
+        "std",
+        "neg_log_likelihood",
+        "converged",
+        "status",
+        "error",
+    ]
+    stream = io.StringIO()
+    writer = csv.DictWriter(stream, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for run in result.runs:
+        for name, start in run["start"].items():
+            failed = run.get("error") is not None
+            writer.writerow(
+                {
+                    "start": run["index"],
+                    "cluster": cluster_of.get(run["index"], ""),
+                    "parameter": name,
+                    "start_value": start,
+                    "value": "" if failed else run["values"].get(name, ""),
+                    "std": "" if failed else run["std"].get(name, ""),
+                    "neg_log_likelihood": "" if failed else run["neg_log_likelihood"],
+                    "converged": "" if failed else run["converged"],
+                    "status": "failed" if failed else run["status"],
+                    "error": run.get("error") or "",
+                }
+            )
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(stream.getvalue(), encoding="utf-8")
+    os.replace(tmp, path)
+    return path

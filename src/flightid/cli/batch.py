@@ -14,6 +14,10 @@ Writes into DIR:
   ``batch.json`` (its record and fingerprint) and ``case.toml`` (the text that ran);
 * ``plots/*.png`` with ``--plot-against``; ``index.html`` linking every report.
 
+``--multistart N`` (one case file): the case estimated from N start points on the same
+engines (``flightid.batch.multistart``), the optima clustered; prints the clusters and
+writes ``DIR/multistart.csv`` (one row per start and parameter).
+
 A rerun skips the cases whose inputs are unchanged; an interrupted batch resumes. A failed
 case is recorded (``status`` failed, ``error``) and the others go on; the exit status is 0
 when the batch ran (read ``status``), 1 when it could not (a bad source, a locked folder).
@@ -73,6 +77,23 @@ def register(subparsers) -> None:
         action="store_true",
         help="run failed cases again even when their inputs did not change",
     )
+    parser.add_argument(
+        "--multistart",
+        type=int,
+        default=None,
+        metavar="N",
+        help="instead of a batch: estimate the one case given from N start points (its own "
+        "first, then seeded perturbations) and cluster the optima; writes DIR/multistart.csv",
+    )
+    parser.add_argument(
+        "--spread",
+        type=float,
+        default=0.3,
+        help="relative standard deviation of the multistart perturbations (default 0.3)",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the multistart perturbations (default 0)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
     parser.set_defaults(func=run)
 
@@ -81,9 +102,39 @@ def _say(message: str) -> None:
     print(f"flightid: {message}", file=sys.stderr, flush=True)
 
 
+def _multistart(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from flightid.batch import BatchError
+    from flightid.batch.multistart import multistart, write_multistart_csv
+
+    if len(args.cases) != 1:
+        raise BatchError(f"--multistart: expected one case file, got {len(args.cases)}")
+    out = Path(args.out).expanduser()
+    if out.exists() and not out.is_dir():
+        raise BatchError(f"--out {out}: is a file, expected a folder")
+    result = multistart(
+        args.cases[0],
+        args.multistart,
+        spread=args.spread,
+        seed=args.seed,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        data_dir=args.data_dir,
+        progress=None if args.quiet else _say,
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    path = write_multistart_csv(result, out / "multistart.csv")
+    print(result.summary())
+    print(f"  {path.resolve()}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from flightid.batch import run_batch
 
+    if args.multistart is not None:
+        return _multistart(args)
     result = run_batch(
         args.cases,
         args.out,
