@@ -45,3 +45,22 @@ def describe(value: object) -> str:
         return f"{type(value).__name__} of shape {tuple(shape)}"
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split()) or "(no message)"
+
+
+def error_line(exc: BaseException) -> str:
+    """The one-line message ``flightid`` prints for a failure (without the ``--debug`` hint
+    for named errors): ``flightid: error: <message>``; also the ``error`` of a failed batch
+    record."""
+    if isinstance(exc, FlightIdError):
+        return f"flightid: error: {exc}"
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f": {exc.filename}" if exc.filename else ""
+        return f"flightid: error: {exc.strerror}{where}"
+    return (
+        f"flightid: error: internal error: {type(exc).__name__}: {_one_line(exc)} "
+        "(run with --debug for the traceback)"
+    )

@@ -132,7 +132,7 @@ def _run_start(task: StartTask) -> dict[str, Any]:
     """Estimate from one start point (on a worker); failures are data."""
     from flightid.cases.run import run_case
     from flightid.cases.spec import parse_case
-    from flightid.cli.main import error_line
+    from flightid.errors import error_line
 
     record: dict[str, Any] = {"index": task.index, "start": task.start, "error": None}
     try:

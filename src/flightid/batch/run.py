@@ -85,7 +85,7 @@ def _locked(out: Path) -> Iterator[None]:
 
 
 def _failed_record(case: BatchCase, fp: str, exc: BaseException) -> dict[str, Any]:
-    from flightid.cli.main import error_line
+    from flightid.errors import error_line
 
     if type(exc).__name__ == "KilledWorker":  # distributed.KilledWorker
         message = (

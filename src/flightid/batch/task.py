@@ -142,7 +142,7 @@ def run_task(task: CaseTask) -> dict[str, Any]:
     from flightid.cases.run import run_case
     from flightid.cases.spec import CaseError, parse_case
     from flightid.cases.stages import has_regression_stages
-    from flightid.cli.main import error_line
+    from flightid.errors import error_line
     from flightid.report.folder import ResultFolder
 
     case = task.case

@@ -23,7 +23,7 @@ import sys
 import traceback
 
 from flightid import __version__
-from flightid.errors import FlightIdError
+from flightid.errors import error_line
 
 # Sub-command modules, in the order they appear in --help.
 SUBCOMMAND_MODULES = ("batch", "paper", "regress", "run", "validate")
@@ -62,24 +62,6 @@ def build_parser() -> argparse.ArgumentParser:
         module.register(subparsers)
     _add_debug(parser)
     return parser
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split()) or "(no message)"
-
-
-def error_line(exc: BaseException) -> str:
-    """The one-line message ``main`` prints for a failure (without the ``--debug`` hint for
-    named errors)."""
-    if isinstance(exc, FlightIdError):
-        return f"flightid: error: {exc}"
-    if isinstance(exc, OSError) and exc.strerror:
-        where = f": {exc.filename}" if exc.filename else ""
-        return f"flightid: error: {exc.strerror}{where}"
-    return (
-        f"flightid: error: internal error: {type(exc).__name__}: {_one_line(exc)} "
-        "(run with --debug for the traceback)"
-    )
 
 
 def main(argv: list[str] | None = None) -> int:
