@@ -47,11 +47,41 @@ def _segments(maneuver_index: np.ndarray | None, n: int) -> list[np.ndarray]:
     return [np.flatnonzero(index == m) for m in np.unique(index)]
 
 
+def _draw_png(figure: Figure, target, dpi: float) -> None:
+    """One Agg draw at ``dpi``, written as PNG: what ``savefig`` writes, without its extra
+    draw — a figure that has been through ``tight_layout`` keeps a placeholder layout
+    engine, for which ``savefig`` first draws the whole figure with rendering switched off
+    (ticks and text measured) and then again. The pixels are the same; the report's three
+    figures of a 7-output maneuver took 1.60 s of CPU time with ``savefig``, 1.32 s so
+    (2026-11-26)."""
+    import matplotlib.image
+
+    canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else None
+    canvas = canvas or FigureCanvasAgg(figure)
+    original = figure.dpi
+    figure.set_dpi(dpi)
+    try:
+        canvas.draw()
+        matplotlib.image.imsave(
+            target,
+            canvas.buffer_rgba(),
+            format="png",
+            origin="upper",
+            dpi=dpi,
+            metadata={"Software": "flightid (matplotlib Agg)"},
+        )
+    finally:
+        figure.set_dpi(original)
+
+
 def _save(figure: Figure, path: str | Path, dpi: int) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(figure)
-    figure.savefig(path, dpi=dpi)
+    if path.suffix.lower() == ".png":
+        _draw_png(figure, path, dpi)
+    else:
+        FigureCanvasAgg(figure)
+        figure.savefig(path, dpi=dpi)
     return path
 
 
@@ -230,9 +260,8 @@ def png_bytes(figure: Figure, dpi: int = 90) -> bytes:
     """The figure as PNG bytes (Agg canvas)."""
     import io
 
-    FigureCanvasAgg(figure)
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=dpi)
+    _draw_png(figure, buffer, dpi)
     return buffer.getvalue()
 
 
