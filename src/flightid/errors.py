@@ -38,6 +38,12 @@ class EstimationError(FlightIdError, RuntimeError):
     """Estimation cannot proceed (e.g. the information matrix is singular at the start)."""
 
 
+class TaskError(FlightIdError, RuntimeError):
+    """A task run on a batch engine (a profile-likelihood parameter, a random-search chunk, a
+    Monte Carlo realisation) raised or could not run (its worker died too often). The message
+    names the task and its error; the original exception is the ``__cause__``."""
+
+
 def describe(value: object) -> str:
     """Short description of a value for error messages."""
     shape = getattr(value, "shape", None)

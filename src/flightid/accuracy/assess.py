@@ -22,6 +22,7 @@ Typical use::
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -145,6 +146,7 @@ def assess(
     compiled: bool = True,
     warn: bool = True,
     parameters: Sequence[str] | None = None,
+    engine: Any = None,
 ) -> AccuracyResult:
     """Accuracy of ``estimate``: Cramér–Rao, coloured-residual, Beale, profile, search.
 
@@ -171,6 +173,10 @@ def assess(
         warn: issue the warnings as ``AccuracyWarning`` (they are in the result either way).
         parameters: free-parameter names whose profile limits to compute (default all; the
             others get NaN profile intervals). The search always covers all.
+        engine: a ``flightid.batch`` engine (``flightid.batch.make_engine(workers,
+            scheduler)``) on which the profile (one task per parameter) and the search (its
+            chunks and refinement tasks) run; None: in this process. The numbers do not
+            depend on it. The caller closes it.
 
     Returns:
         ``AccuracyResult``.
@@ -249,13 +255,18 @@ def assess(
     profile = search = None
     if "profile" in chosen:
         before = contour.evaluations
-        profile = profile_limits(contour, covariance, parameters=subset)
+        profile = profile_limits(contour, covariance, parameters=subset, engine=engine)
         evaluations["profile"] = contour.evaluations - before
         messages += _profile_messages(profile, names)
     if "search" in chosen:
         before = contour.evaluations
         search = random_search(
-            contour, covariance, budget=int(budget), seed=seed, progress=progress
+            contour,
+            covariance,
+            budget=int(budget),
+            seed=seed,
+            progress=progress,
+            engine=engine,
         )
         evaluations["search"] = contour.evaluations - before
         if not search.settled.all():

@@ -27,6 +27,7 @@ Simulations that diverge count as outside the region.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -208,6 +209,7 @@ def profile_limits(
     max_iterations: int = 30,
     max_passes: int = 20,
     max_sigmas: float = 50.0,
+    engine: Any = None,
 ) -> ProfileLimits:
     """Profile-likelihood limits of the free parameters on the contour Δ.
 
@@ -220,35 +222,91 @@ def profile_limits(
         max_iterations: outer (root-finding) iterations per side.
         max_passes: inner GN passes per trial value.
         max_sigmas: a side is open if P < Δ at max_sigmas·√Δ·σ_j.
+        engine: a ``flightid.batch`` engine (``make_engine``): one task per parameter, run
+            where the engine runs them (Dask workers get a copy of the contour); None runs
+            them here, one after the other. Same numbers, same order, on any engine.
+
+    Raises:
+        TaskError: a parameter's task failed (its name in the message).
     """
     n = contour.n_free
     covariance = np.asarray(covariance, dtype=float)
-    todo = range(n) if parameters is None else parameters
+    todo = list(range(n) if parameters is None else parameters)
     intervals = np.full((n, 2), np.nan)
     statuses: list[tuple[str, str]] = [("skipped", "skipped")] * n
     evaluations = np.zeros(n, dtype=int)
     points: list = [None] * n
-    for j in todo:
-        sigma = np.sqrt(covariance[j, j]) if np.isfinite(covariance[j, j]) else np.inf
-        if not (np.isfinite(sigma) and sigma > 0):
-            intervals[j] = (-np.inf, np.inf)
-            statuses[j] = ("undetermined", "undetermined")
-            continue
-        before = contour.evaluations
-        profiler = _Profiler(contour, j, inner_tolerance, max_passes)
-        # initial trace: C[:, j] / C_jj (the conditional-mean direction)
-        trace0 = covariance[:, j] / covariance[j, j]
-        lower, status_lower, point_lower = _side(
-            profiler, -1, sigma, trace0, rtol, max_iterations, max_sigmas
+    tasks = [
+        _ProfileTask(
+            contour, covariance, j, rtol, inner_tolerance, max_iterations, max_passes, max_sigmas
         )
-        upper, status_upper, point_upper = _side(
-            profiler, +1, sigma, trace0, rtol, max_iterations, max_sigmas
-        )
-        intervals[j] = (lower, upper)
-        statuses[j] = (status_lower, status_upper)
-        evaluations[j] = contour.evaluations - before
-        points[j] = (point_lower, point_upper)
+        for j in todo
+    ]
+    from flightid.batch.engine import map_ordered
+
+    before = contour.evaluations
+    outcomes = map_ordered(
+        engine, _profile_one, tasks, labels=[f"profile of free parameter {j}" for j in todo]
+    )
+    # tasks run on copies elsewhere (Dask) spend their integrations there: count them here
+    remote = sum(o.evaluations for o in outcomes) - (contour.evaluations - before)
+    contour.start_evaluations -= remote
+    for j, outcome in zip(todo, outcomes, strict=True):
+        intervals[j] = outcome.interval
+        statuses[j] = outcome.statuses
+        evaluations[j] = outcome.evaluations
+        points[j] = outcome.points
+        contour.lowest_excess = min(contour.lowest_excess, outcome.lowest_excess)
     return ProfileLimits(intervals, tuple(statuses), evaluations, contour.delta, tuple(points))
+
+
+@dataclass(frozen=True)
+class _ProfileTask:
+    """One parameter's profile limits (picklable: Dask ships the contour with cloudpickle)."""
+
+    contour: Contour
+    covariance: np.ndarray
+    j: int
+    rtol: float
+    inner_tolerance: float
+    max_iterations: int
+    max_passes: int
+    max_sigmas: float
+
+
+@dataclass(frozen=True)
+class _ProfileOutcome:
+    interval: tuple[float, float]
+    statuses: tuple[str, str]
+    evaluations: int
+    points: tuple | None
+    lowest_excess: float
+
+
+def _profile_one(task: _ProfileTask) -> _ProfileOutcome:
+    """Lower and upper profile limit of free parameter ``task.j``."""
+    contour, covariance, j = task.contour, task.covariance, task.j
+    sigma = np.sqrt(covariance[j, j]) if np.isfinite(covariance[j, j]) else np.inf
+    if not (np.isfinite(sigma) and sigma > 0):
+        return _ProfileOutcome(
+            (-np.inf, np.inf), ("undetermined", "undetermined"), 0, None, contour.lowest_excess
+        )
+    before = contour.evaluations
+    profiler = _Profiler(contour, j, task.inner_tolerance, task.max_passes)
+    # initial trace: C[:, j] / C_jj (the conditional-mean direction)
+    trace0 = covariance[:, j] / covariance[j, j]
+    sides = [
+        _side(profiler, side, sigma, trace0, task.rtol, task.max_iterations, task.max_sigmas)
+        for side in (-1, +1)
+    ]
+    (lower, status_lower, point_lower), (upper, status_upper, point_upper) = sides
+    return _ProfileOutcome(
+        (lower, upper),
+        (status_lower, status_upper),
+        contour.evaluations - before,
+        (point_lower, point_upper),
+        contour.lowest_excess,
+    )
 
 
 def profile_curve(

@@ -11,15 +11,29 @@ quadratic approximation of the region is the unit ball ‖u‖ ≤ 1.
 
 1. Global phase (``global_fraction`` of the budget): points along random directions at radii
    uniform in [0, ``expand``] (radius-uniform rather than volume-uniform, so that in many
-   dimensions points still land inside). Inside points seed the 2·n_p extremes.
-2. Refinement: for each extreme, random directions are drawn around the direction of the
+   dimensions points still land inside), in chunks of ``CHUNK`` simulations. Inside points
+   seed the 2·n_p extremes.
+2. Refinement: each extreme is refined by its own task, from the extremes of the global
+   phase, on a share of the remaining budget (remaining / extremes not settled); tasks whose
+   extreme settled early leave budget to a next wave for the others (at most ``MAX_WAVES``).
+   Within a task, random directions are drawn around the direction of the
    current extreme point, d' = (d + ρ ξ)/‖d + ρ ξ‖, ξ ~ N(0, I/n_p), and the boundary along
    each ray is located (batched root-finding of √(J − J(θ̂)) = √Δ in the radius, which is
    ≈ linear in it, keeping the last inside point). A proposal whose boundary point pushes the
    extreme further is kept; ρ grows by 1.5 after a success and shrinks by 0.6 after a failure
    (a (1 + λ) evolution strategy on the sphere of directions). An extreme is settled when
-   ρ < ``rho_min``. Every inside point met, for any purpose, updates every extreme.
+   ρ < ``rho_min``. Every inside point a task meets updates every extreme; the tasks'
+   extremes are merged in task order.
 3. Final refinement: from each extreme point, a step along ±e_j to the contour.
+
+Random streams and parallel runs: every task has its own stream,
+``numpy.random.SeedSequence(seed, spawn_key=(0, chunk))`` for a global chunk and
+``SeedSequence(seed, spawn_key=(1, wave, extreme))`` for a refinement task, and the tasks are
+fixed by the budget alone (chunks of ``CHUNK``; one task per extreme). So the limits do not
+depend on where the tasks run: ``engine`` (a ``flightid.batch`` engine: serial, or Dask
+workers that get a copy of the contour) changes the wall time only, never a number. (Before
+the tasks, one stream drove the whole search and all extremes were refined in common rounds;
+limits of a given seed changed with the split, within the search's own scatter.)
 
 The budget is in equivalent evaluations (integrations); the search stops when it is spent.
 Simulations that diverge count as outside. Points beyond the radius ``max_radius`` (u units)
@@ -29,13 +43,17 @@ are not tried; an extreme that reaches it is reported open (±inf).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from flightid.accuracy.contour import Contour
 from flightid.accuracy.progress import Progress
 
-__all__ = ["SearchLimits", "random_search"]
+__all__ = ["CHUNK", "MAX_WAVES", "SearchLimits", "random_search"]
+
+CHUNK = 256  # simulations per global-phase task (fixed: not a function of the workers)
+MAX_WAVES = 4  # refinement waves at most (a wave: one task per extreme not yet settled)
 
 
 @dataclass(frozen=True)
@@ -82,6 +100,15 @@ class _Tracker:
         self.points = np.repeat(contour.theta_hat[None, None, :], 2, axis=1).repeat(n, axis=0)
         self.values = np.column_stack([contour.theta_hat, contour.theta_hat]).astype(float)
         self.inside = 0
+
+    def merge(self, values: np.ndarray, points: np.ndarray, inside: int) -> None:
+        """Take another tracker's extremes where they go further (strictly)."""
+        self.inside += int(inside)
+        for j in range(values.shape[0]):
+            if values[j, 0] < self.values[j, 0]:
+                self.values[j, 0], self.points[j, 0] = values[j, 0], points[j, 0]
+            if values[j, 1] > self.values[j, 1]:
+                self.values[j, 1], self.points[j, 1] = values[j, 1], points[j, 1]
 
     def evaluate(self, thetas: np.ndarray) -> np.ndarray:
         excess, _ = self.contour.costs(thetas)
@@ -151,6 +178,121 @@ def _boundary_along(
     return lo
 
 
+@dataclass(frozen=True)
+class _Geometry:
+    """u-space of the search: θ = θ̂ + scale · root · u, scale = √Δ."""
+
+    root: np.ndarray  # L (n_f, n_f), L Lᵀ = M⁻¹ over the searched parameters
+    pseudo_inverse: np.ndarray  # L⁺
+    scale: float  # √Δ
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What a task found: its tracker's extremes, inside count, integrations spent."""
+
+    values: np.ndarray
+    points: np.ndarray
+    inside: int
+    evaluations: int
+    lowest_excess: float
+    rho: float = np.nan
+    settled: bool = False
+
+
+@dataclass(frozen=True)
+class _GlobalChunk:
+    contour: Contour
+    geometry: _Geometry
+    size: int
+    stream: np.random.SeedSequence
+    expand: float
+
+
+@dataclass(frozen=True)
+class _Refinement:
+    contour: Contour
+    geometry: _Geometry
+    target: tuple[int, int]  # (j, side): side 0 lower, 1 upper
+    values: np.ndarray  # the merged extremes the task starts from
+    points: np.ndarray
+    rho: float
+    share: int  # integrations to spend at most (the last round may overshoot)
+    stream: np.random.SeedSequence
+    batch: int
+    rho_min: float
+    ray_iterations: int
+    max_radius: float
+
+
+def _outcome(tracker: _Tracker, spent: int, rho: float = np.nan, settled: bool = False):
+    return _Outcome(
+        tracker.values.copy(),
+        tracker.points.copy(),
+        tracker.inside,
+        spent,
+        tracker.contour.lowest_excess,
+        rho,
+        settled,
+    )
+
+
+def _run_global(task: _GlobalChunk) -> _Outcome:
+    """``task.size`` points along random directions, radii uniform in [0, expand]."""
+    contour, g = task.contour, task.geometry
+    rng = np.random.default_rng(task.stream)
+    tracker = _Tracker(contour)
+    before = contour.evaluations
+    xi = rng.standard_normal((task.size, contour.n_free))
+    xi /= np.linalg.norm(xi, axis=1, keepdims=True)
+    radius = task.expand * rng.random(task.size)
+    # θ = θ̂ + √Δ · L (r ξ)
+    tracker.evaluate(contour.theta_hat + g.scale * (radius[:, None] * xi) @ g.root.T)
+    return _outcome(tracker, contour.evaluations - before)
+
+
+def _run_refinement(task: _Refinement) -> _Outcome:
+    """(1 + λ) evolution strategy over directions for one extreme, within ``task.share``."""
+    contour, g, t = task.contour, task.geometry, task.target
+    n = contour.n_free
+    rng = np.random.default_rng(task.stream)
+    tracker = _Tracker(contour)
+    tracker.values, tracker.points = task.values.copy(), task.points.copy()
+    before = contour.evaluations
+    rho, settled = task.rho, False
+    j, side = t
+    while contour.evaluations - before < task.share:
+        # u of the current extreme point: u = L⁺ (θ − θ̂) / √Δ
+        u = g.pseudo_inverse @ (tracker.points[t] - contour.theta_hat) / g.scale
+        norm = np.linalg.norm(u)
+        if norm == 0:
+            u = rng.standard_normal(n)
+            norm = np.linalg.norm(u)
+        d = u / norm
+        # d' = (d + ρ ξ)/‖d + ρ ξ‖, ξ ~ N(0, I/n_p)
+        xi = rng.standard_normal((task.batch, n)) / np.sqrt(n)
+        proposal = d[None, :] + rho * xi
+        proposal /= np.linalg.norm(proposal, axis=1, keepdims=True)
+        before_value = tracker.values[j, side]
+        # start each ray at the radius of the extreme's current point
+        first = np.full(task.batch, max(norm, 0.25))
+        _boundary_along(
+            tracker,
+            np.repeat(contour.theta_hat[None, :], task.batch, axis=0),
+            g.scale * proposal @ g.root.T,
+            first,
+            task.max_radius,
+            task.ray_iterations,
+        )
+        value = tracker.values[j, side]
+        improved = value > before_value if side == 1 else value < before_value
+        rho = min(rho * 1.5, 1.0) if improved else rho * 0.6
+        if rho < task.rho_min:
+            settled = True
+            break
+    return _outcome(tracker, contour.evaluations - before, rho, settled)
+
+
 def random_search(
     contour: Contour,
     covariance: np.ndarray,
@@ -163,6 +305,7 @@ def random_search(
     ray_iterations: int = 8,
     max_radius: float = 50.0,
     progress: bool | None = None,
+    engine: Any = None,
 ) -> SearchLimits:
     """Random-search limits of all free parameters within ``budget`` evaluations.
 
@@ -170,9 +313,9 @@ def random_search(
         contour: the minimum, R and level Δ.
         covariance: M⁻¹ at θ̂: shapes the sampling (parameters with inf variance are not
             searched; their limits are reported as ±inf).
-        budget: equivalent evaluations to spend at most (the last batch may overshoot by
-            less than one round).
-        seed: ``numpy.random.default_rng`` seed.
+        budget: equivalent evaluations to spend at most (each refinement task may overshoot
+            its share by less than one round of ``batch`` rays).
+        seed: the root of the tasks' ``numpy.random.SeedSequence`` streams.
         batch: proposals per extreme per refinement round (λ).
         expand: global phase radius, in units of the quadratic region.
         global_fraction: share of the budget for the global phase.
@@ -180,13 +323,19 @@ def random_search(
         ray_iterations: root-finding iterations per ray.
         max_radius: largest radius tried, u units.
         progress: draw a progress bar on stderr (None: if stderr is a terminal).
+        engine: a ``flightid.batch`` engine (``make_engine``) for the global chunks and the
+            refinement tasks; None runs them here. The limits are the same on any engine.
+
+    Raises:
+        TaskError: a task failed (named in the message).
     """
-    rng = np.random.default_rng(seed)
+    from flightid.batch.engine import map_ordered
+
     n = contour.n_free
     covariance = np.asarray(covariance, dtype=float)
     finite = np.isfinite(np.diag(covariance))
     root = _square_root(np.where(np.outer(finite, finite), covariance, 0.0))
-    scale = np.sqrt(contour.delta)
+    geometry = _Geometry(root, np.linalg.pinv(root), float(np.sqrt(contour.delta)))
     tracker = _Tracker(contour)
     start = contour.evaluations
     bar = Progress(budget, "random search", progress)
@@ -194,78 +343,78 @@ def random_search(
     def spent() -> int:
         return contour.evaluations - start
 
+    def run(fn, tasks, labels, what: str) -> list[_Outcome]:
+        before = contour.evaluations
+        outcomes = map_ordered(engine, fn, tasks, labels)
+        # tasks run on copies elsewhere (Dask) spend their integrations there: count them here
+        remote = sum(o.evaluations for o in outcomes) - (contour.evaluations - before)
+        contour.start_evaluations -= remote
+        for o in outcomes:
+            tracker.merge(o.values, o.points, o.inside)
+            contour.lowest_excess = min(contour.lowest_excess, o.lowest_excess)
+        bar.update(spent(), what)
+        return outcomes
+
     # 1. global phase: random directions, radii uniform in [0, expand]
     n_global = int(global_fraction * budget)
-    while spent() < n_global:
-        m = min(256, n_global - spent())
-        xi = rng.standard_normal((m, n))
-        xi /= np.linalg.norm(xi, axis=1, keepdims=True)
-        radius = expand * rng.random(m)
-        tracker.evaluate(contour.theta_hat + scale * (radius[:, None] * xi) @ root.T)
-        bar.update(spent(), "(global)")
+    sizes = [CHUNK] * (n_global // CHUNK) + ([n_global % CHUNK] if n_global % CHUNK else [])
+    chunks = [
+        _GlobalChunk(
+            contour, geometry, size, np.random.SeedSequence(seed, spawn_key=(0, k)), expand
+        )
+        for k, size in enumerate(sizes)
+    ]
+    if chunks:
+        run(
+            _run_global,
+            chunks,
+            [f"random search chunk {k}" for k in range(len(chunks))],
+            "(global)",
+        )
 
-    # 2. refinement of the 2·n_p extremes by an evolution strategy over directions
+    # 2. refinement of the 2·n_p extremes, one task each, in waves
     targets = [(j, side) for j in range(n) if finite[j] for side in (0, 1)]
     rho = {t: 0.5 for t in targets}
     settled = np.zeros((n, 2), dtype=bool)
     for j in np.flatnonzero(~finite):
         settled[j] = True
-    pseudo_inverse = np.linalg.pinv(root)
     history = []
-
-    def direction_of(point: np.ndarray) -> np.ndarray:
-        u = pseudo_inverse @ (point - contour.theta_hat) / scale
-        norm = np.linalg.norm(u)
-        if norm == 0:
-            u = rng.standard_normal(n)
-            norm = np.linalg.norm(u)
-        return u / norm
-
-    while spent() < budget:
+    for wave in range(MAX_WAVES):
         active = [t for t in targets if not settled[t]]
-        if not active:
+        left = budget - spent()
+        if not active or left < batch * len(active):
             break
-        directions, owners = [], []
-        for t in active:
-            d = direction_of(tracker.points[t])
-            xi = rng.standard_normal((batch, n)) / np.sqrt(n)
-            proposal = d[None, :] + rho[t] * xi
-            proposal /= np.linalg.norm(proposal, axis=1, keepdims=True)
-            directions.append(proposal)
-            owners += [t] * batch
-        u_dirs = np.vstack(directions)
-        theta_dirs = scale * u_dirs @ root.T
-        before = tracker.values.copy()
-        first = np.full(u_dirs.shape[0], 1.0)
-        for i, t in enumerate(owners):
-            # start each ray at the radius of its extreme's current point
-            first[i] = max(
-                np.linalg.norm(pseudo_inverse @ (tracker.points[t] - contour.theta_hat)) / scale,
-                0.25,
+        share = left // len(active)
+        tasks = [
+            _Refinement(
+                contour,
+                geometry,
+                t,
+                tracker.values.copy(),
+                tracker.points.copy(),
+                rho[t],
+                share,
+                np.random.SeedSequence(seed, spawn_key=(1, wave, targets.index(t))),
+                batch,
+                rho_min,
+                ray_iterations,
+                max_radius,
             )
-        radius = _boundary_along(
-            tracker,
-            np.repeat(contour.theta_hat[None, :], u_dirs.shape[0], axis=0),
-            theta_dirs,
-            first,
-            max_radius,
-            ray_iterations,
-        )
-        for t in active:
-            j, side = t
-            improved = (
-                tracker.values[j, side] > before[j, side]
-                if side == 1
-                else tracker.values[j, side] < before[j, side]
-            )
-            rho[t] = min(rho[t] * 1.5, 1.0) if improved else rho[t] * 0.6
-            if rho[t] < rho_min:
-                settled[t] = True
-        del radius
+            for t in active
+        ]
+        labels = [
+            f"random search {('lower', 'upper')[side]} extreme of free parameter {j}"
+            for j, side in active
+        ]
+        outcomes = run(_run_refinement, tasks, labels, "(refinement)")
+        for t, o in zip(active, outcomes, strict=True):
+            rho[t] = o.rho
+            settled[t] = o.settled
         history.append((spent(), tracker.values.copy()))
         bar.update(spent(), f"({int(settled.sum())}/{2 * n} extremes settled)")
 
     # 3. final step along ±e_j from each extreme point to the contour
+    scale = geometry.scale
     origins, steps = [], []
     for j in np.flatnonzero(finite):
         for side, sign in ((0, -1.0), (1, 1.0)):

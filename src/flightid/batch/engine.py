@@ -26,12 +26,12 @@ line.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any
 
-from flightid.errors import InputError
+from flightid.errors import InputError, TaskError, error_line
 
-__all__ = ["DaskEngine", "SerialEngine", "dask_available", "make_engine"]
+__all__ = ["DaskEngine", "SerialEngine", "dask_available", "make_engine", "map_ordered"]
 
 
 def dask_available() -> bool:
@@ -170,3 +170,62 @@ def make_engine(
             )
         return SerialEngine("Dask is not installed: pip install 'flightid[dask]'")
     return DaskEngine(workers, scheduler)
+
+
+def map_ordered(
+    engine: SerialEngine | DaskEngine | None,
+    fn: Callable[[Any], Any],
+    tasks: Sequence[Any],
+    labels: Sequence[str] | None = None,
+    done: Callable[[int], None] | None = None,
+) -> list[Any]:
+    """``[fn(task) for task in tasks]`` on ``engine`` (None: in this process, one after the
+    other), in task order whatever the order of completion — so a computation split into
+    fixed tasks gives the same list on any number of workers.
+
+    Args:
+        engine: a ``SerialEngine`` / ``DaskEngine`` (anything with ``map_unordered``), or None.
+        fn: a module-level function (picklable for Dask; Dask ships it with cloudpickle).
+        tasks: its arguments, one per task (picklable for Dask).
+        labels: a name per task for the error message (default ``task i``).
+        done: called with the number of tasks finished after each one (progress).
+
+    Raises:
+        TaskError: a task raised or could not run (after all tasks ended): names the first
+            such task in task order, its exception is the ``__cause__``.
+    """
+    tasks = list(tasks)
+    labels = list(labels) if labels is not None else [f"task {i}" for i in range(len(tasks))]
+    results: list[Any] = [None] * len(tasks)
+    failures: dict[int, BaseException] = {}
+    indexed = list(enumerate(tasks))
+    if engine is None:
+        engine = SerialEngine()
+    finished = 0
+    for (i, _task), result, exc in engine.map_unordered(_CallIndexed(fn), indexed):
+        if exc is not None:
+            failures[i] = exc
+        else:
+            results[i] = result
+        finished += 1
+        if done is not None:
+            done(finished)
+    if failures:
+        first = min(failures)
+        exc = failures[first]
+        message = error_line(exc).removeprefix("flightid: error: ")
+        if type(exc).__name__ == "KilledWorker":  # distributed.KilledWorker
+            message = "the worker processes running it died each time it ran"
+        more = f" ({len(failures) - 1} more task(s) failed)" if len(failures) > 1 else ""
+        raise TaskError(f"{labels[first]} failed: {message}{more}") from exc
+    return results
+
+
+class _CallIndexed:
+    """``(i, task) -> fn(task)`` (a picklable function object)."""
+
+    def __init__(self, fn: Callable[[Any], Any]) -> None:
+        self.fn = fn
+
+    def __call__(self, item: tuple[int, Any]) -> Any:
+        return self.fn(item[1])
