@@ -210,14 +210,14 @@ def with_eigenvalue_shift(
     sigma = float(sigma)
     f = model.f
     if hasattr(f, "py_func"):
-        import numba
-
         f_inner = f
     else:
         try:
-            import numba
+            # compiled through the digest-keyed disk cache (an uncached njit here was
+            # compiled again by every process, and with it every kernel calling it)
+            from flightid.simulate.cache import compiled_function
 
-            f_inner = numba.njit(cache=False)(f)
+            f_inner = compiled_function(f)
             f_inner(
                 0.0,
                 np.zeros(len(model.states)),
