@@ -6,12 +6,17 @@ Same f, h, states, inputs, outputs and start values as ``hfb320.py``; only the n
 """
 
 import importlib.util
+import sys
 from pathlib import Path
 
 _spec = importlib.util.spec_from_file_location(
     "flightid_example_hfb320", Path(__file__).with_name("hfb320.py")
 )
 _base = importlib.util.module_from_spec(_spec)
+# registered, as importlib's recipe does: numba finds the module of f's and h's globals by
+# name when it loads their compiled kernels from its disk cache (unregistered, every run
+# compiled them again)
+sys.modules[_spec.name] = _base
 _spec.loader.exec_module(_base)
 
 STATES = _base.STATES
