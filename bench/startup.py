@@ -108,8 +108,9 @@ def main() -> None:
             jobs.append((path.stem, ["run", str(path)]))
     for example in PAPER_EXAMPLES:
         if names is None or example in names:
-            # example 3 needs its noise case (1: no noise)
-            extra = ["--case", "1"] if example == "example3" else []
+            # examples 2 and 3 need their case (example 2: 1, the paper's table III(a);
+            # example 3: 1, no noise)
+            extra = ["--case", "1"] if example in ("example2", "example3") else []
             jobs.append((f"paper {example}", ["paper", example, *extra]))
 
     header = (
