@@ -201,8 +201,14 @@ def map_ordered(
     indexed = list(enumerate(tasks))
     if engine is None:
         engine = SerialEngine()
+    call: Callable[[Any], Any] = _CallIndexed(fn)
+    if not isinstance(engine, SerialEngine):
+        # ship the tasks as bytes, loaded inside the task: a task that cannot be loaded on a
+        # worker fails as a task (a TaskError here) instead of breaking the worker's stream
+        indexed = [(i, _pickled(fn, task)) for i, task in indexed]
+        call = _call_pickled
     finished = 0
-    for (i, _task), result, exc in engine.map_unordered(_CallIndexed(fn), indexed):
+    for (i, _task), result, exc in engine.map_unordered(call, indexed):
         if exc is not None:
             failures[i] = exc
         else:
@@ -229,3 +235,41 @@ class _CallIndexed:
 
     def __call__(self, item: tuple[int, Any]) -> Any:
         return self.fn(item[1])
+
+
+def _pickled(fn: Callable[[Any], Any], task: Any) -> tuple[dict[str, str], bytes]:
+    """(model modules, cloudpickle of ``(fn, task)``): the case files' model modules
+    (``flightid_user_model_*``, imported from a file) by name and file, for a worker to
+    import from the same path before it loads the task."""
+    import sys
+
+    import cloudpickle
+
+    modules = {
+        name: str(module.__file__)
+        for name, module in list(sys.modules.items())
+        if name.startswith("flightid_user_model_") and getattr(module, "__file__", None)
+    }
+    return modules, cloudpickle.dumps((fn, task))
+
+
+def _call_pickled(item: tuple[int, tuple[dict[str, str], bytes]]) -> Any:
+    """``(i, (modules, pickled (fn, task))) -> fn(task)``, importing the modules first."""
+    import importlib.util
+    import pickle
+    import sys
+
+    modules, blob = item[1]
+    for name, path in modules.items():
+        if name not in sys.modules:
+            spec = importlib.util.spec_from_file_location(name, path)
+            if spec is None or spec.loader is None:
+                continue  # the task's loading names the missing module
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            try:
+                spec.loader.exec_module(module)
+            except Exception:
+                del sys.modules[name]
+    fn, task = pickle.loads(blob)
+    return fn(task)
