@@ -1,0 +1,163 @@
+"""Speed-up of the parallel accuracy methods on 2 workers against 1 (issue 15, part 4).
+
+In one run, on the ATTAS short-period case (``examples/cases/attas_short_period.toml``,
+8 free parameters, 1252 samples × 2 outputs):
+
+* profile-likelihood limits (``flightid.accuracy.profile_limits``): one task per parameter;
+* random search (``flightid.accuracy.search.random_search``, ``--budget`` evaluations,
+  seed 0): global chunks of 256 simulations, then one refinement task per extreme;
+
+and a small Monte Carlo coverage study (``bench/coverage_study.py``, case ``exp``, ``--n``
+realisations): one task per realisation —
+
+each timed on the serial engine (1 worker, this process) and on a Dask ``LocalCluster`` of
+2 worker processes (``flightid.batch.DaskEngine(2)``). Both are warm before timing: the
+kernels are compiled/loaded in this process and in every worker by a first untimed pass of
+each computation. Wall times are the smaller of ``--repeat`` runs (s); ratio = 1 worker / 2
+workers. The results of 1 and 2 workers are compared exactly (limits, statuses, evaluation
+counts, coverage rows); ``identical`` says whether they are bit-for-bit equal.
+
+Usage::
+
+    python bench/accuracy_speedup.py [--budget 20000] [--n 24] [--repeat 2]
+
+The machine's load (``os.getloadavg``) is printed before and after: on a shared machine the
+ratio is a measurement of that moment, not of the method.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "bench"))
+
+CASE = ROOT / "examples" / "cases" / "attas_short_period.toml"
+
+
+def _load() -> str:
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f}, {five:.2f}, {fifteen:.2f} on {os.cpu_count()} cores"
+
+
+def _contour():
+    """Contour and covariance of the case's estimate (as ``assess`` builds them)."""
+    from flightid.accuracy import assess, region_contour
+    from flightid.cases.run import run_case
+
+    run = run_case(CASE, accuracy="none")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        accuracy = assess(run.estimate, run.maneuvers, methods="cr", warn=False)
+    return region_contour(run.estimate, run.maneuvers, accuracy), accuracy.covariance
+
+
+def _profile_key(limits) -> tuple:
+    return (limits.intervals.tobytes(), limits.statuses, limits.evaluations.tobytes())
+
+
+def _search_key(limits) -> tuple:
+    return (
+        limits.intervals.tobytes(),
+        limits.extreme_points.tobytes(),
+        limits.evaluations,
+        limits.inside,
+        limits.settled.tobytes(),
+    )
+
+
+def _timed(fn, repeat: int):
+    best, result = np.inf, None
+    for _ in range(repeat):
+        started = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - started)
+    return best, result
+
+
+def measure(engine, budget: int, n: int, repeat: int) -> dict:
+    """Warm ``engine`` (one untimed pass of each computation), then time each."""
+    import coverage_study
+    from flightid.accuracy.profile import profile_limits
+    from flightid.accuracy.search import random_search
+
+    contour, covariance = _contour()
+    jobs = {
+        "profile limits": (
+            lambda: profile_limits(contour, covariance, engine=engine),
+            _profile_key,
+            contour.n_free,
+        ),
+        f"random search ({budget} evaluations)": (
+            lambda: random_search(contour, covariance, budget=budget, seed=0, engine=engine),
+            _search_key,
+            None,
+        ),
+        f"coverage study (exp, {n} realisations)": (
+            lambda: coverage_study.study(["exp"], n, 1000, engine, quiet=True),
+            lambda report: json.dumps(report, sort_keys=True),
+            n,
+        ),
+    }
+    # warm: kernels compiled/loaded here and in every worker
+    profile_limits(contour, covariance, engine=engine)
+    random_search(contour, covariance, budget=min(budget, 3000), seed=1, engine=engine)
+    coverage_study.study(["exp"], max(2, getattr(engine, "workers", 1)), 1, engine, quiet=True)
+    out = {}
+    for name, (fn, key, tasks) in jobs.items():
+        seconds, result = _timed(fn, repeat)
+        out[name] = (seconds, key(result), tasks, result)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--budget", type=int, default=20_000, help="random-search budget")
+    parser.add_argument("--n", type=int, default=24, help="coverage-study realisations")
+    parser.add_argument("--repeat", type=int, default=2, help="timed runs, the best kept")
+    args = parser.parse_args(argv)
+
+    import cloudpickle
+
+    import coverage_study
+    from flightid.batch.engine import DaskEngine, SerialEngine
+
+    # the study's task function travels by value (the workers need not import bench/)
+    cloudpickle.register_pickle_by_value(coverage_study)
+    print(f"before: {_load()}", flush=True)
+    serial = measure(SerialEngine(), args.budget, args.n, args.repeat)
+    engine = DaskEngine(workers=2)
+    try:
+        print(f"engine: {engine.description}", flush=True)
+        parallel = measure(engine, args.budget, args.n, args.repeat)
+    finally:
+        engine.close()
+    print(f"after: {_load()}\n")
+    header = f"{'computation':40s} {'tasks':>6s} {'1 worker':>9s} {'2 workers':>10s} {'ratio':>6s}"
+    print(header + "  identical")
+    for name, (t1, key1, tasks, result) in serial.items():
+        t2, key2, _, _ = parallel[name]
+        if tasks is None:  # the search: chunks + refinement tasks of the first wave
+            from flightid.accuracy.search import CHUNK
+
+            n_global = int(0.1 * args.budget)
+            tasks = -(-n_global // CHUNK) + 2 * result.settled.shape[0]
+        print(
+            f"{name:40s} {tasks:6d} {t1:8.2f}s {t2:9.2f}s {t1 / t2:6.2f}  "
+            f"{'yes' if key1 == key2 else 'NO'}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
