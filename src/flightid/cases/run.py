@@ -359,6 +359,7 @@ def _assess(
     say: Progress,
     progress: Progress | None,
     heartbeat_s: float,
+    engine: object = None,
 ) -> AccuracyResult:
     settings = case.accuracy
     level = float(settings.get("confidence", 0.95))
@@ -395,6 +396,7 @@ def _assess(
             progress=bar,
             compiled=compiled,
             warn=False,
+            engine=engine,
         )
     spent = ", ".join(f"{k} {v}" for k, v in accuracy.evaluations.items())
     say(f"accuracy: N_phi = {accuracy.nonlinearity.n_phi:.3g}; evaluations {spent}")
@@ -434,6 +436,7 @@ def run_case(
     heartbeat_s: float = 5.0,
     accuracy: str | Sequence[str] | None = None,
     base: tuple[StateSpaceModel, str] | None = None,
+    engine: object = None,
 ) -> CaseRun:
     """Prepare, estimate, assess accuracy and predict; ``progress`` receives one-line messages.
 
@@ -446,6 +449,9 @@ def run_case(
         accuracy: accuracy methods (``"cr"``, ``"profile"``, ``"search"``, ``"all"`` or a
             list; ``"none"`` for no assessment); None: the case's ``accuracy.methods``.
         base: (model, description) in place of the case's ``[model]`` (see ``prepare_case``).
+        engine: a ``flightid.batch`` engine for the profile and search tasks of the accuracy
+            assessment (``flightid.batch.make_engine``; the caller closes it); None: this
+            process. The numbers do not depend on it.
     """
     if isinstance(case, (str, Path)):
         from flightid.cases.spec import load_case
@@ -506,7 +512,7 @@ def run_case(
         f"evaluations, cost {result.cost:.6g}, {result.wall_time_s:.1f} s"
     )
     assessed = (
-        _assess(case, result, prepared.maneuvers, methods, say, progress, heartbeat_s)
+        _assess(case, result, prepared.maneuvers, methods, say, progress, heartbeat_s, engine)
         if methods
         else None
     )

@@ -92,6 +92,19 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
         "accuracy.budget) limits; all = every method; none = no assessment (default: the "
         "case's accuracy.methods)",
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="run the profile limits (one task per parameter) and the random search of "
+        "--accuracy on a Dask LocalCluster of N worker processes (1: this process, the "
+        "default); the limits are the same for any N",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        help="run them on the running Dask scheduler at this address (tcp://host:8786) instead",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
 
 
@@ -136,12 +149,22 @@ def run(args: argparse.Namespace) -> int:
     try:
         if case.staged and has_regression_stages(case):
             return _run_stages(case, args, folder)
-        result = run_case(
-            case,
-            args.data_dir,
-            progress=None if args.quiet else stderr_progress,
-            accuracy=args.accuracy,
-        )
+        engine = None
+        if getattr(args, "workers", None) not in (None, 1) or getattr(args, "scheduler", None):
+            from flightid.batch.engine import make_engine
+
+            engine = make_engine(args.workers, args.scheduler)
+        try:
+            result = run_case(
+                case,
+                args.data_dir,
+                progress=None if args.quiet else stderr_progress,
+                accuracy=args.accuracy,
+                engine=engine,
+            )
+        finally:
+            if engine is not None:
+                engine.close()
         # the answer goes to stdout first: a failure to write files cannot lose it
         if args.json:
             print(dumps(results_document([result.to_dict()])))
