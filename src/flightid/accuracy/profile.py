@@ -236,14 +236,15 @@ def profile_limits(
     statuses: list[tuple[str, str]] = [("skipped", "skipped")] * n
     evaluations = np.zeros(n, dtype=int)
     points: list = [None] * n
+    from flightid.batch.engine import Shared, map_ordered
+
+    shared = Shared(contour)
     tasks = [
         _ProfileTask(
-            contour, covariance, j, rtol, inner_tolerance, max_iterations, max_passes, max_sigmas
+            shared, covariance, j, rtol, inner_tolerance, max_iterations, max_passes, max_sigmas
         )
         for j in todo
     ]
-    from flightid.batch.engine import map_ordered
-
     before = contour.evaluations
     outcomes = map_ordered(
         engine, _profile_one, tasks, labels=[f"profile of free parameter {j}" for j in todo]
@@ -262,9 +263,10 @@ def profile_limits(
 
 @dataclass(frozen=True)
 class _ProfileTask:
-    """One parameter's profile limits (picklable: Dask ships the contour with cloudpickle)."""
+    """One parameter's profile limits (picklable: Dask ships the contour with cloudpickle,
+    loaded once per worker: ``flightid.batch.engine.Shared``)."""
 
-    contour: Contour
+    shared: Any
     covariance: np.ndarray
     j: int
     rtol: float
@@ -285,7 +287,7 @@ class _ProfileOutcome:
 
 def _profile_one(task: _ProfileTask) -> _ProfileOutcome:
     """Lower and upper profile limit of free parameter ``task.j``."""
-    contour, covariance, j = task.contour, task.covariance, task.j
+    contour, covariance, j = task.shared.obj, task.covariance, task.j
     sigma = np.sqrt(covariance[j, j]) if np.isfinite(covariance[j, j]) else np.inf
     if not (np.isfinite(sigma) and sigma > 0):
         return _ProfileOutcome(

@@ -202,7 +202,7 @@ class _Outcome:
 
 @dataclass(frozen=True)
 class _GlobalChunk:
-    contour: Contour
+    shared: Any  # flightid.batch.engine.Shared of the Contour (loaded once per worker)
     geometry: _Geometry
     size: int
     stream: np.random.SeedSequence
@@ -211,7 +211,7 @@ class _GlobalChunk:
 
 @dataclass(frozen=True)
 class _Refinement:
-    contour: Contour
+    shared: Any  # flightid.batch.engine.Shared of the Contour
     geometry: _Geometry
     target: tuple[int, int]  # (j, side): side 0 lower, 1 upper
     values: np.ndarray  # the merged extremes the task starts from
@@ -239,7 +239,7 @@ def _outcome(tracker: _Tracker, spent: int, rho: float = np.nan, settled: bool =
 
 def _run_global(task: _GlobalChunk) -> _Outcome:
     """``task.size`` points along random directions, radii uniform in [0, expand]."""
-    contour, g = task.contour, task.geometry
+    contour, g = task.shared.obj, task.geometry
     rng = np.random.default_rng(task.stream)
     tracker = _Tracker(contour)
     before = contour.evaluations
@@ -253,7 +253,7 @@ def _run_global(task: _GlobalChunk) -> _Outcome:
 
 def _run_refinement(task: _Refinement) -> _Outcome:
     """(1 + λ) evolution strategy over directions for one extreme, within ``task.share``."""
-    contour, g, t = task.contour, task.geometry, task.target
+    contour, g, t = task.shared.obj, task.geometry, task.target
     n = contour.n_free
     rng = np.random.default_rng(task.stream)
     tracker = _Tracker(contour)
@@ -329,9 +329,10 @@ def random_search(
     Raises:
         TaskError: a task failed (named in the message).
     """
-    from flightid.batch.engine import map_ordered
+    from flightid.batch.engine import Shared, map_ordered
 
     n = contour.n_free
+    shared = Shared(contour)
     covariance = np.asarray(covariance, dtype=float)
     finite = np.isfinite(np.diag(covariance))
     root = _square_root(np.where(np.outer(finite, finite), covariance, 0.0))
@@ -359,9 +360,7 @@ def random_search(
     n_global = int(global_fraction * budget)
     sizes = [CHUNK] * (n_global // CHUNK) + ([n_global % CHUNK] if n_global % CHUNK else [])
     chunks = [
-        _GlobalChunk(
-            contour, geometry, size, np.random.SeedSequence(seed, spawn_key=(0, k)), expand
-        )
+        _GlobalChunk(shared, geometry, size, np.random.SeedSequence(seed, spawn_key=(0, k)), expand)
         for k, size in enumerate(sizes)
     ]
     if chunks:
@@ -387,7 +386,7 @@ def random_search(
         share = left // len(active)
         tasks = [
             _Refinement(
-                contour,
+                shared,
                 geometry,
                 t,
                 tracker.values.copy(),

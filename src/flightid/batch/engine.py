@@ -31,7 +31,14 @@ from typing import Any
 
 from flightid.errors import InputError, TaskError, error_line
 
-__all__ = ["DaskEngine", "SerialEngine", "dask_available", "make_engine", "map_ordered"]
+__all__ = [
+    "DaskEngine",
+    "SerialEngine",
+    "Shared",
+    "dask_available",
+    "make_engine",
+    "map_ordered",
+]
 
 
 def dask_available() -> bool:
@@ -273,3 +280,44 @@ def _call_pickled(item: tuple[int, tuple[dict[str, str], bytes]]) -> Any:
                 del sys.modules[name]
     fn, task = pickle.loads(blob)
     return fn(task)
+
+
+class Shared:
+    """An object many tasks carry (e.g. the likelihood contour: problem, data, compiled
+    kernels): pickled once here, and loaded once per worker process — tasks that arrive
+    with the same pickle (by its SHA-1) get the object already loaded there, so its kernels
+    are loaded once per worker, not once per task. ``.obj`` is the object (in this process,
+    the original). Tasks must not depend on state the object keeps between them."""
+
+    def __init__(self, obj: Any) -> None:
+        self.obj = obj
+        self._key: str | None = None
+        self._blob: bytes | None = None
+
+    def __reduce__(self) -> tuple:
+        if self._blob is None:
+            import hashlib
+
+            import cloudpickle
+
+            self._blob = cloudpickle.dumps(self.obj)
+            self._key = hashlib.sha1(self._blob).hexdigest()
+        return (_load_shared, (self._key, self._blob))
+
+
+_LOADED: dict[str, Any] = {}  # per worker process: SHA-1 of the pickle → object
+_LOADED_MAX = 8
+
+
+def _load_shared(key: str, blob: bytes) -> Shared:
+    import pickle
+
+    obj = _LOADED.get(key)
+    if obj is None:
+        obj = pickle.loads(blob)
+        if len(_LOADED) >= _LOADED_MAX:
+            _LOADED.pop(next(iter(_LOADED)))
+        _LOADED[key] = obj
+    shared = Shared(obj)
+    shared._key, shared._blob = key, blob
+    return shared
