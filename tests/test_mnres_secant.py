@@ -265,19 +265,37 @@ def test_the_last_sweep_is_handed_to_the_confirmation_when_the_solver_stops_ther
     assert Convergence  # imported for the objective's type
 
 
-def test_rank_one_kernel_equals_the_numpy_update_and_reduction():
-    # one pass of the compiled kernel: p_k = G_kᵀu_k with the old G, then G ← G + u wᵀ
-    from flightid.estimation.solvers.mnres import _rank_one_kernel, _rank_one_update
+def test_secant_kernel_equals_the_numpy_update_and_reductions():
+    # one call of the compiled kernel: u = Δy − GΔθ, p_k = G_kᵀu_k with the old G,
+    # G ← G + u wᵀ and G_kᵀG_k ← G_kᵀG_k + p_k wᵀ + w p_kᵀ + ‖u_k‖² w wᵀ
+    from flightid.estimation.solvers.mnres import _secant_kernel, _secant_pass
 
     rng = np.random.default_rng(8)
     n_free, n_samples, n_outputs = 6, 37, 3
     columns = rng.normal(size=(n_free, n_samples * n_outputs))
-    u, w = rng.normal(size=n_samples * n_outputs), rng.normal(size=n_free)
+    change, step, w = (
+        rng.normal(size=n_samples * n_outputs),
+        rng.normal(size=n_free),
+        rng.normal(size=n_free),
+    )
+    step[2] = 0.0  # a parameter held on a bound
+    normal = rng.normal(size=(n_outputs, n_free, n_free))
     g_old = np.moveaxis(columns.reshape(n_free, n_samples, n_outputs), 0, -1).copy()
+    u = change - columns.T @ step
     expected_p = np.einsum("ikj,ik->kj", g_old, u.reshape(n_samples, n_outputs))
+    expected_q = np.sum(u.reshape(n_samples, n_outputs) ** 2, axis=0)
     expected_columns = columns + np.outer(w, u)
-    for kernel in (_rank_one_kernel(), _rank_one_update):  # compiled and plain Python
-        c, p = columns.copy(), np.zeros((n_outputs, n_free))
-        kernel(c, u, w, p, n_outputs)
-        np.testing.assert_allclose(p, expected_p, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(c, expected_columns, rtol=1e-12, atol=1e-12)
+    expected_normal = (
+        normal
+        + expected_p[:, :, None] * w[None, None, :]
+        + w[None, :, None] * expected_p[:, None, :]
+        + expected_q[:, None, None] * np.outer(w, w)[None]
+    )
+    for kernel in (_secant_kernel(), _secant_pass):  # compiled and plain Python
+        for update_normal in (True, False):
+            c, n = columns.copy(), normal.copy()
+            kernel(c, change, step, w, n, n_outputs, update_normal)
+            np.testing.assert_allclose(c, expected_columns, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(
+                n, expected_normal if update_normal else normal, rtol=1e-12, atol=1e-12
+            )

@@ -42,7 +42,7 @@ Memory: one sensitivity array. J is stored as G = ∂y/∂θ = J S⁻¹ (S = dia
 very (n_f, N·n_o) array the sweep differenced into (``_SecantState.columns``; no scaled
 copy); the scaling enters only the n_f × n_f matrices (M_ϑ = S M_θ S, c_ϑ = S c_θ) and the
 update (G ← G + u wᵀ, w = S⁻²Δθ / ΔθᵀS⁻²Δθ, the same least-change update in ϑ); the update
-and p_k = G_kᵀu_k run in place in one compiled pass over G (``_rank_one_update``), so a
+and p_k = G_kᵀu_k run in place in one compiled call (``_secant_pass``), so a
 pass allocates only vectors of N·n_o. The carried G is released before a new sweep
 differences into a new array. Measured (``bench/peers.py --memory``, N = 1e5, 20 free,
 G = 128 MB): peak increase 664 MB (5.2 G: the carried G, the differenced one and its scaled
@@ -289,20 +289,45 @@ def _exact_normal(columns: np.ndarray, n_outputs: int | None = None) -> np.ndarr
     return normal
 
 
-def _rank_one_update(
-    columns: np.ndarray, u: np.ndarray, w: np.ndarray, p: np.ndarray, n_outputs: int
+def _secant_pass(
+    columns: np.ndarray,
+    change: np.ndarray,
+    step: np.ndarray,
+    w: np.ndarray,
+    normal: np.ndarray,
+    n_outputs: int,
+    update_normal: bool,
 ) -> None:
-    """p_k = G_kᵀu_k (old G, added into ``p``, (n_o, n_f)) and G ← G + u wᵀ, in place.
+    """One secant update in place, compiled (``_secant_kernel``): with u = Δy − GΔθ,
 
-    ``columns``: G as (n_f, N·n_o), C-ordered; ``u`` (N·n_o,), ``w`` (n_f,). One pass over G
-    (each element read once, written once); O(N·n_o·n_f), no temporary. Compiled by numba
-    (``_rank_one_kernel``): in numpy the same costs a BLAS rank-one update plus n_f strided
-    reductions, ~1 ms per pass at N·n_o = 8000, n_f = 22 — three simulations of the 6-DOF
-    benchmark — and a multithreaded BLAS made the rank-one update alone 18 ms on a loaded
-    2-core machine.
+        p_k = G_kᵀu_k (old G),  q_k = ‖u_k‖²,  G ← G + u wᵀ,
+        G_kᵀG_k ← G_kᵀG_k + p_k wᵀ + w p_kᵀ + q_k w wᵀ     (if ``update_normal``)
+
+    ``columns``: G as (n_f, N·n_o), C-ordered; ``change`` Δy (N·n_o,), ``step`` Δθ and ``w``
+    (n_f,), ``normal`` the blocks (n_o, n_f, n_f). Two passes over G (u, then p and the
+    update: each element read twice, written once), O(N·n_o·n_f), one temporary of N·n_o.
+    In numpy the same is a matrix-vector product, a BLAS rank-one update, n_f strided
+    reductions and the n_o·n_f² block update with its temporaries: ~1 ms per pass at
+    N·n_o = 8000, n_f = 22 (three simulations of the 6-DOF benchmark; a multithreaded BLAS
+    made the rank-one update alone 18 ms on a loaded 2-core machine); the numpy calls around
+    it were a third of MNRES's per-pass overhead on the standard cases (issue 14).
     """
     n_free, size = columns.shape
     n_samples = size // n_outputs
+    # u = Δy − GΔθ, column by column (contiguous rows of ``columns``)
+    u = change.copy()
+    for j in range(n_free):
+        sj = step[j]
+        if sj != 0.0:
+            row = columns[j]
+            for m in range(size):
+                u[m] -= row[m] * sj
+    q = np.zeros(n_outputs)
+    for i in range(n_samples):
+        base = i * n_outputs
+        for k in range(n_outputs):
+            q[k] += u[base + k] * u[base + k]
+    p = np.zeros((n_outputs, n_free))
     acc = np.zeros(n_outputs)
     for j in range(n_free):
         row = columns[j]
@@ -316,19 +341,24 @@ def _rank_one_update(
                 acc[k] += row[base + k] * um
                 row[base + k] += um * wj
         for k in range(n_outputs):
-            p[k, j] += acc[k]
+            p[k, j] = acc[k]
+    if update_normal:
+        for k in range(n_outputs):
+            for a in range(n_free):
+                for b in range(n_free):
+                    normal[k, a, b] += p[k, a] * w[b] + w[a] * p[k, b] + q[k] * w[a] * w[b]
 
 
-_RANK_ONE = []  # the compiled _rank_one_update, once per process (numba's disk cache)
+_KERNEL = []  # the compiled _secant_pass, once per process (numba's disk cache)
 
 
-def _rank_one_kernel():
-    """``_rank_one_update`` compiled by numba (cached on disk), on first use."""
-    if not _RANK_ONE:
+def _secant_kernel():
+    """``_secant_pass`` compiled by numba (cached on disk), on first use."""
+    if not _KERNEL:
         import numba  # noqa: PLC0415
 
-        _RANK_ONE.append(numba.njit(cache=True, nogil=True)(_rank_one_update))
-    return _RANK_ONE[0]
+        _KERNEL.append(numba.njit(cache=True, nogil=True)(_secant_pass))
+    return _KERNEL[0]
 
 
 def _damped_step(
@@ -711,33 +741,33 @@ class MNRES:
             (G_ϑ = G S ← G_ϑ + u Δϑᵀ/‖Δϑ‖²; now GΔθ = Δy exactly)
             G_kᵀG_k ← G_kᵀG_k + p_k wᵀ + w p_kᵀ + ‖u_k‖² w wᵀ,  p_k = G_kᵀu_k (old G)
 
-        In place on ``state.columns``; O(N·n_o·n_f) and no temporary of G's size. G_kᵀG_k is
+        In place on ``state.columns``, in one compiled call (``_secant_pass``: u, p_k,
+        ‖u_k‖², G and the blocks); O(N·n_o·n_f) and no temporary of G's size. G_kᵀG_k is
         recomputed exactly every n_f updates (amortised the same), so rounding does not
         accumulate. The sweep's record (``differences``) no longer describes G afterwards.
         """
         columns = state.columns
         n_free = columns.shape[0]
-        n_samples, n_outputs = state.outputs.shape
-        # u = Δy − GΔθ  (N·n_o,)
-        u = change.reshape(-1) - columns.T @ step
+        n_outputs = state.outputs.shape[1]
         scaled = step / state.scale**2
         # w = S⁻²Δθ / (ΔθᵀS⁻²Δθ)
         w = scaled / float(step @ scaled)
         state.differences = None
         exact = state.updates + 1 >= n_free
-        # p_k = G_kᵀu_k with the old G, and G ← G + u wᵀ, in one pass over G, in place
-        p = np.zeros((n_outputs, n_free))
-        _rank_one_kernel()(columns, u, w, p, n_outputs)
+        # u = Δy − GΔθ, p_k = G_kᵀu_k with the old G, G ← G + u wᵀ and the blocks, in place
+        _secant_kernel()(
+            columns,
+            np.ascontiguousarray(change, dtype=float).reshape(-1),
+            np.ascontiguousarray(step, dtype=float),
+            w,
+            state.normal_by_output,
+            n_outputs,
+            not exact,
+        )
         if exact:
             state.normal_by_output = _exact_normal(columns, n_outputs)
             state.updates = 0
             return
-        q = np.sum(u.reshape(n_samples, n_outputs) ** 2, axis=0)
-        state.normal_by_output += (
-            p[:, :, None] * w[None, None, :]
-            + w[None, :, None] * p[:, None, :]
-            + q[:, None, None] * np.outer(w, w)[None]
-        )
         state.updates += 1
 
     def _minimize_secant(
@@ -828,7 +858,9 @@ class MNRES:
             )
             weights = 1.0 / objective.r_diag
             # M = S (Σ_k G_kᵀG_k / R_kk) S,  c = S Σ_i G_iᵀR⁻¹ν_i  (ϑ units, S = diag scale)
-            normal = np.tensordot(weights, current.normal_by_output, axes=1)
+            # (einsum's own loop, not BLAS: a threaded BLAS took 2 ms for this n_o × n_f²
+            # product on a loaded 2-core machine, y13aus 0.36 s of 2.3 s; issue 14)
+            normal = np.einsum("k,kab->ab", weights, current.normal_by_output)
             normal *= np.outer(scale, scale)
             nu = problem.residuals(outputs)
             gradient = scale * (current.columns @ (nu * weights[None, :]).reshape(-1))
