@@ -162,3 +162,30 @@ def test_coverage_study_tables_are_the_same_on_two_workers(dask_engine):
         "exp", parallel["exp"]
     )
     assert serial == parallel
+
+
+@needs_data
+def test_flightid_run_workers_2_prints_the_serial_profile_limits(capsys, monkeypatch):
+    pytest.importorskip("distributed", reason="dask[distributed] not installed (flightid[dask])")
+    import json
+
+    import flightid.batch.engine as engines
+    from flightid.cli.main import main
+
+    used = []
+    original = engines.map_ordered
+
+    def spy(engine, *args, **kwargs):
+        used.append(type(engine).__name__)
+        return original(engine, *args, **kwargs)
+
+    monkeypatch.setattr(engines, "map_ordered", spy)
+    outputs = []
+    for workers in ("1", "2"):
+        assert main(["run", str(CASE), "--accuracy", "profile", "--json", "--quiet",
+                     "--workers", workers]) == 0  # fmt: skip
+        entry = json.loads(capsys.readouterr().out)["results"][0]
+        outputs.append([(p["name"], p["ci_profile"]) for p in entry["parameters"]])
+    assert outputs[0] == outputs[1] and len(outputs[0]) == 8
+    # --workers 1 ran the profile here, --workers 2 on the LocalCluster
+    assert used == ["NoneType", "DaskEngine"]
