@@ -4,6 +4,8 @@ trust-region step from the normal matrix, and the solver on the paper's example 
 from __future__ import annotations
 
 import numpy as np
+import pytest
+import scipy.linalg.lapack
 
 from flightid.estimation import MNR, MNRES, estimate
 from flightid.estimation.solvers.mnres import (
@@ -299,3 +301,35 @@ def test_secant_kernel_equals_the_numpy_update_and_reductions():
             np.testing.assert_allclose(
                 n, expected_normal if update_normal else normal, rtol=1e-12, atol=1e-12
             )
+
+
+def test_triangular_factor_runs_scipy_lapack_on_one_thread():
+    # the QR blocks of the Gauss–Newton factor (MNRES's confirmation and CR bounds, MNR's
+    # passes) are ~1000 × (n_f + 1) whatever N is: one LAPACK thread inside, restored after
+    from flightid.estimation import gauss_newton
+
+    handles = gauss_newton._lapack_threads()
+    if handles is None:
+        pytest.skip("scipy's OpenBLAS not found")
+    get, set_ = handles
+    before = get()
+    set_(2)
+    try:
+        seen = []
+        original = scipy.linalg.lapack.dgeqrf
+
+        def spy(*args, **kwargs):
+            seen.append(get())
+            return original(*args, **kwargs)
+
+        rng = np.random.default_rng(3)
+        g, nu = rng.normal(size=(300, 4, 5)), rng.normal(size=(300, 4))
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(scipy.linalg.lapack, "dgeqrf", spy)
+            factor = gauss_newton.triangular_factor(g, nu, np.ones(4))
+        assert seen and set(seen) == {1}
+        assert get() == 2
+        a = np.concatenate([g.reshape(-1, 5), nu.reshape(-1, 1)], axis=1)
+        np.testing.assert_allclose(np.abs(factor), np.abs(np.linalg.qr(a, mode="r")), atol=1e-10)
+    finally:
+        set_(before)

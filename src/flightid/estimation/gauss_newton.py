@@ -24,6 +24,8 @@ in Cramér–Rao standard deviations (the Mahalanobis norm under M⁻¹): every 
 
 from __future__ import annotations
 
+import contextlib
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,6 +94,49 @@ def _sample_blocks(n_samples: int, n_outputs: int):
         yield start, min(start + per_block, n_samples)
 
 
+@functools.cache
+def _lapack_threads():
+    """(get, set) of the thread count of the OpenBLAS behind ``scipy.linalg.lapack`` (the
+    library scipy ships), or None where it cannot be found."""
+    import ctypes  # noqa: PLC0415
+    import glob  # noqa: PLC0415
+    import os  # noqa: PLC0415
+
+    folder = os.path.join(os.path.dirname(scipy.__file__), os.pardir, "scipy.libs")
+    for path in sorted(glob.glob(os.path.join(folder, "*openblas*"))):
+        try:
+            lib = ctypes.CDLL(path)
+            get, set_ = lib.scipy_openblas_get_num_threads, lib.scipy_openblas_set_num_threads
+        except (OSError, AttributeError):
+            continue
+        set_.argtypes = [ctypes.c_int]
+        return get, set_
+    return None
+
+
+@contextlib.contextmanager
+def _one_lapack_thread():
+    """scipy's OpenBLAS on one thread inside the block (its count restored after).
+
+    The QR blocks of ``triangular_factor`` are ~1000 × (n_f + 1) whatever N is: too small
+    for threads to pay, and on a loaded 2-core machine a threaded dgeqrf waited for a busy
+    core (0.38 s per factor on y13aus_lateral_output_error, 2 ms single-threaded)."""
+    handles = _lapack_threads()
+    if handles is None:
+        yield
+        return
+    get, set_ = handles
+    before = get()
+    if before <= 1:
+        yield
+        return
+    set_(1)
+    try:
+        yield
+    finally:
+        set_(before)
+
+
 def triangular_factor(g: np.ndarray, nu: np.ndarray, r_diag: np.ndarray) -> np.ndarray:
     """The triangular factor T of the weighted least-squares problem, block by block.
 
@@ -114,17 +159,18 @@ def triangular_factor(g: np.ndarray, nu: np.ndarray, r_diag: np.ndarray) -> np.n
     width = n_free + 1
     weight = 1.0 / np.sqrt(np.asarray(r_diag, dtype=float))
     factor = np.zeros((width, width))
-    for start, stop in _sample_blocks(n_samples, n_outputs):
-        rows = (stop - start) * n_outputs
-        stacked = np.empty((width + rows, width), order="F")
-        stacked[:width] = factor
-        # rows of R^(−½)G and R^(−½)ν for samples start … stop − 1
-        stacked[width:, :n_free] = (g[start:stop] * weight[None, :, None]).reshape(rows, n_free)
-        stacked[width:, n_free] = (nu[start:stop] * weight[None, :]).reshape(rows)
-        qr, _, _, info = scipy.linalg.lapack.dgeqrf(stacked, overwrite_a=True)
-        if info != 0:  # pragma: no cover - LAPACK argument errors only
-            raise RuntimeError(f"LAPACK dgeqrf failed (info = {info})")
-        factor = np.triu(qr[:width])
+    with _one_lapack_thread():
+        for start, stop in _sample_blocks(n_samples, n_outputs):
+            rows = (stop - start) * n_outputs
+            stacked = np.empty((width + rows, width), order="F")
+            stacked[:width] = factor
+            # rows of R^(−½)G and R^(−½)ν for samples start … stop − 1
+            stacked[width:, :n_free] = (g[start:stop] * weight[None, :, None]).reshape(rows, n_free)
+            stacked[width:, n_free] = (nu[start:stop] * weight[None, :]).reshape(rows)
+            qr, _, _, info = scipy.linalg.lapack.dgeqrf(stacked, overwrite_a=True)
+            if info != 0:  # pragma: no cover - LAPACK argument errors only
+                raise RuntimeError(f"LAPACK dgeqrf failed (info = {info})")
+            factor = np.triu(qr[:width])
     return factor
 
 
