@@ -24,7 +24,6 @@ in Cramér–Rao standard deviations (the Mahalanobis norm under M⁻¹): every 
 
 from __future__ import annotations
 
-import contextlib
 import functools
 from dataclasses import dataclass
 
@@ -95,46 +94,22 @@ def _sample_blocks(n_samples: int, n_outputs: int):
 
 
 @functools.cache
-def _lapack_threads():
-    """(get, set) of the thread count of the OpenBLAS behind ``scipy.linalg.lapack`` (the
-    library scipy ships), or None where it cannot be found."""
-    import ctypes  # noqa: PLC0415
-    import glob  # noqa: PLC0415
-    import os  # noqa: PLC0415
+def _blas_controller():
+    """threadpoolctl's controller of the BLAS libraries loaded in this process (numpy's and
+    scipy's OpenBLAS, MKL, ...), made once: it inspects the loaded libraries."""
+    from threadpoolctl import ThreadpoolController
 
-    folder = os.path.join(os.path.dirname(scipy.__file__), os.pardir, "scipy.libs")
-    for path in sorted(glob.glob(os.path.join(folder, "*openblas*"))):
-        try:
-            lib = ctypes.CDLL(path)
-            get, set_ = lib.scipy_openblas_get_num_threads, lib.scipy_openblas_set_num_threads
-        except (OSError, AttributeError):
-            continue
-        set_.argtypes = [ctypes.c_int]
-        return get, set_
-    return None
+    return ThreadpoolController()
 
 
-@contextlib.contextmanager
-def _one_lapack_thread():
-    """scipy's OpenBLAS on one thread inside the block (its count restored after).
+def one_blas_thread():
+    """A context in which the BLAS/LAPACK libraries run on one thread (their counts restored
+    after; threadpoolctl).
 
     The QR blocks of ``triangular_factor`` are ~1000 × (n_f + 1) whatever N is: too small
     for threads to pay, and on a loaded 2-core machine a threaded dgeqrf waited for a busy
     core (0.38 s per factor on y13aus_lateral_output_error, 2 ms single-threaded)."""
-    handles = _lapack_threads()
-    if handles is None:
-        yield
-        return
-    get, set_ = handles
-    before = get()
-    if before <= 1:
-        yield
-        return
-    set_(1)
-    try:
-        yield
-    finally:
-        set_(before)
+    return _blas_controller().limit(limits=1, user_api="blas")
 
 
 def triangular_factor(g: np.ndarray, nu: np.ndarray, r_diag: np.ndarray) -> np.ndarray:
@@ -159,7 +134,7 @@ def triangular_factor(g: np.ndarray, nu: np.ndarray, r_diag: np.ndarray) -> np.n
     width = n_free + 1
     weight = 1.0 / np.sqrt(np.asarray(r_diag, dtype=float))
     factor = np.zeros((width, width))
-    with _one_lapack_thread():
+    with one_blas_thread():
         for start, stop in _sample_blocks(n_samples, n_outputs):
             rows = (stop - start) * n_outputs
             stacked = np.empty((width + rows, width), order="F")
