@@ -1,6 +1,6 @@
 """Simulation kernels: flightid's against a hand-written serial numba kernel of the same model.
 
-    python -P bench/kernel.py [--steps 1000] [--repeats 20] [--batch 21]
+    python -P bench/kernel.py [--steps 1000] [--repeats 100] [--batch 21]
 
 The model is the one of ``bench/peers.py`` (base variant): the Navion 6-DOF model of
 ``flightid.aircraft.six_dof_model`` with Nelson's 22 derivatives, 8 outputs, 1000 RK4 steps
@@ -10,7 +10,8 @@ code — scalars, no arrays but the state, stage and output buffers allocated on
 trajectory, nothing allocated per step — and is checked against ``Simulator.run`` (``check``:
 outputs agree to 1e-10 relative to their scale, asserted before any timing).
 
-Tables (issue 14, part 1), best (min) over ``--repeats`` timings after a warm-up call:
+Tables (issue 14, part 1), best (min) over ``--repeats`` rounds after a warm-up call (flightid
+and the hand-written kernel take turns within a round; the batch is timed apart):
 
 1. µs per trajectory: ``Simulator.run`` on one θ against the hand-written kernel; ratio
    (target ≤ 1.1).
@@ -223,21 +224,25 @@ def check(setup: Setup, tolerance: float = 1e-10) -> float:
     return error
 
 
-def best_time(function, repeats: int) -> float:
-    """Smallest wall time (s) of ``repeats`` calls (after one warm-up call)."""
-    function()
-    best = math.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
+def best_times(functions, repeats: int) -> list[float]:
+    """Smallest wall time (s) of each function over ``repeats`` rounds (after one warm-up call
+    each). The functions take turns within a round, so a passing disturbance of the machine
+    falls on all of them alike, not on whichever was being timed."""
+    for function in functions:
         function()
-        best = min(best, time.perf_counter() - start)
+    best = [math.inf] * len(functions)
+    for _ in range(repeats):
+        for i, function in enumerate(functions):
+            start = time.perf_counter()
+            function()
+            best[i] = min(best[i], time.perf_counter() - start)
     return best
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000, help="RK4 steps (samples − 1)")
-    parser.add_argument("--repeats", type=int, default=20, help="timings per entry (min taken)")
+    parser.add_argument("--repeats", type=int, default=100, help="rounds of timings (min taken)")
     parser.add_argument("--batch", type=int, default=21, help="trajectories in the batch")
     args = parser.parse_args()
     started = time.perf_counter()
@@ -253,15 +258,18 @@ def main() -> None:
     theta = setup.theta
     batch = theta * (1 + 0.01 * rng.uniform(-1, 1, (args.batch, theta.size)))
 
-    t_lib = best_time(lambda: setup.flightid(theta[None, :]), args.repeats)
-    t_hand = best_time(lambda: setup.hand(theta), args.repeats)
+    t_lib, t_hand = best_times(
+        [lambda: setup.flightid(theta[None, :]), lambda: setup.hand(theta)], args.repeats
+    )
+    # the batch apart: after a parallel call numba's worker thread stays awake for a while
+    # and slowed the next serial calls (measured 1.14-1.28× instead of 1.04×)
+    (t_batch,) = best_times([lambda: setup.flightid(batch)], args.repeats)
     print()
     print("| kernel | µs per trajectory | ratio to hand-written |")
     print("|---|---:|---:|")
     print(f"| hand-written serial numba | {t_hand * 1e6:.0f} | 1.00 |")
     print(f"| flightid Simulator.run, 1 θ | {t_lib * 1e6:.0f} | {t_lib / t_hand:.2f} |")
 
-    t_batch = best_time(lambda: setup.flightid(batch), max(3, args.repeats // 4))
     print()
     print(f"| batch of {args.batch} | ms | speed-up over {args.batch} × flightid serial |")
     print("|---|---:|---:|")
@@ -276,11 +284,13 @@ def main() -> None:
     free = np.arange(theta.size, dtype=np.int64)
     steps = 1e-6 * np.maximum(np.abs(theta), 0.05)
     fd_batch = np.vstack([theta, theta + np.diag(steps)])
-    t_sens = best_time(
-        lambda: setup.simulator.run_with_sensitivities(theta, free, steps),
+    t_sens, t_fd = best_times(
+        [
+            lambda: setup.simulator.run_with_sensitivities(theta, free, steps),
+            lambda: setup.flightid(fd_batch),
+        ],
         max(3, args.repeats // 4),
     )
-    t_fd = best_time(lambda: setup.flightid(fd_batch), max(3, args.repeats // 4))
     print()
     print(f"| outputs and G, {theta.size} free parameters | ms | per trajectory-equivalent, µs |")
     print("|---|---:|---:|")
