@@ -89,6 +89,18 @@ def _reusable(problem, forward: FiniteDifferences | None, theta: np.ndarray) -> 
     )
 
 
+def _advance(objective, accepted, policy: str):
+    """(θ, cost, outputs) after an accepted confirming step ``accepted`` (a
+    ``halving_search`` result): the pass recorded, R re-estimated from the new outputs and
+    the cost recomputed under it unless the noise policy is "fixed"."""
+    theta, cost, outputs, _ = accepted
+    objective.record(theta, cost)
+    if policy != "fixed":
+        objective.update_noise(outputs)
+        cost = float(objective.costs_of(outputs)[0])
+    return theta, cost, outputs
+
+
 def _central(
     objective: Objective,
     theta: np.ndarray,
@@ -198,12 +210,8 @@ def confirm_convergence(
                 accepted = halving_search(objective, theta, cost, gn.step, 0)
                 if accepted is not None:
                     forward = None
-                    theta, cost, outputs, _ = accepted
+                    theta, cost, outputs = _advance(objective, accepted, policy)
                     passes += 1
-                    objective.record(theta, cost)
-                    if policy != "fixed":
-                        objective.update_noise(outputs)
-                        cost = float(objective.costs_of(outputs)[0])
                     continue
                 # it did not: central differences decide from here on
                 on_forward = False
@@ -263,12 +271,8 @@ def confirm_convergence(
             )
             outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
             break
-        theta, cost, outputs, _ = accepted
+        theta, cost, outputs = _advance(objective, accepted, policy)
         passes += 1
-        objective.record(theta, cost)
-        if policy != "fixed":
-            objective.update_noise(outputs)
-            cost = float(objective.costs_of(outputs)[0])
     if confirmed and passes:
         message = (
             f"converged after {passes} further Gauss–Newton pass"
