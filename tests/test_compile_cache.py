@@ -77,9 +77,9 @@ method = "rk4"
 """
 
 
-@pytest.fixture
-def case_file(tmp_path: Path) -> Path:
-    """data.csv from ẋ = −2x + u + 0.05, y = x + 0.1 (+ noise σ 0.002, seed 3), doublet u."""
+def write_first_order_data(folder: Path, state_bias: float, output_offset: float, seed: int):
+    """``folder/data.csv`` from ẋ = −2x + u + state_bias, y = x + output_offset (+ noise
+    σ 0.002, ``seed``), a doublet u; 200 samples of 0.05 s."""
     dt, n = 0.05, 200
     t = np.arange(n) * dt
     u = np.where((t > 1.0) & (t < 2.0), 1.0, 0.0) - np.where((t > 2.0) & (t < 3.0), 1.0, 0.0)
@@ -87,11 +87,17 @@ def case_file(tmp_path: Path) -> Path:
     for k in range(n - 1):  # Euler at a tenth of the sample time (data only)
         xk = x[k]
         for _ in range(10):
-            xk += dt / 10 * (-2.0 * xk + u[k] + 0.05)
+            xk += dt / 10 * (-2.0 * xk + u[k] + state_bias)
         x[k + 1] = xk
-    y = x + 0.1 + 0.002 * np.random.default_rng(3).standard_normal(n)
+    y = x + output_offset + 0.002 * np.random.default_rng(seed).standard_normal(n)
     rows = "\n".join(f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, u, y, strict=True))
-    (tmp_path / "data.csv").write_text("time,u,y\n" + rows + "\n")
+    (folder / "data.csv").write_text("time,u,y\n" + rows + "\n")
+
+
+@pytest.fixture
+def case_file(tmp_path: Path) -> Path:
+    """data.csv from ẋ = −2x + u + 0.05, y = x + 0.1 (+ noise σ 0.002, seed 3), doublet u."""
+    write_first_order_data(tmp_path, state_bias=0.05, output_offset=0.1, seed=3)
     tag = float(abs(hash(str(tmp_path))) % 1000) * 1e-18  # keeps the model's own kernels
     (tmp_path / "model.py").write_text(MODEL.replace("TAG = 0.0", f"TAG = {tag!r}"))
     path = tmp_path / "case.toml"

@@ -3,7 +3,8 @@
 ``with_eigenvalue_shift`` wraps the model's f; it compiled the user's f with an uncached
 ``njit``, so every process compiled it again and with it every kernel calling it (the
 shipped unstab_sp_eigenvalue_transform case: 9 compilations, 8.8 s, in every run). Counted,
-not timed, as in tests/test_compile_cache.py (whose subprocess runner is used). Data: ẋ =
+not timed, as in tests/test_compile_cache.py (whose subprocess runner and data writer are
+used). Data: ẋ =
 −2x + u, y = x (+ noise σ 0.002, seed 5), a doublet u.
 """
 
@@ -11,10 +12,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from test_compile_cache import _flightid_run
+from test_compile_cache import _flightid_run, write_first_order_data
 
 MODEL = """
 import numpy as np
@@ -70,18 +70,7 @@ eigenvalue_shift = 0.5
 
 @pytest.fixture
 def case_file(tmp_path: Path) -> Path:
-    dt, n = 0.05, 200
-    t = np.arange(n) * dt
-    u = np.where((t > 1.0) & (t < 2.0), 1.0, 0.0) - np.where((t > 2.0) & (t < 3.0), 1.0, 0.0)
-    x = np.zeros(n)
-    for k in range(n - 1):  # Euler at a tenth of the sample time (data only)
-        xk = x[k]
-        for _ in range(10):
-            xk += dt / 10 * (-2.0 * xk + u[k])
-        x[k + 1] = xk
-    y = x + 0.002 * np.random.default_rng(5).standard_normal(n)
-    rows = "\n".join(f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, u, y, strict=True))
-    (tmp_path / "data.csv").write_text("time,u,y\n" + rows + "\n")
+    write_first_order_data(tmp_path, state_bias=0.0, output_offset=0.0, seed=5)
     scale = 1.0 + float(abs(hash(str(tmp_path))) % 1000) * 1e-15
     (tmp_path / "model.py").write_text(MODEL.replace("SCALE = 1.0", f"SCALE = {scale!r}"))
     path = tmp_path / "case.toml"
