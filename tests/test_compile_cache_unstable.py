@@ -4,8 +4,7 @@
 ``njit``, so every process compiled it again and with it every kernel calling it (the
 shipped unstab_sp_eigenvalue_transform case: 9 compilations, 8.8 s, in every run). Counted,
 not timed, as in tests/test_compile_cache.py (whose subprocess runner and data writer are
-used). Data: ẋ =
-−2x + u, y = x (+ noise σ 0.002, seed 5), a doublet u.
+used). Data: ẋ = −2x + u, y = x (+ noise σ 0.002, seed 5), a doublet u.
 """
 
 from __future__ import annotations
