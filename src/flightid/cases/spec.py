@@ -84,6 +84,10 @@ _TOP = {
     "output",
     "stages",
     "process_noise",
+    # estimators and tools with their own table, checked by their own module
+    "recursive",  # flightid.cases.recursive_case (EKF, UKF, EFRLS, FTR)
+    "frequency_domain",  # flightid.cases.frequency_case
+    "design",  # flightid.design (flightid design CASE.toml)
 }
 # keys of the old `flightid regress` dialect, and where they went in the one language
 _MIGRATED = {
@@ -261,6 +265,10 @@ class Case:
     stages: tuple[StageSpec, ...] = ()
     # [process_noise]: state → {value, free, name, scale} (filter error method)
     process_noise: Mapping[str, Any] = field(default_factory=dict)
+    # [recursive], [frequency_domain], [design]: the raw tables; their own modules check them
+    recursive: Mapping[str, Any] = field(default_factory=dict)
+    frequency_domain: Mapping[str, Any] = field(default_factory=dict)
+    design: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def staged(self) -> bool:
@@ -847,6 +855,9 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
         raw=raw,
         stages=stages,
         process_noise=_process_noise_section(raw, run.get("estimation", {})),
+        recursive=_table(raw.get("recursive", {}), "recursive"),
+        frequency_domain=_table(raw.get("frequency_domain", {}), "frequency_domain"),
+        design=_table(raw.get("design", {}), "design"),
         **run,
     )
 

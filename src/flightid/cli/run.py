@@ -149,6 +149,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         if case.staged and has_regression_stages(case):
             return _run_stages(case, args, folder)
+        if case.recursive or case.frequency_domain:
+            return _run_own_estimator(case, args, folder)
         engine = None
         if getattr(args, "workers", None) not in (None, 1) or getattr(args, "scheduler", None):
             from flightid.batch.engine import make_engine
@@ -180,6 +182,38 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if folder is not None:
             folder.release()
+    return 0
+
+
+def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
+    """A case with a ``[recursive]`` or ``[frequency_domain]`` table: its own module runs it
+    and returns a result with the common surface (``summary()``, ``to_dict()``) and
+    ``write_files(directory) -> Path`` (the file to name in the progress line)."""
+    from flightid.cases.run import stderr_progress
+    from flightid.report.jsonout import dumps
+    from flightid.results import results_document
+
+    if case.recursive and case.frequency_domain:
+        from flightid.cases.checks import CaseError
+
+        raise CaseError(
+            "recursive, frequency_domain: a case runs one estimator; give one of the two tables"
+        )
+    if case.recursive:
+        from flightid.cases.recursive_case import run_recursive_case as run_own
+    else:
+        from flightid.cases.frequency_case import run_frequency_case as run_own
+    progress = None if args.quiet else stderr_progress
+    result = run_own(case, args.data_dir, progress=progress)
+    if args.json:
+        print(dumps(results_document([result.to_dict()])))
+    else:
+        print(result.summary())
+    sys.stdout.flush()
+    if folder is not None:
+        path = folder.write(result.write_files)
+        if progress is not None:
+            progress(f"results written to {folder.target} ({path.name} there)")
     return 0
 
 
