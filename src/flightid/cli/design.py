@@ -1,0 +1,87 @@
+"""``flightid design CASE.toml [--out DIR [--overwrite]] [--json] [--data-dir DIR] [--quiet]``.
+
+Designs the input a case's ``[design]`` table asks for (``flightid.design``, docs/design.md):
+the candidate inputs are simulated with the case's model at its parameter values, their
+Cramér–Rao bounds predicted with the assumed noise, and the best one under the amplitude,
+duration and response limits is kept. Standard output gets the summary (text) or, with
+``--json``, the document
+
+    {"schema_version": "1", "results": [ENTRY], "inputs": {...}, "predicted": {...}}
+
+with ``inputs`` = {"time": [...], "<input>": [Δu ...]} (perturbations about the trim values
+given in ENTRY["trim"]) and ``predicted`` = {parameter: predicted σ}; ENTRY has both too and
+``parameters`` in the results.json layout (std = predicted σ). ``--out DIR`` writes
+results.json, designed_input.csv, predicted_accuracy.csv and design.png. Progress goes to
+stderr. Exit status 0 after a design, 1 on any failure (one line ``flightid: error: ...``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(subparsers) -> None:
+    from flightid.cli.run import add_data_dir_argument
+
+    parser = subparsers.add_parser(
+        "design",
+        help="design a flight-test input from a case file's [design] table",
+        description=(
+            "Model-based input design: multisines or 3-2-1-1 / 2-1-1 / doublet inputs chosen "
+            "for the smallest predicted Cramér–Rao bounds (D-, A-optimal or named parameters) "
+            "under amplitude, duration and response limits. WARNING: a case with model.module "
+            "imports and runs that Python file with your permissions."
+        ),
+    )
+    parser.add_argument("case", help="case file (TOML) with a [design] table")
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="write results.json, designed_input.csv, predicted_accuracy.csv and design.png "
+        "to this folder (a folder that already holds a run is refused unless --overwrite)",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="replace the run in --out")
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print the design as JSON (inputs, predicted σ, results.json entry) on stdout",
+    )
+    add_data_dir_argument(parser)
+    parser.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    # imported here: `flightid --help` must not load numpy/scipy/numba
+    from pathlib import Path
+
+    from flightid.cases import load_case
+    from flightid.cases.run import stderr_progress
+    from flightid.design.case import run_design_case
+    from flightid.report.folder import ResultFolder
+    from flightid.report.jsonout import dumps
+    from flightid.results import results_document
+
+    case = load_case(args.case)
+    folder = ResultFolder.open(Path(args.out), overwrite=args.overwrite) if args.out else None
+    try:
+        progress = None if args.quiet else stderr_progress
+        result = run_design_case(case, args.data_dir, progress=progress)
+        if args.json:
+            entry = result.to_dict()
+            document = results_document([entry])
+            document["inputs"] = entry["inputs"]
+            document["predicted"] = entry["predicted"]
+            print(dumps(document))
+        else:
+            print(result.summary())
+        sys.stdout.flush()
+        if folder is not None:
+            path = folder.write(result.write_files)
+            if progress is not None:
+                progress(f"design written to {folder.target} ({path.name} there)")
+    finally:
+        if folder is not None:
+            folder.release()
+    return 0

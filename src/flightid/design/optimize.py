@@ -1,0 +1,462 @@
+"""Model-based input design: choose band, timing and amplitudes for a criterion under limits.
+
+A ``DesignProblem`` holds the model (parameters at their a-priori values, started in trim),
+the designed inputs with their amplitude limits (peak |Δu| about the trim value), the inputs
+held at constant values, the duration and sample interval, the noise assumed per output and
+optional response limits (peak |Δy| of an output about its trim-input response). The design:
+
+1. builds candidates — for a multisine the upper edge of the band scaled by factors
+   c ∈ geomspace(c_min, 1) (the lower edge kept), for a step signal the pulse unit Δt over
+   geomspace(0.5, 2) × the rule value (0.3/f_n, ``flightid.design.signals``), the inputs one
+   after another from ``start_s`` with ``gap_s`` between them;
+2. gives every candidate the largest amplitudes the limits allow: each input at its amplitude
+   limit, then one common factor s ≤ 1 chosen so that every response stays within its limit
+   (s = 1/r for the peak ratio r, exact for a linear model, then bisection-safe reductions
+   until the simulated response complies);
+3. predicts each candidate's Cramér–Rao bounds (``flightid.design.information``) and keeps
+   the one with the smallest criterion (D-optimal, A-optimal, or the named parameters).
+
+Information grows with amplitude (∝ s² for a linear model), which is why amplitudes sit at
+the tightest limit; the search is over band / timing on a grid of ``candidates`` values. The
+returned input is checked once more against every limit before it is handed back (amplitude,
+duration, response): a design that cannot meet them raises ``DesignError``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flightid.data.flightdata import FlightData
+from flightid.design.information import CRITERIA, PredictedAccuracy, predict_accuracy
+from flightid.design.multisine import Multisine, design_multisine
+from flightid.design.signals import (
+    PULSE_PATTERNS,
+    STEP_SIGNALS,
+    natural_frequency_hz,
+    pulse_sequence,
+    pulse_width_s,
+    sequence_length_s,
+)
+from flightid.errors import FlightIdError, InputError
+from flightid.model.statespace import StateSpaceModel
+
+__all__ = [
+    "SIGNALS",
+    "Candidate",
+    "DesignError",
+    "DesignProblem",
+    "InputSpec",
+    "design_input",
+    "evaluate_input",
+    "trim_state",
+]
+
+SIGNALS = ("multisine", *STEP_SIGNALS)
+# rounding allowance of the limit checks (relative)
+_LIMIT_TOLERANCE = 1e-9
+
+
+class DesignError(FlightIdError, RuntimeError):
+    """No input meets the design's limits (the message says which limit and by how much)."""
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """A designed input: peak perturbation ``amplitude`` about ``trim`` (input units), the
+    multisine band (Hz) or the step signal's pulse unit ``pulse_s`` (None: from f_n)."""
+
+    name: str
+    amplitude: float
+    trim: float = 0.0
+    band_hz: tuple[float, float] | None = None
+    pulse_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.amplitude) or self.amplitude <= 0:
+            raise InputError(
+                f"inputs.{self.name}.amplitude: expected a positive peak perturbation, got "
+                f"{self.amplitude!r}"
+            )
+        if self.pulse_s is not None and not (np.isfinite(self.pulse_s) and self.pulse_s > 0):
+            raise InputError(f"inputs.{self.name}.pulse_s: expected a positive time (s)")
+
+
+@dataclass(frozen=True)
+class DesignProblem:
+    """Everything a design needs (module docstring). ``model`` starts in trim (its x0);
+    ``held`` gives the constant value of every model input that is not designed."""
+
+    model: StateSpaceModel
+    inputs: tuple[InputSpec, ...]
+    duration_s: float
+    dt_s: float
+    noise_std: Mapping[str, float]
+    signal: str = "multisine"
+    criterion: str = "d_optimal"
+    parameters: tuple[str, ...] = ()
+    held: Mapping[str, float] = field(default_factory=dict)
+    limits: Mapping[str, float] = field(default_factory=dict)
+    band_hz: tuple[float, float] | None = None
+    candidates: int = 6
+    start_s: float = 1.0
+    gap_s: float = 2.0
+    method: str = "rk4"
+    input_interpolation: str = "linear"
+
+    def __post_init__(self) -> None:
+        if self.signal not in SIGNALS:
+            raise InputError(f"signal: expected one of {list(SIGNALS)}, got {self.signal!r}")
+        if self.criterion not in CRITERIA:
+            raise InputError(f"criterion: expected one of {list(CRITERIA)}, got {self.criterion!r}")
+        if self.criterion == "parameters" and not self.parameters:
+            raise InputError('parameters: criterion "parameters" needs parameter names')
+        for key in ("duration_s", "dt_s"):
+            value = getattr(self, key)
+            if not np.isfinite(value) or value <= 0:
+                raise InputError(f"{key}: expected a positive time (s), got {value!r}")
+        if self.dt_s * 10 > self.duration_s:
+            raise InputError(
+                f"dt_s: {self.dt_s} s gives fewer than 10 samples over duration_s = "
+                f"{self.duration_s} s"
+            )
+        names = [s.name for s in self.inputs]
+        if not names:
+            raise InputError("inputs: expected at least one designed input")
+        model_inputs = set(self.model.inputs)
+        for name in names:
+            if name not in model_inputs:
+                raise InputError(
+                    f"inputs.{name}: not an input of the model; inputs: {list(self.model.inputs)}"
+                )
+        missing = [n for n in self.model.inputs if n not in names and n not in self.held]
+        if missing:
+            raise InputError(
+                f"inputs: the model inputs {missing} are neither designed nor held; give them "
+                "an amplitude or a constant value"
+            )
+        for output, limit in self.limits.items():
+            if output not in self.model.outputs:
+                raise InputError(
+                    f"limits.{output}: not an output of the model; outputs: "
+                    f"{list(self.model.outputs)}"
+                )
+            if not np.isfinite(limit) or limit <= 0:
+                raise InputError(f"limits.{output}: expected a positive limit, got {limit!r}")
+        if not isinstance(self.candidates, int) or self.candidates < 1:
+            raise InputError(f"candidates: expected a positive integer, got {self.candidates!r}")
+        for parameter in self.parameters:
+            if parameter not in self.model.parameters.free_names:
+                raise InputError(
+                    f"parameters: {parameter!r} is not a free parameter; free: "
+                    f"{self.model.parameters.free_names}"
+                )
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times 0, Δt, …, T (s)."""
+        n = int(round(self.duration_s / self.dt_s))
+        return np.arange(n + 1) * self.dt_s
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.inputs)
+
+    @property
+    def amplitudes(self) -> np.ndarray:
+        return np.array([s.amplitude for s in self.inputs])
+
+    def flight_data(self, perturbations: np.ndarray, name: str = "designed input") -> FlightData:
+        """The maneuver the model flies: designed inputs = trim + Δu, held inputs constant."""
+        t = self.time
+        channels = {n: np.full(t.shape, float(v)) for n, v in self.held.items()}
+        for j, spec in enumerate(self.inputs):
+            channels[spec.name] = spec.trim + perturbations[:, j]
+        return FlightData(t, {n: channels[n] for n in self.model.inputs}, name=name)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One evaluated input: Δu (N, m) about trim, its settings and its predicted accuracy."""
+
+    signal: str
+    time: np.ndarray
+    perturbations: np.ndarray
+    input_names: tuple[str, ...]
+    amplitude_factor: float  # common s ≤ 1 applied to the amplitude limits
+    setting: dict  # band_hz per input (multisine) or pulse_s and start_s per input (steps)
+    accuracy: PredictedAccuracy
+    criterion_value: float
+    response_peak: dict  # output → peak |Δy| about the trim-input response
+    multisine: Multisine | None = None
+
+    @property
+    def peak_amplitudes(self) -> np.ndarray:
+        """max_k |Δu_j,k| per input."""
+        return np.max(np.abs(self.perturbations), axis=0)
+
+
+def trim_state(model: StateSpaceModel, inputs: Mapping[str, float]) -> np.ndarray:
+    """x with f(0, x, u_trim, θ) = 0, from the model's x0 (scipy.optimize.root, hybr).
+
+    Raises ``InputError`` when no equilibrium is found (residual above 1e-9·(1 + |f(x0)|))."""
+    from scipy.optimize import root
+
+    u = np.array([float(inputs[n]) for n in model.inputs])
+    theta = model.function_theta(model.parameters.values)
+    x0 = model.initial_state()
+
+    def rates(x: np.ndarray) -> np.ndarray:
+        return np.asarray(model.f(0.0, x, u, theta), dtype=float)
+
+    solution = root(rates, x0, method="hybr")
+    residual = float(np.max(np.abs(rates(solution.x)))) if solution.x.size else 0.0
+    if not np.all(np.isfinite(solution.x)) or residual > 1e-9 * (1 + np.max(np.abs(rates(x0)))):
+        raise InputError(
+            f"trim: no equilibrium f(x, u_trim) = 0 found from x0 = {x0.tolist()} (largest "
+            f"|ẋ| left {residual:.3g}); give the initial state instead (design.trim = false)"
+        )
+    return solution.x
+
+
+def _outputs(problem: DesignProblem, perturbations: np.ndarray) -> np.ndarray:
+    from flightid.simulate import simulate
+
+    return simulate(
+        problem.model,
+        problem.flight_data(perturbations),
+        method=problem.method,
+        input_interpolation=problem.input_interpolation,
+    )
+
+
+def _response_peaks(problem: DesignProblem, perturbations: np.ndarray, base: np.ndarray) -> dict:
+    """output → max_k |y_k(Δu) − y_k(0)|."""
+    y = _outputs(problem, perturbations)
+    return {
+        o: float(np.max(np.abs(y[:, i] - base[:, i]))) for i, o in enumerate(problem.model.outputs)
+    }
+
+
+def _limit_ratio(problem: DesignProblem, peaks: Mapping[str, float]) -> float:
+    """max over limited outputs of peak |Δy| / limit (0 without limits)."""
+    return max((peaks[o] / limit for o, limit in problem.limits.items()), default=0.0)
+
+
+def _within_limits(problem: DesignProblem, perturbations: np.ndarray, base: np.ndarray):
+    """(the largest common factor s ≤ 1 that keeps every response within its limit, peaks)."""
+    peaks = _response_peaks(problem, perturbations, base)
+    ratio = _limit_ratio(problem, peaks)
+    if ratio <= 1.0:
+        return 1.0, peaks
+    factor = 1.0
+    for _ in range(40):
+        # Δy ∝ s for a linear model: s ← s / r, with a 0.1 % margin against rounding
+        factor *= 0.999 / ratio
+        peaks = _response_peaks(problem, factor * perturbations, base)
+        ratio = _limit_ratio(problem, peaks)
+        if ratio <= 1.0:
+            return factor, peaks
+    raise DesignError(
+        f"limits: no amplitude keeps the response within its limits (peak/limit still "
+        f"{ratio:.3g} at {factor:.3g} × the amplitude limits)"
+    )
+
+
+def evaluate_input(
+    problem: DesignProblem,
+    perturbations: np.ndarray,
+    signal: str = "given",
+    setting: dict | None = None,
+    multisine: Multisine | None = None,
+    scale_to_limits: bool = False,
+) -> Candidate:
+    """Predicted accuracy and response of the input Δu (N, m) about trim (no limit scaling
+    unless ``scale_to_limits``)."""
+    perturbations = np.asarray(perturbations, dtype=float)
+    expected = (problem.time.size, len(problem.inputs))
+    if perturbations.shape != expected:
+        raise InputError(f"perturbations: expected shape {expected}, got {perturbations.shape}")
+    base = _outputs(problem, np.zeros(expected))
+    factor = 1.0
+    if scale_to_limits:
+        factor, peaks = _within_limits(problem, perturbations, base)
+        perturbations = factor * perturbations
+    else:
+        peaks = _response_peaks(problem, perturbations, base)
+    accuracy = predict_accuracy(
+        problem.model,
+        problem.flight_data(perturbations),
+        problem.noise_std,
+        method=problem.method,
+        input_interpolation=problem.input_interpolation,
+    )
+    return Candidate(
+        signal,
+        problem.time,
+        perturbations,
+        problem.names,
+        factor,
+        dict(setting or {}),
+        accuracy,
+        accuracy.criterion(problem.criterion, problem.parameters),
+        peaks,
+        multisine.with_amplitudes(multisine.amplitudes) if multisine is not None else None,
+    )
+
+
+def _input_bands(problem: DesignProblem) -> list[tuple[float, float]]:
+    bands = []
+    for spec in problem.inputs:
+        band = spec.band_hz or problem.band_hz
+        if band is None:
+            raise InputError(
+                f"inputs.{spec.name}.band_hz: a multisine needs a frequency band (design.band_hz "
+                "or per input)"
+            )
+        bands.append((float(band[0]), float(band[1])))
+    return bands
+
+
+def _multisine_candidates(problem: DesignProblem):
+    """(setting, Δu, multisine) for each scaled band (module docstring, step 1)."""
+    bands = _input_bands(problem)
+    common = len(set(bands)) == 1
+    period = problem.duration_s
+    m = len(problem.inputs)
+    # the narrowest band still needs ≥ 3 harmonics per input: c_min from that
+    widths = [hi - lo for lo, hi in bands]
+    c_min = min(1.0, max((3 * m if common else 3) / period / w for w in widths))
+    factors = np.geomspace(c_min, 1.0, problem.candidates) if problem.candidates > 1 else [1.0]
+    seen = set()
+    for c in factors:
+        scaled = [(lo, lo + c * (hi - lo)) for lo, hi in bands]
+        try:
+            multisine = design_multisine(
+                problem.names,
+                period,
+                scaled[0] if common else scaled,
+                problem.amplitudes.tolist(),
+            )
+        except InputError:
+            continue
+        key = tuple(tuple(k.tolist()) for k in multisine.harmonics)
+        if key in seen:
+            continue
+        seen.add(key)
+        setting = {
+            spec.name: {"band_hz": [float(f[0]), float(f[-1])], "harmonics": int(f.size)}
+            for spec, f in zip(
+                problem.inputs, [multisine.frequencies_hz(n) for n in problem.names], strict=True
+            )
+        }
+        yield setting, multisine.signals(problem.time), multisine
+
+
+def _pulse_units(problem: DesignProblem, spec: InputSpec) -> float:
+    if spec.pulse_s is not None:
+        return float(spec.pulse_s)
+    trim_inputs = {**problem.held, **{s.name: s.trim for s in problem.inputs}}
+    theta = problem.model.function_theta(problem.model.parameters.values)
+    f_n = natural_frequency_hz(
+        problem.model.f,
+        problem.model.initial_state(),
+        np.array([trim_inputs[n] for n in problem.model.inputs]),
+        theta,
+    )
+    return pulse_width_s(problem.signal, f_n)
+
+
+def _step_candidates(problem: DesignProblem):
+    """(setting, Δu, None) for each pulse-unit factor (module docstring, step 1)."""
+    widths, signs = PULSE_PATTERNS[problem.signal]
+    rule = [_pulse_units(problem, spec) for spec in problem.inputs]
+    factors = np.geomspace(0.5, 2.0, problem.candidates) if problem.candidates > 1 else [1.0]
+    t = problem.time
+    for c in factors:
+        start = problem.start_s
+        columns, setting = [], {}
+        for spec, dt in zip(problem.inputs, rule, strict=True):
+            pulse = c * dt
+            length = sequence_length_s(problem.signal, pulse)
+            columns.append(pulse_sequence(t, start, pulse, widths, signs, spec.amplitude))
+            setting[spec.name] = {"pulse_s": float(pulse), "start_s": float(start)}
+            start += length + problem.gap_s
+        # the last sequence must end (and the response have time to show) inside T
+        if start - problem.gap_s > problem.duration_s - problem.dt_s:
+            continue
+        yield setting, np.column_stack(columns), None
+
+
+def _check_limits(problem: DesignProblem, candidate: Candidate) -> None:
+    """The returned input obeys every limit (amplitude, duration, response) or DesignError."""
+    peaks = candidate.peak_amplitudes
+    for spec, peak in zip(problem.inputs, peaks, strict=True):
+        if peak > spec.amplitude * (1 + _LIMIT_TOLERANCE):
+            raise DesignError(
+                f"inputs.{spec.name}.amplitude: the designed input reaches {peak:.6g}, above the "
+                f"limit {spec.amplitude:.6g}"
+            )
+    if candidate.time[-1] > problem.duration_s * (1 + _LIMIT_TOLERANCE):
+        raise DesignError(
+            f"duration_s: the designed input lasts {candidate.time[-1]:.6g} s, longer than "
+            f"{problem.duration_s:.6g} s"
+        )
+    for output, limit in problem.limits.items():
+        if candidate.response_peak[output] > limit * (1 + _LIMIT_TOLERANCE):
+            raise DesignError(
+                f"limits.{output}: the designed input moves {output} by "
+                f"{candidate.response_peak[output]:.6g}, above the limit {limit:.6g}"
+            )
+
+
+def design_input(problem: DesignProblem, progress=None) -> tuple[Candidate, list[Candidate]]:
+    """The best candidate for the problem's criterion, and every feasible candidate tried
+    (module docstring). Raises ``DesignError`` when no candidate can be evaluated."""
+    source = _multisine_candidates if problem.signal == "multisine" else _step_candidates
+    tried: list[Candidate] = []
+    reasons: list[str] = []
+    for setting, perturbations, multisine in source(problem):
+        try:
+            candidate = evaluate_input(
+                problem, perturbations, problem.signal, setting, multisine, scale_to_limits=True
+            )
+        except (InputError, DesignError) as exc:
+            reasons.append(f"{setting}: {exc}")
+            continue
+        if multisine is not None:
+            candidate = Candidate(
+                **{
+                    **candidate.__dict__,
+                    "multisine": multisine.with_amplitudes(candidate.peak_amplitudes),
+                }
+            )
+        tried.append(candidate)
+        if progress is not None:
+            progress(
+                f"candidate {len(tried)}: {setting} amplitude × {candidate.amplitude_factor:.3g}, "
+                f"{problem.criterion} = {candidate.criterion_value:.6g}"
+            )
+    if not tried:
+        detail = (
+            "; ".join(reasons[:3])
+            if reasons
+            else ("no candidate fits in duration_s (the step sequences with their gaps are longer)")
+        )
+        raise DesignError(f"design: no feasible input ({detail})")
+    best = min(tried, key=lambda c: c.criterion_value)
+    _check_limits(problem, best)
+    return best, tried
+
+
+def named_std(candidate: Candidate) -> dict[str, float]:
+    """parameter name → predicted σ."""
+    return {
+        n: float(s) for n, s in zip(candidate.accuracy.names, candidate.accuracy.std, strict=True)
+    }
+
+
+def as_sequence(value: Sequence[float] | float, n: int) -> list[float]:  # pragma: no cover
+    return [float(value)] * n if np.isscalar(value) else [float(v) for v in value]
