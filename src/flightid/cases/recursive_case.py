@@ -1,0 +1,350 @@
+"""Case files with a ``[recursive]`` table: recursive (online) estimation (CASES.md §8).
+
+    [recursive]
+    method = "ekf"            # ekf | ukf | ukf_aug | efrls | ftr
+    p0 = 10.0                 # number (× I) or a list (diagonal), augmented states
+    q_states = [1e-7, 1e-7]   # per-step covariance (EKF, UKF); ẋ-noise variance (ukf_aug)
+    r0 = [4.1e-7, 8.0e-7]     # measurement noise covariance (number × I or diagonal)
+    jacobian_step = 1e-4      # EKF: absolute central-difference step (number or list)
+    report = "last_10"        # mean over the last 10 samples ("final": the last one)
+
+    # efrls: forgetting = 0.998, p0 = 1e3, jacobian_step = 1e-7 (relative)
+    # ftr:   states = ["alpha", "q"], inputs = ["de"] (channel names),
+    #        frequencies_hz = {start = 0.2, stop = 1.5, step = 0.04}, update_every_s = 1.0,
+    #        parameter_names = [[...], [...]] (per state equation: A row, then B row),
+    #        offsets = {zq = 1.0} (reported = coefficient − offset), n_mean = 10,
+    #        report = "last_5" (updates)
+
+The filters (EKF, UKF, UKF_aug, EFRLS) estimate the free parameters of ``[model]`` (built
+with ``[parameters]``, ``[initial_state]`` and ``[biases]`` as for output error; x0 is that of
+the first maneuver). The FTR needs no model: it regresses the measured ``states`` channels on
+themselves and the ``inputs`` channels in the frequency domain.
+
+Several ``[data]`` files are ONE continuous record here (CASES.md Q11): the samples are
+joined without re-initialisation and the time is regenerated, t_k = (k − 1)·dt, k = 1..N.
+Every key is checked; a wrong one is a ``CaseError`` naming ``recursive.<key>``.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from flightid.cases.build import base_model, build_model, load_maneuvers, resolve_data_dir
+from flightid.cases.checks import CaseError, _bool, _integer, _known, _names, _number, _string
+from flightid.cases.spec import Case
+from flightid.errors import InputError
+
+__all__ = ["run_recursive_case", "RECURSIVE_METHODS", "recursive_settings"]
+
+RECURSIVE_METHODS = ("ekf", "ukf", "ukf_aug", "efrls", "ftr")
+_COMMON = {"method", "report", "compiled"}
+_KEYS = {
+    "ekf": _COMMON | {"p0", "q_states", "r0", "jacobian_step"},
+    "ukf": _COMMON | {"p0", "q_states", "r0"},
+    "ukf_aug": _COMMON | {"p0", "q_states", "r0"},
+    "efrls": _COMMON | {"p0", "forgetting", "jacobian_step"},
+    "ftr": _COMMON
+    | {
+        "states",
+        "inputs",
+        "frequencies_hz",
+        "update_every_s",
+        "parameter_names",
+        "offsets",
+        "n_mean",
+    },
+}
+_REQUIRED = {
+    "ekf": ("p0", "q_states", "r0"),
+    "ukf": ("p0", "q_states", "r0"),
+    "ukf_aug": ("p0", "q_states", "r0"),
+    "efrls": (),
+    "ftr": ("states", "inputs", "frequencies_hz", "update_every_s"),
+}
+
+
+def _numbers(value: Any, key: str, *, positive: bool = False) -> float | list[float]:
+    """A number or a non-empty list of numbers (all ≥ 0, or > 0 with ``positive``)."""
+    values = value if isinstance(value, list) else [value]
+    if not values:
+        raise CaseError(f"{key}: expected a number or a non-empty list of numbers, got []")
+    checked = [_number(v, f"{key}" if not isinstance(value, list) else f"{key}[{i}]")
+               for i, v in enumerate(values)]  # fmt: skip
+    for i, v in enumerate(checked):
+        if v < 0 or (positive and v == 0):
+            where = key if not isinstance(value, list) else f"{key}[{i}]"
+            raise CaseError(f"{where}: expected a number {'>' if positive else '>='} 0, got {v}")
+    return checked if isinstance(value, list) else checked[0]
+
+
+def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
+    """The checked ``[recursive]`` table, with defaults filled in (CaseError naming the key)."""
+    if not isinstance(table, Mapping) or not table:
+        raise CaseError("recursive: expected a table with at least 'method'")
+    if "method" not in table:
+        raise CaseError(f"recursive.method: missing; one of {list(RECURSIVE_METHODS)}")
+    method = _string(table["method"], "recursive.method", RECURSIVE_METHODS)
+    _known(table, _KEYS[method], "recursive")
+    for key in _REQUIRED[method]:
+        if key not in table:
+            raise CaseError(f"recursive.{key}: missing; method {method!r} needs it")
+    settings: dict[str, Any] = {"method": method}
+    settings["report"] = _string(
+        table.get("report", "last_5" if method == "ftr" else "last_10"), "recursive.report"
+    )
+    from flightid.recursive.result import report_rows
+
+    try:
+        report_rows(settings["report"], 1)
+    except InputError as exc:
+        raise CaseError(f"recursive.{exc}") from None
+    settings["compiled"] = _bool(table.get("compiled", True), "recursive.compiled")
+    if method in ("ekf", "ukf", "ukf_aug"):
+        settings["p0"] = _numbers(table["p0"], "recursive.p0")
+        settings["q_states"] = _numbers(table["q_states"], "recursive.q_states")
+        settings["r0"] = _numbers(table["r0"], "recursive.r0", positive=True)
+    if method == "ekf":
+        settings["jacobian_step"] = _numbers(
+            table.get("jacobian_step", 1e-4), "recursive.jacobian_step", positive=True
+        )
+    if method == "efrls":
+        settings["p0"] = _numbers(table.get("p0", 1e3), "recursive.p0", positive=True)
+        forgetting = _number(table.get("forgetting", 0.998), "recursive.forgetting")
+        if not 0.0 < forgetting <= 1.0:
+            raise CaseError(f"recursive.forgetting: expected a number in (0, 1], got {forgetting}")
+        settings["forgetting"] = forgetting
+        step = table.get("jacobian_step", 1e-7)
+        if isinstance(step, list):
+            raise CaseError(
+                f"recursive.jacobian_step: the EFRLS step is relative, one number; got {step!r}"
+            )
+        settings["jacobian_step"] = _numbers(step, "recursive.jacobian_step", positive=True)
+    if method == "ftr":
+        settings["states"] = _names(table["states"], "recursive.states")
+        settings["inputs"] = _names(table["inputs"], "recursive.inputs")
+        if not settings["states"]:
+            raise CaseError("recursive.states: expected at least one state channel, got []")
+        grid = table["frequencies_hz"]
+        if not isinstance(grid, Mapping):
+            raise CaseError(
+                f"recursive.frequencies_hz: expected a table {{start, stop, step}} (Hz), got "
+                f"{grid!r}"
+            )
+        _known(grid, {"start", "stop", "step"}, "recursive.frequencies_hz")
+        for key in ("start", "stop", "step"):
+            if key not in grid:
+                raise CaseError(f"recursive.frequencies_hz.{key}: missing (Hz)")
+        settings["frequencies_hz"] = {
+            key: _number(grid[key], f"recursive.frequencies_hz.{key}")
+            for key in ("start", "stop", "step")
+        }
+        update = _number(table["update_every_s"], "recursive.update_every_s")
+        if update <= 0:
+            raise CaseError(f"recursive.update_every_s: expected a time > 0 (s), got {update}")
+        settings["update_every_s"] = update
+        settings["n_mean"] = _integer(table.get("n_mean", 10), "recursive.n_mean", 1)
+        if "parameter_names" in table:
+            rows = table["parameter_names"]
+            if not isinstance(rows, list):
+                raise CaseError(
+                    f"recursive.parameter_names: expected a list of lists of names, got {rows!r}"
+                )
+            settings["parameter_names"] = [
+                _names(row, f"recursive.parameter_names[{i}]") for i, row in enumerate(rows)
+            ]
+        offsets = table.get("offsets", {})
+        if not isinstance(offsets, Mapping):
+            raise CaseError(f"recursive.offsets: expected a table name = number, got {offsets!r}")
+        settings["offsets"] = {k: _number(v, f"recursive.offsets.{k}") for k, v in offsets.items()}
+    return settings
+
+
+def _record(case: Case, data_dir: Path) -> tuple[list, np.ndarray, float]:
+    """(maneuvers, t as one continuous record, dt)."""
+    maneuvers = load_maneuvers(case, data_dir)
+    dts = [m.dt for m in maneuvers]
+    dt = float(dts[0])
+    if not (np.isfinite(dt) and dt > 0):
+        raise CaseError(f"data: expected a positive sample interval, got {dt} s")
+    for m, value in zip(maneuvers, dts, strict=True):
+        if abs(value - dt) > 1e-6 * dt:
+            raise CaseError(
+                f"data: the files form one record and need one sample interval; "
+                f"'{maneuvers[0].name}' has dt = {dt} s, '{m.name}' has {value} s"
+            )
+    n = sum(m.n_samples for m in maneuvers)
+    # t_k = (k − 1)·dt over the joined record (CASES.md §0, Q11)
+    return maneuvers, dt * np.arange(n), dt
+
+
+def _columns(maneuvers, names: Sequence[str], key: str) -> np.ndarray:
+    """The channels ``names`` of all maneuvers joined into one (N × len(names)) array."""
+    blocks = []
+    for m in maneuvers:
+        try:
+            blocks.append(np.column_stack([m.channel(n) for n in names]))
+        except KeyError:
+            channels = [*m.input_names, *m.output_names]
+            missing = [n for n in names if n not in channels]
+            raise CaseError(
+                f"{key}: channel(s) {missing} not in the data; the case defines {channels}"
+            ) from None
+    values = np.vstack(blocks) if names else np.empty((sum(m.n_samples for m in maneuvers), 0))
+    if not np.all(np.isfinite(values)):
+        raise CaseError(f"{key}: the channels {list(names)} hold non-finite samples")
+    return values
+
+
+def _meta(case: Case, maneuvers, description: str, outputs, r0) -> dict[str, Any]:
+    units = maneuvers[0].units
+    return {
+        "title": case.title,
+        "file": str(case.path),
+        "model": description,
+        "outputs": list(outputs),
+        "output_units": [units.get(n, "") for n in outputs],
+        "R0": list(r0),
+        "maneuvers": [
+            {"name": m.name, "samples": int(m.n_samples), "dt": float(m.dt)} for m in maneuvers
+        ],
+    }
+
+
+def _filter(settings: Mapping[str, Any], augmented):
+    from flightid.recursive import (
+        AugmentedUnscentedKalmanFilter,
+        ExtendedForgettingRLS,
+        ExtendedKalmanFilter,
+        UnscentedKalmanFilter,
+    )
+
+    method = settings["method"]
+    try:
+        if method == "ekf":
+            return ExtendedKalmanFilter(
+                augmented,
+                settings["p0"],
+                settings["q_states"],
+                settings["r0"],
+                settings["jacobian_step"],
+            )
+        if method == "ukf":
+            return UnscentedKalmanFilter(
+                augmented, settings["p0"], settings["q_states"], settings["r0"]
+            )
+        if method == "ukf_aug":
+            return AugmentedUnscentedKalmanFilter(
+                augmented, settings["p0"], settings["q_states"], settings["r0"]
+            )
+        return ExtendedForgettingRLS(
+            augmented, settings["p0"], settings["forgetting"], settings["jacobian_step"]
+        )
+    except InputError as exc:
+        # p0 / q_states / r0 / jacobian_step of the wrong length: name the case key
+        raise CaseError(f"recursive.{exc}") from None
+
+
+def run_recursive_case(
+    case: Case,
+    data_dir: str | Path | None = None,
+    progress: Callable[[str], None] | None = None,
+):
+    """Run the case's recursive estimation; returns a ``RecursiveResult``.
+
+    Raises ``CaseError`` for a wrong ``[recursive]`` key or data, ``RecursiveDivergenceError``
+    when the filter diverges.
+    """
+    from flightid.recursive import AugmentedModel, FourierTransformRegression, RecursiveEstimator
+
+    settings = recursive_settings(case.recursive)
+    method = settings["method"]
+    directory = resolve_data_dir(case, data_dir)
+    if not directory.is_dir():
+        raise CaseError(
+            f"data.data_dir: the data directory {directory} does not exist (set data.data_dir, "
+            "FLIGHTID_DATA or --data-dir)"
+        )
+    maneuvers, t, dt = _record(case, directory)
+    say = progress or (lambda message: None)
+    if method == "ftr":
+        states, inputs = settings["states"], settings["inputs"]
+        z = _columns(maneuvers, states, "recursive.states")
+        u = _columns(maneuvers, inputs, "recursive.inputs")
+        update_every = int(round(settings["update_every_s"] / dt))
+        if update_every < 1 or abs(update_every * dt - settings["update_every_s"]) > 1e-6:
+            raise CaseError(
+                f"recursive.update_every_s: expected a whole number of samples of "
+                f"{dt} s, got {settings['update_every_s']} s"
+            )
+        from flightid.recursive.ftr import frequency_grid_hz
+
+        grid = settings["frequencies_hz"]
+        try:
+            freq = frequency_grid_hz(grid["start"], grid["stop"], grid["step"])
+            estimator = FourierTransformRegression(
+                len(states),
+                len(inputs),
+                freq,
+                update_every,
+                settings.get("parameter_names"),
+                settings["offsets"],
+                settings["n_mean"],
+            )
+        except InputError as exc:
+            raise CaseError(f"recursive.{exc}") from None
+        if t.size < update_every:
+            raise CaseError(
+                f"recursive.update_every_s: the record has {t.size} samples, fewer than one "
+                f"update interval ({update_every} samples)"
+            )
+        units, initial = None, None
+        description = f"FTR: states {states}, inputs {inputs} (measured)"
+        outputs, r0 = states, []
+    else:
+        if not case.model:
+            raise CaseError(f"model: missing; method {method!r} estimates a model's parameters")
+        base, description = base_model(case, directory)
+        model, maneuvers = build_model(case, maneuvers, base=base)
+        if any(isinstance(e, str) for e in model.x0_spec(0)):
+            raise CaseError(
+                "initial_state: estimated initial states are not available in recursive "
+                "estimation (give numbers or 'measured')"
+            )
+        x0 = model.initial_state(maneuver=0)
+        try:
+            augmented = AugmentedModel(model, x0, compiled=settings["compiled"])
+        except InputError as exc:
+            raise CaseError(f"model: {exc}") from None
+        if augmented.n_free == 0:
+            raise CaseError("parameters: no free parameter to estimate")
+        estimator = _filter(settings, augmented)
+        u = _columns(maneuvers, model.inputs, "data.inputs")
+        z = _columns(maneuvers, model.outputs, "data.outputs")
+        units = augmented.free_units
+        initial = augmented.x_a0[augmented.n_x :].tolist()
+        outputs = model.outputs
+        r0 = np.diag(estimator.R0).tolist() if hasattr(estimator, "R0") else []
+    say(f"{method}: {t.size} samples (dt = {dt} s), {len(estimator.parameter_names)} parameters")
+    online = RecursiveEstimator(estimator)
+    start = _time.perf_counter()
+    online.feed_block(t, u, z)
+    wall = _time.perf_counter() - start
+    meta = _meta(case, maneuvers, description, outputs, r0)
+    innovations = np.asarray(estimator.innovations)
+    if innovations.size:
+        # rms of the innovations ν_k = z_k − ỹ_k per output
+        meta["innovation_rms"] = np.sqrt(np.mean(innovations**2, axis=0)).tolist()
+    result = online.result(
+        settings["report"],
+        units=units,
+        initial=initial,
+        settings={k: v for k, v in settings.items() if k != "compiled"},
+        meta=meta,
+    )
+    say(f"{method}: done in {wall:.2f} s")
+    return result

@@ -1,0 +1,217 @@
+"""What every recursive estimator shares: checked settings, the sample-by-sample ``feed``
+contract, covariance checks and the divergence error.
+
+An estimator is fed one sample at a time, ``feed(t, u, z)`` (time in s, inputs and measured
+outputs in the model's order and units). The first sample only corrects the start values;
+every later one first predicts from the previous sample (the sample interval is the
+difference of the two times), then corrects. After each call ``theta`` and ``theta_std``
+hold the current parameter estimates and their standard deviations.
+
+Filter health (house rule: a wrong answer must not look like a right one):
+
+* a non-finite state or covariance raises ``RecursiveDivergenceError`` naming the sample;
+* the covariance is kept symmetric, (P + Pᵀ)/2; an eigenvalue below −1e-9·max|λ| (lost
+  positive semi-definiteness) is recorded as a warning with the sample number;
+* the normalised innovation squared ε_k = ν_kᵀ S_k⁻¹ ν_k is recorded; an ε above the
+  χ²(n_y) quantile 1 − 1e-6 is an innovation far outside its covariance (counted, and the
+  result warns when they exceed 5 % of the samples).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from flightid.errors import FlightIdError, InputError, describe
+
+__all__ = [
+    "AugmentedFilter",
+    "RecursiveDivergenceError",
+    "RecursiveEstimatorBase",
+    "diagonal_matrix",
+    "symmetric_sqrt",
+]
+
+
+class RecursiveDivergenceError(FlightIdError, ArithmeticError):
+    """A recursive filter produced a non-finite state or covariance (it diverged)."""
+
+    def __init__(self, message: str, *, sample: int | None = None) -> None:
+        super().__init__(message)
+        self.sample = sample
+
+
+def diagonal_matrix(value: float | Sequence[float], n: int, argument: str) -> np.ndarray:
+    """``value``·I (a number) or diag(value) (a list of n numbers), all ≥ 0 and finite."""
+    array = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    if array is None or array.ndim > 1 or (array.ndim == 1 and array.size != n):
+        raise InputError(
+            f"{argument}: expected a number or a list of {n} numbers, got {describe(value)}"
+        )
+    if not np.all(np.isfinite(array)) or np.any(array < 0):
+        raise InputError(f"{argument}: expected finite values >= 0, got {np.ravel(array).tolist()}")
+    return np.diag(np.broadcast_to(array, (n,)).astype(float))
+
+
+def symmetric_sqrt(P: np.ndarray) -> np.ndarray:
+    """The symmetric principal square root S of a symmetric PSD matrix, S·S = P.
+
+    For symmetric P = V Λ Vᵀ (eigendecomposition) the principal root is V Λ^½ Vᵀ, which is
+    what scipy.linalg.sqrtm returns for such a matrix, at a fraction of the cost; round-off
+    negative eigenvalues (≥ −1e-9·max|λ|) are taken as 0.
+    """
+    from scipy import linalg
+
+    eigenvalues, vectors = linalg.eigh(P)
+    floor = -1e-9 * max(float(np.max(np.abs(eigenvalues))), 1e-300)
+    if eigenvalues[0] < floor:
+        raise RecursiveDivergenceError(
+            f"covariance: not positive semi-definite (smallest eigenvalue {eigenvalues[0]:.3g}, "
+            f"largest {eigenvalues[-1]:.3g}); the square root for the sigma points does not exist"
+        )
+    # √P = V diag(√λ) Vᵀ
+    return (vectors * np.sqrt(np.clip(eigenvalues, 0.0, None))) @ vectors.T
+
+
+def _check_series(value: np.ndarray, n: int, argument: str) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (n,):
+        raise InputError(f"{argument}: expected {n} values, got {describe(value)}")
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{argument}: expected finite values, got {array.tolist()}")
+    return array
+
+
+class RecursiveEstimatorBase:
+    """Sample bookkeeping shared by the estimators (``feed`` calls ``_first`` / ``_step``).
+
+    Subclasses set ``n_inputs``, ``n_outputs``, ``parameter_names`` and implement
+    ``_first(t, u, z)`` and ``_step(t_prev, t, u_prev, u, z)``, and the properties
+    ``theta``/``theta_std`` (current parameter estimates and standard deviations).
+    """
+
+    method = "base"
+    n_inputs: int
+    n_outputs: int
+    parameter_names: list[str]
+
+    def reset(self) -> None:
+        self.k = 0  # samples fed so far
+        self._t_prev: float | None = None
+        self._u_prev: np.ndarray | None = None
+        self.warnings: list[str] = []
+        self.nis: list[float] = []  # ε_k = νᵀ S⁻¹ ν per corrected sample
+        self.innovations: list[np.ndarray] = []  # ν_k = z_k − ỹ_k per corrected sample
+        self.covariance_warnings = 0
+
+    def feed(self, t: float, u: Sequence[float], z: Sequence[float]) -> None:
+        """Process one sample: time ``t`` (s), inputs ``u``, measured outputs ``z``."""
+        u = _check_series(u, self.n_inputs, "u")
+        z = _check_series(z, self.n_outputs, "z")
+        t = float(t)
+        if not np.isfinite(t):
+            raise InputError(f"t: expected a finite time, got {t}")
+        if self._t_prev is not None and not t > self._t_prev:
+            raise InputError(
+                f"t: sample {self.k + 1} at {t} s does not follow the previous one at "
+                f"{self._t_prev} s (times must increase)"
+            )
+        self.k += 1
+        self._t_current = t
+        if self.k == 1:
+            self._first(t, u, z)
+        else:
+            self._step(self._t_prev, t, self._u_prev, u, z)
+        self._t_prev, self._u_prev = t, u
+
+    # helpers for the state-space filters -------------------------------------------
+
+    def _checked(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x, (P + Pᵀ)/2) after the finiteness and PSD checks of the module docstring."""
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise RecursiveDivergenceError(
+                f"{self.method}: the filter diverged at sample {self.k} (t = {self._t_now} s): "
+                "non-finite state or covariance",
+                sample=self.k,
+            )
+        P = 0.5 * (P + P.T)
+        eigenvalues = np.linalg.eigvalsh(P)
+        if eigenvalues[0] < -1e-9 * max(float(np.max(np.abs(eigenvalues))), 1e-300):
+            self.covariance_warnings += 1
+            if self.covariance_warnings == 1:
+                self.warnings.append(
+                    f"covariance not positive semi-definite first at sample {self.k} "
+                    f"(smallest eigenvalue {eigenvalues[0]:.3g})"
+                )
+        return x, P
+
+    def _innovation(self, nu: np.ndarray, S: np.ndarray | None) -> None:
+        """Record ν and ε = νᵀ S⁻¹ ν of this sample (ε only where S is an innovation
+        covariance)."""
+        self.innovations.append(nu)
+        if S is None:
+            return
+        try:
+            # ε_k = ν_kᵀ S_k⁻¹ ν_k
+            eps = float(nu @ np.linalg.solve(S, nu))
+        except np.linalg.LinAlgError:
+            eps = float("inf")
+        self.nis.append(eps)
+
+    @property
+    def _t_now(self) -> float | None:
+        return getattr(self, "_t_current", None)
+
+    def health_warnings(self) -> list[str]:
+        """The warnings collected so far, plus the innovation test over all samples."""
+        from scipy import stats
+
+        warnings = list(self.warnings)
+        if self.nis:
+            limit = float(stats.chi2.ppf(1.0 - 1e-6, self.n_outputs))
+            outside = int(np.sum(~(np.asarray(self.nis) <= limit)))
+            if outside > 0.05 * len(self.nis):
+                warnings.append(
+                    f"{outside} of {len(self.nis)} innovations lie far outside their covariance "
+                    f"(ν'S⁻¹ν > {limit:.1f}, the χ²({self.n_outputs}) 1−1e-6 quantile): the "
+                    "filter's noise model does not describe the data"
+                )
+        return warnings
+
+
+class AugmentedFilter(RecursiveEstimatorBase):
+    """A filter on the augmented state x_a = (x, θ_free) of an ``AugmentedModel``: holds the
+    current estimate ``x`` (n) and covariance ``P`` (n × n)."""
+
+    def __init__(self, augmented, p0: float | Sequence[float]) -> None:
+        from flightid.recursive.augmented import AugmentedModel
+
+        if not isinstance(augmented, AugmentedModel):
+            raise InputError(f"augmented: expected an AugmentedModel, got {describe(augmented)}")
+        self.augmented = augmented
+        self.n_inputs = augmented.n_u
+        self.n_outputs = augmented.n_y
+        self.parameter_names = list(augmented.free_names)
+        self.P0 = diagonal_matrix(p0, augmented.n, "p0")
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        self.x = self.augmented.x_a0.copy()
+        self.P = self.P0.copy()
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Current estimates of the free parameters."""
+        return self.x[self.augmented.n_x :].copy()
+
+    @property
+    def theta_std(self) -> np.ndarray:
+        """sqrt(diag P) over the parameter part."""
+        return np.sqrt(np.clip(np.diag(self.P)[self.augmented.n_x :], 0.0, None))
+
+    @property
+    def states(self) -> np.ndarray:
+        """Current estimates of the model states."""
+        return self.x[: self.augmented.n_x].copy()

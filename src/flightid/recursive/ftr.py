@@ -1,0 +1,238 @@
+"""Recursive Fourier-transform regression (FTR; CASES.md §8.1 "FTR", Morelli's frequency-domain
+equation error, Jategaonkar ch. 7.6).
+
+The measured state signals x (the outputs taken as states) and the inputs u obey, in the
+frequency domain, the linear state equation without constant terms
+
+    jω X(ω) = A X(ω) + B U(ω).
+
+Signals are de-meaned by the mean of their first ``n_mean`` (10) samples, x̄_k = x_k − x_mean.
+The finite Fourier transform at the chosen frequencies ω = 2πf is kept recursively, one term
+per sample (sample 1 excluded, phase reference t_1 = 0, CASES.md Q13):
+
+    X(ω) += x̄_k e^{−jω t_k},   U(ω) += ū_k e^{−jω t_k},   k = 2, 3, …,   t_k = (k−1)·dt
+
+Every ``update_every`` samples (k mod M = 0) each state equation i is solved by least squares
+over the n_f frequencies with real parts (Θ = [X U], n_f × n_p, n_p = n_x + n_u):
+
+    θ_i = Re(ΘᴴΘ)⁻¹ Re(Θᴴ jωX_i)                         (row i of [A B])
+    σ_i² = Σ_ω |jωX_i − Θθ_i|² / (n_f − n_p)
+    std_i = sqrt(diag(σ_i² Re(ΘᴴΘ)⁻¹))
+
+A coefficient may be reported with a known part removed (``offsets``): for the short period
+A_12 = 1 + Z_q, so Z_q = A_12 − 1 with the std of A_12.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from flightid.errors import FlightIdError, InputError, describe
+from flightid.recursive.base import RecursiveEstimatorBase
+
+__all__ = ["FourierTransformRegression", "NoEstimateYetError", "frequency_grid_hz"]
+
+
+class NoEstimateYetError(FlightIdError, LookupError):
+    """The FTR has not reached its first update (no estimate exists yet)."""
+
+
+def frequency_grid_hz(start: float, stop: float, step: float) -> np.ndarray:
+    """start, start + step, … ≤ stop (Hz), as MATLAB's start:step:stop."""
+    for name, value in (("start", start), ("stop", stop), ("step", step)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise InputError(f"frequencies_hz.{name}: expected a finite number, got {value!r}")
+    if step <= 0 or start <= 0 or stop < start:
+        raise InputError(
+            f"frequencies_hz: expected 0 < start <= stop and step > 0, got start={start}, "
+            f"stop={stop}, step={step}"
+        )
+    count = int(np.floor((stop - start) / step + 1e-9)) + 1
+    return start + step * np.arange(count)
+
+
+class FourierTransformRegression(RecursiveEstimatorBase):
+    """Recursive FTR for n_x measured states and n_u inputs.
+
+    ``feed(t, u, z)``: ``u`` the n_u inputs, ``z`` the n_x measured states.
+
+    Args:
+        n_states, n_inputs: numbers of state and input signals.
+        frequencies_hz: the analysis frequencies f (Hz), more than n_x + n_u of them.
+        update_every: samples between least-squares updates (M; updates at k mod M = 0).
+        parameter_names: n_x rows of n_x + n_u names (row i: A_i1…A_in_x, B_i1…B_in_u);
+            default "A11", …, "B11", ….
+        offsets: name → known part subtracted from that coefficient before reporting.
+        n_mean: samples whose mean is removed from every signal (10).
+    """
+
+    method = "ftr"
+
+    def __init__(
+        self,
+        n_states: int,
+        n_inputs: int,
+        frequencies_hz: Sequence[float] | np.ndarray,
+        update_every: int,
+        parameter_names: Sequence[Sequence[str]] | None = None,
+        offsets: Mapping[str, float] | None = None,
+        n_mean: int = 10,
+    ) -> None:
+        for name, value in (("n_states", n_states), ("n_inputs", n_inputs)):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int)
+                or value < (name == "n_states")
+            ):
+                raise InputError(f"{name}: expected a non-negative integer, got {value!r}")
+        freq = np.asarray(frequencies_hz, dtype=float)
+        n_p = n_states + n_inputs
+        if freq.ndim != 1 or freq.size <= n_p or not np.all(np.isfinite(freq)) or np.any(freq <= 0):
+            raise InputError(
+                f"frequencies_hz: expected more than {n_p} positive frequencies, got "
+                f"{describe(frequencies_hz)}"
+            )
+        if isinstance(update_every, bool) or not isinstance(update_every, int) or update_every < 1:
+            raise InputError(f"update_every: expected a positive integer, got {update_every!r}")
+        if isinstance(n_mean, bool) or not isinstance(n_mean, int) or n_mean < 1:
+            raise InputError(f"n_mean: expected a positive integer, got {n_mean!r}")
+        if parameter_names is None:
+            parameter_names = [
+                [f"A{i + 1}{j + 1}" for j in range(n_states)]
+                + [f"B{i + 1}{j + 1}" for j in range(n_inputs)]
+                for i in range(n_states)
+            ]
+        rows = [list(row) for row in parameter_names]
+        if len(rows) != n_states or any(len(row) != n_p for row in rows):
+            raise InputError(
+                f"parameter_names: expected {n_states} rows of {n_p} names, got {rows!r}"
+            )
+        names = [name for row in rows for name in row]
+        if len(set(names)) != len(names) or not all(isinstance(n, str) for n in names):
+            raise InputError(f"parameter_names: expected unique names, got {names}")
+        offsets = dict(offsets or {})
+        unknown = [name for name in offsets if name not in names]
+        if unknown:
+            raise InputError(f"offsets: {unknown} are not parameter names {names}")
+        self.n_states, self.n_inputs, self.n_outputs = n_states, n_inputs, n_states
+        self.frequencies_hz = freq
+        # ω = 2πf (rad/s)
+        self.omega = 2.0 * np.pi * freq
+        self.update_every = update_every
+        self.n_mean = n_mean
+        self.parameter_names = names
+        self.offsets = np.array([float(offsets.get(name, 0.0)) for name in names])
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        n_f = self.omega.size
+        self.X = np.zeros((n_f, self.n_states), dtype=complex)
+        self.U = np.zeros((n_f, self.n_inputs), dtype=complex)
+        self._buffer: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self._t1: float | None = None
+        self._mean_x: np.ndarray | None = None
+        self._mean_u: np.ndarray | None = None
+        self._theta: np.ndarray | None = None
+        self._std: np.ndarray | None = None
+        self.updates: list[tuple[int, float, np.ndarray, np.ndarray]] = []
+
+    # ---------------------------------------------------------------- transform
+
+    def _accumulate(self, k: int, t: float, u: np.ndarray, z: np.ndarray) -> None:
+        if k == 1:  # sample 1 is not part of the transform (CASES.md Q13)
+            return
+        # e^{−jω t_k}, t_k measured from the first sample
+        phase = np.exp(-1j * self.omega * (t - self._t1))
+        # X(ω) += x̄_k e^{−jω t_k},  U(ω) += ū_k e^{−jω t_k}
+        self.X += phase[:, None] * (z - self._mean_x)[None, :]
+        self.U += phase[:, None] * (u - self._mean_u)[None, :]
+
+    def _feed_sample(self, t: float, u: np.ndarray, z: np.ndarray) -> None:
+        if self.k == 1:
+            self._t1 = t
+        if self._mean_x is None:
+            self._buffer.append((t, u, z))
+            if len(self._buffer) < self.n_mean:
+                return
+            # de-meaning by the first n_mean samples
+            self._mean_x = np.mean([b[2] for b in self._buffer], axis=0)
+            self._mean_u = np.mean([b[1] for b in self._buffer], axis=0)
+            for i, (tb, ub, zb) in enumerate(self._buffer):
+                self._accumulate(i + 1, tb, ub, zb)
+            self._buffer = []
+        else:
+            self._accumulate(self.k, t, u, z)
+        if self.k % self.update_every == 0 and self._mean_x is not None:
+            self._update(t)
+
+    def _first(self, t, u, z) -> None:
+        self._feed_sample(t, u, z)
+
+    def _step(self, t_prev, t, u_prev, u, z) -> None:
+        self._feed_sample(t, u, z)
+
+    # ---------------------------------------------------------------- regression
+
+    def regression(self) -> tuple[np.ndarray, np.ndarray]:
+        """(θ, std) of the transforms so far: n_x rows of n_x + n_u values each, before the
+        offsets are removed."""
+        theta_all = np.empty((self.n_states, self.n_states + self.n_inputs))
+        std_all = np.empty_like(theta_all)
+        Theta = np.hstack([self.X, self.U])
+        n_f, n_p = Theta.shape
+        # Re(ΘᴴΘ) and its inverse
+        information = np.real(Theta.conj().T @ Theta)
+        try:
+            covariance = np.linalg.inv(information)
+        except np.linalg.LinAlgError:
+            raise InputError(
+                f"ftr: Re(ΘᴴΘ) is singular at sample {self.k}; the signals carry no information "
+                "at the chosen frequencies yet"
+            ) from None
+        for i in range(self.n_states):
+            # response jω X_i
+            response = 1j * self.omega * self.X[:, i]
+            # θ_i = Re(ΘᴴΘ)⁻¹ Re(Θᴴ jωX_i)
+            theta = covariance @ np.real(Theta.conj().T @ response)
+            # σ_i² = Σ |jωX_i − Θθ_i|² / (n_f − n_p)
+            sigma2 = float(np.sum(np.abs(response - Theta @ theta) ** 2)) / (n_f - n_p)
+            theta_all[i] = theta
+            # std_i = sqrt(diag(σ_i² Re(ΘᴴΘ)⁻¹))
+            std_all[i] = np.sqrt(np.clip(sigma2 * np.diag(covariance), 0.0, None))
+        return theta_all, std_all
+
+    def _update(self, t: float) -> None:
+        theta, std = self.regression()
+        theta = theta.ravel() - self.offsets
+        std = std.ravel()
+        if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(std))):
+            from flightid.recursive.base import RecursiveDivergenceError
+
+            raise RecursiveDivergenceError(
+                f"ftr: non-finite estimates at sample {self.k} (t = {t} s)", sample=self.k
+            )
+        self._theta, self._std = theta, std
+        self.updates.append((self.k, t, theta.copy(), std.copy()))
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Estimates of the last update (offsets removed)."""
+        if self._theta is None:
+            raise NoEstimateYetError(
+                f"ftr: no estimate yet; the first update comes at sample {self.update_every} "
+                f"({self.k} fed)"
+            )
+        return self._theta.copy()
+
+    @property
+    def theta_std(self) -> np.ndarray:
+        """Standard deviations of the last update."""
+        if self._std is None:
+            raise NoEstimateYetError(
+                f"ftr: no estimate yet; the first update comes at sample {self.update_every} "
+                f"({self.k} fed)"
+            )
+        return self._std.copy()
