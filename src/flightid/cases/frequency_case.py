@@ -1,0 +1,506 @@
+"""Run a case with a ``[frequency_domain]`` table: frequency-domain estimation.
+
+    [frequency_domain]
+    method = "output_error"      # or "equation_error"
+    band_hz = [0.1, 1.5]         # frequencies of the fit, Hz (ω = 0 excluded)
+    step_hz = 0.04               # spacing of the transform, Hz (1/T: independent points)
+    detrend = "mean"             # "mean", "linear" or "none", before transforming
+    boundary = true              # estimate x(0), x(T) of each maneuver (nuisance)
+    constants = true             # estimate constant offsets c, d per maneuver (nuisance)
+    start = "case"               # output error: start at the case's values or at the
+                                 # frequency-domain equation-error estimates
+    max_noise_cycles = 30        # alternations of the S update and the fit
+    tolerance = 1e-6             # relative change of S (or θ) that ends them
+    input_quadrature = "linear"  # transform rules (flightid.frequency.fourier)
+    output_quadrature = "trapezoid"
+
+The model comes from ``[model]``, ``[parameters]``, ``[biases]`` as for the time-domain
+case (``flightid.cases.build.build_model``) and is put in matrix form
+(``flightid.frequency.linear_system``). Parameters that move only the constant terms (Z_0,
+M_0, state and output biases) are not estimated: on mean-removed data, on a band that
+excludes ω = 0, a constant is indistinguishable from the nuisance offsets; they are reported
+with their start value, ``free: false``, ``estimated: false`` and the reason.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from flightid.cases.checks import CaseError, _bool, _integer, _known, _number, _string, _table
+from flightid.errors import InputError
+from flightid.results import ResultSurface, finite_or_none
+
+__all__ = ["FrequencyResult", "FrequencySettings", "frequency_settings", "run_frequency_case"]
+
+_KEYS = {
+    "method",
+    "band_hz",
+    "step_hz",
+    "detrend",
+    "boundary",
+    "constants",
+    "start",
+    "max_noise_cycles",
+    "tolerance",
+    "input_quadrature",
+    "output_quadrature",
+}
+_METHODS = ("output_error", "equation_error")
+BIAS_REASON = (
+    "not estimated: a constant term, invisible on mean-removed data on a band excluding "
+    "ω = 0 (absorbed by the per-maneuver nuisance constants); held at its start value"
+)
+
+
+@dataclass(frozen=True)
+class FrequencySettings:
+    """The checked ``[frequency_domain]`` table."""
+
+    method: str = "output_error"
+    band_hz: tuple[float, float] = (0.1, 1.5)
+    step_hz: float = 0.04
+    detrend: str = "mean"
+    boundary: bool = True
+    constants: bool = True
+    start: str = "case"
+    max_noise_cycles: int = 30
+    tolerance: float = 1e-6
+    input_quadrature: str = "linear"
+    output_quadrature: str = "trapezoid"
+
+
+def frequency_settings(table: Any) -> FrequencySettings:
+    """Check the ``[frequency_domain]`` table; ``CaseError`` names the key."""
+    from flightid.frequency.fourier import QUADRATURES, TRENDS
+
+    key = "frequency_domain"
+    table = _table(table, key)
+    _known(table, _KEYS, key)
+    values: dict[str, Any] = {}
+    if "method" in table:
+        values["method"] = _string(table["method"], f"{key}.method", _METHODS)
+    if "band_hz" in table:
+        band = table["band_hz"]
+        if not isinstance(band, list) or len(band) != 2:
+            raise CaseError(f"{key}.band_hz: expected [low, high] in Hz, got {band!r}")
+        lo, hi = (_number(v, f"{key}.band_hz") for v in band)
+        if not 0.0 < lo < hi:
+            raise CaseError(
+                f"{key}.band_hz: expected 0 < low < high (Hz; ω = 0 is excluded), got {band!r}"
+            )
+        values["band_hz"] = (lo, hi)
+    if "step_hz" in table:
+        step = _number(table["step_hz"], f"{key}.step_hz")
+        if step <= 0.0:
+            raise CaseError(f"{key}.step_hz: expected a positive step in Hz, got {step!r}")
+        values["step_hz"] = step
+    if "detrend" in table:
+        values["detrend"] = _string(table["detrend"], f"{key}.detrend", TRENDS)
+    for name in ("boundary", "constants"):
+        if name in table:
+            values[name] = _bool(table[name], f"{key}.{name}")
+    if "start" in table:
+        values["start"] = _string(table["start"], f"{key}.start", ("case", "equation_error"))
+    if "max_noise_cycles" in table:
+        values["max_noise_cycles"] = _integer(
+            table["max_noise_cycles"], f"{key}.max_noise_cycles", 1
+        )
+    if "tolerance" in table:
+        tol = _number(table["tolerance"], f"{key}.tolerance")
+        if not 0.0 < tol < 1.0:
+            raise CaseError(f"{key}.tolerance: expected a number in (0, 1), got {tol!r}")
+        values["tolerance"] = tol
+    for name in ("input_quadrature", "output_quadrature"):
+        if name in table:
+            values[name] = _string(table[name], f"{key}.{name}", QUADRATURES)
+    return FrequencySettings(**values)
+
+
+@dataclass(frozen=True)
+class FrequencyResult(ResultSurface):
+    """A frequency-domain estimate with the common result surface."""
+
+    title: str
+    method: str
+    settings: FrequencySettings
+    names: tuple[str, ...]
+    values: np.ndarray
+    initial: np.ndarray
+    std: np.ndarray  # Cramér–Rao (NaN: fixed or not estimated)
+    std_coloured: np.ndarray  # coloured-residual corrected (output error; NaN otherwise)
+    free: np.ndarray  # estimated here
+    units: tuple[str, ...]
+    not_estimated: dict[str, str]
+    nuisance: tuple[tuple[str, float, float], ...]
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    frequencies_hz: np.ndarray
+    spectra: tuple  # ManeuverSpectra per maneuver
+    model_outputs: tuple[np.ndarray, ...]
+    system: Any  # LinearSystem at the estimate
+    S: np.ndarray | None
+    cost: float | None
+    converged: bool
+    message: str
+    noise_cycles: int
+    iterations: int
+    wall_time_s: float
+    case_info: dict = field(default_factory=dict)
+    maneuvers: tuple[dict, ...] = ()
+
+    # ---------------------------------------------------------------- model helpers
+    def model_transfer(self, frequencies_hz: np.ndarray) -> np.ndarray:
+        """H(jω) = C (jωI − A)⁻¹ B + D at the estimate, (F, n_y, n_u)."""
+        s = 2j * np.pi * np.asarray(frequencies_hz, dtype=float)
+        A, B, C, D = self.system.A, self.system.B, self.system.C, self.system.D
+        eye = np.eye(A.shape[0])
+        return np.array([C @ np.linalg.solve(si * eye - A, B) + D for si in s])
+
+    def model_response_has_signal(self, j: int, k: int) -> bool:
+        """True if output j responds to input k in the model."""
+        return bool(np.any(np.abs(self.model_transfer(self.frequencies_hz[:3])[:, j, k]) > 0))
+
+    def transforms(self):
+        """(frequencies, Z, U) per maneuver."""
+        return [(s.frequencies_hz, s.outputs, s.inputs) for s in self.spectra]
+
+    def output_transforms(self):
+        """(frequencies, Z measured, Ŷ model) per maneuver."""
+        return [
+            (s.frequencies_hz, s.outputs, y)
+            for s, y in zip(self.spectra, self.model_outputs, strict=True)
+        ]
+
+    # ---------------------------------------------------------------- surface
+    def _frame_rows(self) -> list[dict]:
+        return [
+            {
+                "name": n,
+                "value": float(v),
+                "std": float(s),
+                "std_coloured": float(c),
+                "free": bool(f),
+                "unit": u,
+                "initial": float(i),
+            }
+            for n, v, s, c, f, u, i in zip(
+                self.names,
+                self.values,
+                self.std,
+                self.std_coloured,
+                self.free,
+                self.units,
+                self.initial,
+                strict=True,
+            )
+        ]
+
+    def conf_int(self, level: float = 0.95) -> np.ndarray:
+        """Normal intervals θ̂ ± z·σ (Cramér–Rao) of the estimated parameters, (n, 2)."""
+        from flightid.results import t_intervals
+
+        return t_intervals(self.values[self.free], self.std[self.free], level, 0, "normal")
+
+    @property
+    def conf_int_names(self) -> list[str]:
+        return [n for n, f in zip(self.names, self.free, strict=True) if f]
+
+    def summary(self) -> str:
+        band = self.settings.band_hz
+        lines = [
+            f"{self.title}",
+            f"frequency-domain {self.method.replace('_', ' ')}, band {band[0]:g}–{band[1]:g} Hz, "
+            f"step {self.settings.step_hz:g} Hz, {self.frequencies_hz.size} frequencies × "
+            f"{len(self.spectra)} maneuver(s)",
+            f"status: {'converged' if self.converged else 'NOT CONVERGED'} ({self.message})",
+            "",
+            f"{'parameter':<12}{'estimate':>14}{'std (CR)':>12}{'std (col.)':>12}{'start':>12}",
+        ]
+        for row in self._frame_rows():
+            if row["free"]:
+                lines.append(
+                    f"{row['name']:<12}{row['value']:>14.6g}{row['std']:>12.3g}"
+                    f"{row['std_coloured']:>12.3g}{row['initial']:>12.6g}"
+                )
+            else:
+                lines.append(
+                    f"{row['name']:<12}{row['value']:>14.6g}{'—':>12}{'—':>12}"
+                    f"{row['initial']:>12.6g}   not estimated"
+                )
+        if self.not_estimated:
+            lines += ["", "not estimated: " + ", ".join(self.not_estimated) + " — " + BIAS_REASON]
+        if self.nuisance:
+            lines += [
+                "",
+                f"nuisance (per maneuver, deviations from the mean): {len(self.nuisance)} values",
+            ]
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """One results.json entry (``docs/schema/results.schema.json``)."""
+        parameters = []
+        for row in self._frame_rows():
+            entry = {
+                "name": row["name"],
+                "value": finite_or_none(row["value"]),
+                "std": finite_or_none(row["std"]) if row["free"] else None,
+                "free": row["free"],
+                "unit": row["unit"],
+                "initial": finite_or_none(row["initial"]),
+                "estimated": row["free"],
+                "std_coloured": finite_or_none(row["std_coloured"]) if row["free"] else None,
+            }
+            if row["name"] in self.not_estimated:
+                entry["note"] = self.not_estimated[row["name"]]
+            parameters.append(entry)
+        return {
+            "method": f"frequency_{self.method}",
+            "converged": bool(self.converged),
+            "status": "converged" if self.converged else "not_converged",
+            "message": self.message,
+            "cost": None if self.cost is None else finite_or_none(self.cost),
+            "iterations": int(self.iterations),
+            "noise_cycles": int(self.noise_cycles),
+            "wall_time_s": float(self.wall_time_s),
+            "outputs": list(self.outputs),
+            "parameters": parameters,
+            "frequency_domain": {
+                "band_hz": list(self.settings.band_hz),
+                "step_hz": self.settings.step_hz,
+                "n_frequencies": int(self.frequencies_hz.size),
+                "detrend": self.settings.detrend,
+                "boundary": self.settings.boundary,
+                "constants": self.settings.constants,
+                "input_quadrature": self.settings.input_quadrature,
+                "output_quadrature": self.settings.output_quadrature,
+                "not_estimated": dict(self.not_estimated),
+                "nuisance": [
+                    {"name": n, "value": finite_or_none(v), "std": finite_or_none(s)}
+                    for n, v, s in self.nuisance
+                ],
+                "S_diagonal": (
+                    None if self.S is None else [float(np.real(v)) for v in np.diag(self.S)]
+                ),
+                "std_note": "std: Cramér–Rao M⁻¹; std_coloured: coloured-residual sandwich "
+                "(flightid.frequency.output_error)",
+            },
+            "case": dict(self.case_info),
+            "maneuvers": list(self.maneuvers),
+        }
+
+    def plot(self, path: str | Path | None = None, *, dpi: int = 120):
+        """The Bode figure (``flightid.frequency.plots.bode_figure``); PNG at ``path``."""
+        from flightid.frequency.plots import bode_figure
+
+        figure = bode_figure(self)
+        if path is not None:
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            figure.savefig(path, dpi=dpi)
+        return figure
+
+    def write_files(self, directory: Path) -> Path:
+        """results.json, frequency_spectra.csv, frequency_bode.png, frequency_spectra.png."""
+        import matplotlib.pyplot as plt
+
+        from flightid.frequency.plots import spectra_figure
+        from flightid.report.jsonout import dumps
+        from flightid.results import results_document
+
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        main = directory / "results.json"
+        main.write_text(dumps(results_document([self.to_dict()])) + "\n", encoding="utf-8")
+        header = ["maneuver", "frequency_hz"]
+        for o in self.outputs:
+            header += [f"{o}_measured_re", f"{o}_measured_im", f"{o}_model_re", f"{o}_model_im"]
+        rows = []
+        for m, (f, z, y) in enumerate(self.output_transforms(), start=1):
+            for k in range(f.size):
+                row = [str(m), repr(float(f[k]))]
+                for j in range(len(self.outputs)):
+                    row += [
+                        repr(float(v))
+                        for v in (z[k, j].real, z[k, j].imag, y[k, j].real, y[k, j].imag)
+                    ]
+                rows.append(",".join(row))
+        (directory / "frequency_spectra.csv").write_text(
+            ",".join(header) + "\n" + "\n".join(rows) + "\n", encoding="utf-8"
+        )
+        for name, figure in (
+            ("frequency_bode.png", self.plot()),
+            ("frequency_spectra.png", spectra_figure(self)),
+        ):
+            figure.savefig(directory / name, dpi=100)
+            plt.close(figure)
+        return main
+
+
+Progress = Callable[[str], None]
+
+
+def run_frequency_case(
+    case, data_dir: str | Path | None = None, progress: Progress | None = None
+) -> FrequencyResult:
+    """Run the case's frequency-domain estimation; ``CaseError`` for a malformed table or a
+    model the frequency domain cannot take."""
+    from flightid.cases.build import build_model, load_maneuvers, resolve_data_dir
+    from flightid.frequency.equation_error import equation_error
+    from flightid.frequency.fourier import frequency_grid, maneuver_spectra
+    from flightid.frequency.linear_system import bias_like_parameters, linear_system
+    from flightid.frequency.output_error import model_response, output_error
+
+    settings = frequency_settings(case.frequency_domain)
+    started = _time.perf_counter()
+    directory = resolve_data_dir(case, data_dir)
+    maneuvers = load_maneuvers(case, directory)
+    model, maneuvers = build_model(case, maneuvers)
+    try:
+        linear_system(model)
+        bias_like = bias_like_parameters(model)
+    except InputError as exc:
+        raise CaseError(f"model: {exc}") from None
+    x0_names = {
+        p.name for p in model.parameters if p.name.startswith("x0_") and p.name not in bias_like
+    }
+    names = tuple(model.parameters.names)
+    free_case = model.parameters.free_mask.copy()
+    not_estimated = {n: BIAS_REASON for n in bias_like}
+    for n in x0_names:
+        if free_case[names.index(n)]:
+            not_estimated[n] = (
+                "not estimated: initial states enter as the per-maneuver boundary nuisance "
+                "values x(0), x(T)"
+            )
+    free = np.array([f and n not in not_estimated for n, f in zip(names, free_case, strict=True)])
+    if not free.any():
+        raise CaseError("frequency_domain: the model has no free parameter the band can determine")
+    try:
+        frequencies = frequency_grid(settings.band_hz, settings.step_hz)
+        spectra = []
+        for m in maneuvers:
+            inputs = np.column_stack([m.input(n) for n in model.inputs])
+            outputs = np.column_stack([m.output(n) for n in model.outputs])
+            spectra.append(
+                maneuver_spectra(
+                    m.time,
+                    inputs,
+                    outputs,
+                    frequencies,
+                    detrend=settings.detrend,
+                    input_quadrature=settings.input_quadrature,
+                    output_quadrature=settings.output_quadrature,
+                    name=m.name,
+                )
+            )
+    except InputError as exc:
+        raise CaseError(f"frequency_domain: {exc}") from None
+    if progress is not None:
+        progress(
+            f"frequency domain: {frequencies.size} frequencies in {settings.band_hz} Hz × "
+            f"{len(spectra)} maneuver(s), {int(free.sum())} parameters, {settings.method}"
+        )
+
+    def system_of(theta):
+        return linear_system(model, theta)
+
+    theta0 = model.parameters.values.astype(float)
+    states, outputs = tuple(model.states), tuple(model.outputs)
+    try:
+        if settings.method == "equation_error" or settings.start == "equation_error":
+            ee = equation_error(
+                system_of,
+                theta0,
+                free,
+                spectra,
+                states,
+                outputs,
+                boundary=settings.boundary,
+                constants=settings.constants,
+            )
+        if settings.method == "equation_error":
+            undetermined = [
+                n for n, f, e in zip(names, free, ee.estimated, strict=True) if f and not e
+            ]
+            if undetermined:
+                raise CaseError(
+                    f"frequency_domain.method: equation error determines no equation for "
+                    f'{undetermined}; use method = "output_error"'
+                )
+            system = system_of(ee.theta)
+            model_outputs = tuple(
+                model_response(system, s, None, boundary=False, constants=False) for s in spectra
+            )
+            values, std, std_col = ee.theta, ee.std, np.full(ee.theta.size, np.nan)
+            S = cost = None
+            converged, message, cycles, iterations = True, "closed-form least squares", 0, 0
+            nuisance: tuple = ()
+        else:
+            start = ee.theta if settings.start == "equation_error" else theta0
+            fit = output_error(
+                system_of,
+                start,
+                free,
+                spectra,
+                states,
+                outputs,
+                boundary=settings.boundary,
+                constants=settings.constants,
+                max_noise_cycles=settings.max_noise_cycles,
+                tolerance=settings.tolerance,
+                scales=np.maximum(np.abs(start), 0.01),
+            )
+            values, std, std_col = fit.theta, fit.std, fit.std_coloured
+            S, cost = fit.S, fit.cost
+            converged, message = fit.converged, fit.message
+            cycles, iterations = fit.noise_cycles, fit.iterations
+            model_outputs = fit.model_outputs
+            nuisance = tuple(zip(fit.nuisance_names, fit.nuisance, fit.nuisance_std, strict=True))
+            system = system_of(values)
+    except InputError as exc:
+        if isinstance(exc, CaseError):
+            raise
+        raise CaseError(f"frequency_domain: {exc}") from None
+    result = FrequencyResult(
+        title=case.title,
+        method=settings.method,
+        settings=settings,
+        names=names,
+        values=np.asarray(values, dtype=float),
+        initial=theta0,
+        std=np.where(free, std, np.nan),
+        std_coloured=np.where(free, std_col, np.nan),
+        free=free,
+        units=tuple(p.unit for p in model.parameters),
+        not_estimated=not_estimated,
+        nuisance=nuisance,
+        states=states,
+        inputs=tuple(model.inputs),
+        outputs=outputs,
+        frequencies_hz=frequencies,
+        spectra=tuple(spectra),
+        model_outputs=tuple(model_outputs),
+        system=system,
+        S=S,
+        cost=cost,
+        converged=converged,
+        message=message,
+        noise_cycles=cycles,
+        iterations=iterations,
+        wall_time_s=_time.perf_counter() - started,
+        case_info={"title": case.title, "file": str(case.path)},
+        maneuvers=tuple({"name": m.name, "samples": m.n_samples, "dt": m.dt} for m in maneuvers),
+    )
+    if not np.all(np.isfinite(result.values[free])) or not np.all(np.isfinite(result.std[free])):
+        raise CaseError(
+            "frequency_domain: the estimate has non-finite values or bounds; the band does not "
+            "determine every free parameter"
+        )
+    return result

@@ -1,0 +1,239 @@
+"""Frequency-domain equation error: complex least squares with real parameters.
+
+For a linear model with measured states, each state equation holds at every frequency ω of
+the band (Morelli & Klein, *Aircraft System Identification*, 2nd ed., ch. 7):
+
+    jω X_i(ω) + x_i(T) e^{−jωT} − x_i(0) = Σ_j A_ij X_j(ω) + Σ_k B_ik U_k(ω) + c_i E(ω)
+
+where X, U are finite Fourier transforms (``flightid.frequency.fourier``) and E the
+transform of the constant 1. The model parameters θ enter [A B] affinely,
+row_i(θ) = r_i0 + Σ_p θ_p g_ip, so each equation is a complex linear regression
+
+    z(ω) = jω X_i(ω) − r_i0 [X; U](ω) = Σ_p θ_p g_ip [X; U](ω) + x_i(0) − x_i(T) e^{−jωT}
+           + c_i E(ω) + ε(ω)
+
+with real unknowns. Stacking real and imaginary parts, the least-squares estimate and its
+covariance are
+
+    θ̂ = [Re(XᴴX)]⁻¹ Re(Xᴴz),      Cov(θ̂) = σ̂² [Re(XᴴX)]⁻¹,
+    σ̂² = Σ_ω |ε(ω)|² / (2K − n_p)
+
+(2K real equations; each real component of a circular complex residual of variance s has
+variance s/2, which is what σ̂² estimates). The boundary values and constants are per-maneuver
+nuisance regressors. Output equations y_o = C_o x + D_o u + d_o whose parameters appear in
+no state equation (e.g. a_y = Y_p p + ... of the lateral model) are fitted the same way with
+Z_o(ω) as the response; outputs whose parameters the state equations already determine (ṗ,
+ṙ) are not refitted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightid.errors import InputError
+from flightid.frequency.fourier import ManeuverSpectra
+from flightid.frequency.linear_system import LinearSystem
+
+__all__ = ["ComplexRegression", "complex_least_squares", "EquationErrorFit", "equation_error"]
+
+
+@dataclass(frozen=True)
+class ComplexRegression:
+    """θ̂ (p,), Cov (p, p), σ̂², residuals ε (K,) of one complex regression."""
+
+    theta: np.ndarray
+    covariance: np.ndarray
+    sigma2: float
+    residuals: np.ndarray
+    r_squared: float
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+
+def complex_least_squares(regressors: np.ndarray, response: np.ndarray) -> ComplexRegression:
+    """Real θ minimising Σ|z − Xθ|² for complex X (K, p) and z (K,)."""
+    X = np.asarray(regressors, dtype=complex)
+    z = np.asarray(response, dtype=complex).reshape(-1)
+    if X.ndim != 2 or X.shape[0] != z.shape[0]:
+        raise InputError(
+            f"regressors: expected a (K, p) array with K = {z.shape[0]} rows, got {X.shape}"
+        )
+    k, p = X.shape
+    if 2 * k <= p:
+        raise InputError(f"regressors: {2 * k} real equations cannot determine {p} parameters")
+    # Re(XᴴX) θ = Re(Xᴴz)
+    normal = np.real(X.conj().T @ X)
+    try:
+        inverse = np.linalg.inv(normal)
+    except np.linalg.LinAlgError:
+        raise InputError(
+            "regressors: Re(XᴴX) is singular; a parameter has no independent regressor on this band"
+        ) from None
+    theta = inverse @ np.real(X.conj().T @ z)
+    residuals = z - X @ theta
+    # σ̂² = Σ|ε|² / (2K − p)
+    sigma2 = float(np.sum(np.abs(residuals) ** 2) / (2 * k - p))
+    total = float(np.sum(np.abs(z - z.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(np.abs(residuals) ** 2)) / total if total > 0 else float("nan")
+    return ComplexRegression(theta, sigma2 * inverse, sigma2, residuals, r2)
+
+
+@dataclass(frozen=True)
+class EquationErrorFit:
+    """Estimates of the model parameters (full vector; fixed and undetermined ones keep
+    their start values and have NaN std) and one regression per fitted equation."""
+
+    theta: np.ndarray
+    std: np.ndarray
+    estimated: np.ndarray  # boolean mask: the parameters some regression determined
+    equations: dict[str, ComplexRegression]
+
+
+def _affine_rows(
+    system_of: Callable[[np.ndarray], LinearSystem], theta: np.ndarray, free: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """[A B] and [C D] at θ with the free parameters zeroed, and their slopes per free θ_p."""
+
+    def blocks(th):
+        s = system_of(th)
+        return np.hstack([s.A, s.B]), np.hstack([s.C, s.D])
+
+    base = theta.copy()
+    base[free] = 0.0
+    ab0, cd0 = blocks(base)
+    slopes_ab, slopes_cd = [], []
+    for j in np.flatnonzero(free):
+        unit = base.copy()
+        unit[j] = 1.0
+        ab, cd = blocks(unit)
+        slopes_ab.append(ab - ab0)
+        slopes_cd.append(cd - cd0)
+    rng = np.random.default_rng(7)
+    probe = theta.copy()
+    probe[free] = rng.standard_normal(int(free.sum()))
+    ab, cd = blocks(probe)
+    ab_lin = ab0 + np.tensordot(probe[free], np.array(slopes_ab), axes=1) if slopes_ab else ab0
+    cd_lin = cd0 + np.tensordot(probe[free], np.array(slopes_cd), axes=1) if slopes_cd else cd0
+    if not (np.allclose(ab, ab_lin, atol=1e-9) and np.allclose(cd, cd_lin, atol=1e-9)):
+        raise InputError(
+            "model: frequency-domain equation error needs A, B, C, D affine in the free "
+            'parameters (use method = "output_error")'
+        )
+    return ab0, cd0, np.array(slopes_ab), np.array(slopes_cd)
+
+
+def equation_error(
+    system_of: Callable[[np.ndarray], LinearSystem],
+    theta_start: np.ndarray,
+    free: np.ndarray,
+    spectra: Sequence[ManeuverSpectra],
+    states: Sequence[str],
+    outputs: Sequence[str],
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+) -> EquationErrorFit:
+    """Estimate the free parameters by frequency-domain equation error.
+
+    Every state must be measured: an output whose row of [C D] is the unit vector of that
+    state (the output named like the state, typically).
+    """
+    theta_start = np.asarray(theta_start, dtype=float)
+    free = np.asarray(free, dtype=bool)
+    n_x = len(states)
+    ab0, cd0, g_ab, g_cd = _affine_rows(system_of, theta_start, free)
+    n_z = ab0.shape[1]
+    # which output measures state i: a row [C D] = e_i
+    measured = []
+    for i, state in enumerate(states):
+        unit = np.zeros(n_z)
+        unit[i] = 1.0
+        rows = [
+            o for o in range(cd0.shape[0]) if np.allclose(cd0[o], unit) and not np.any(g_cd[:, o])
+        ]
+        if not rows:
+            raise InputError(
+                f"model: equation error needs every state measured; no output equals state "
+                f'{state!r} (outputs: {list(outputs)}); use method = "output_error"'
+            )
+        measured.append(rows[0])
+    free_index = np.flatnonzero(free)
+    n_m = len(spectra)
+
+    def nuisance_columns(
+        k: int, s: ManeuverSpectra, total_rows: int, row0: int
+    ) -> list[np.ndarray]:
+        cols = []
+        basis = []
+        if boundary:
+            # x(0) − x(T) e^{−jωT}: one column when e^{−jωT} is the same at every ω
+            basis += [np.ones_like(s.constant)] + ([] if s.end_phase_constant else [-s.end_phase])
+        if constants:
+            basis += [s.constant]
+        for b in basis:
+            col = np.zeros(total_rows, dtype=complex)
+            col[row0 : row0 + b.size] = b
+            cols.append(col)
+        return cols
+
+    total = sum(s.frequencies_hz.size for s in spectra)
+    theta = theta_start.copy()
+    std = np.full(theta.size, np.nan)
+    estimated = np.zeros(theta.size, dtype=bool)
+    equations: dict[str, ComplexRegression] = {}
+    # measured state and input transforms [X; U] per maneuver, stacked (total, n_z)
+    xu = np.concatenate([np.hstack([s.outputs[:, measured], s.inputs]) for s in spectra], axis=0)
+    jw = np.concatenate([1j * s.omega_rad_s for s in spectra])
+    state_params: set[int] = set()
+    for i, state in enumerate(states):
+        used = [q for q in range(free_index.size) if np.any(g_ab[q, i])]
+        state_params.update(used)
+        # z = jω X_i − r_i0 [X; U]
+        response = jw * xu[:, i] - xu @ ab0[i]
+        columns = [xu @ g_ab[q, i] for q in used]
+        row0 = 0
+        for k, s in enumerate(spectra):
+            columns += nuisance_columns(k, s, total, row0)
+            row0 += s.frequencies_hz.size
+        fit = complex_least_squares(np.column_stack(columns), response)
+        equations[f"d{state}/dt"] = fit
+        for col, q in enumerate(used):
+            j = free_index[q]
+            theta[j] = fit.theta[col]
+            std[j] = fit.std[col]
+            estimated[j] = True
+    for o, output in enumerate(outputs):
+        if o in measured:
+            continue
+        used = [q for q in range(free_index.size) if np.any(g_cd[q, o])]
+        own = [q for q in used if q not in state_params]
+        if not own:
+            continue  # its parameters come from the state equations (ṗ = f_p, ...)
+        known = theta.copy()
+        known[free_index[own]] = 0.0
+        # contribution of everything but its own parameters: [C D](θ with own = 0) [X; U]
+        cd_known = cd0[o] + sum(known[free_index[q]] * g_cd[q, o] for q in range(free_index.size))
+        z_o = np.concatenate([s.outputs[:, o] for s in spectra])
+        response = z_o - xu @ cd_known
+        columns = [xu @ g_cd[q, o] for q in own]
+        if constants:
+            row0 = 0
+            for s in spectra:
+                col = np.zeros(total, dtype=complex)
+                col[row0 : row0 + s.frequencies_hz.size] = s.constant
+                columns.append(col)
+                row0 += s.frequencies_hz.size
+        fit = complex_least_squares(np.column_stack(columns), response)
+        equations[output] = fit
+        for col, q in enumerate(own):
+            j = free_index[q]
+            theta[j] = fit.theta[col]
+            std[j] = fit.std[col]
+            estimated[j] = True
+    del n_x, n_m
+    return EquationErrorFit(theta, std, estimated, equations)

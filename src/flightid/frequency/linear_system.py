@@ -1,0 +1,131 @@
+"""A state-space model as matrices: ẋ = f_0 + A x + B u,  y = h_0 + C x + D u.
+
+The frequency-domain estimators work with linear models. A ``StateSpaceModel`` whose f and
+h are linear in the states and inputs (the ATTAS short-period and lateral models are) is put
+in matrix form by evaluating it at x = 0, u = 0 and at unit vectors; because f and h are
+affine, these differences are exact, not finite-difference approximations:
+
+    f_0 = f(0, 0, θ),   A[:, i] = f(e_i, 0, θ) − f_0,   B[:, k] = f(0, e_k, θ) − f_0
+    h_0 = h(0, 0, θ),   C[:, i] = h(e_i, 0, θ) − h_0,   D[:, k] = h(0, e_k, θ) − h_0
+
+``linear_system`` then checks the affine form at a few random points and raises
+``InputError`` if the model is not linear in x and u (a nonlinear model has to be
+linearised about a trim point first). The constants f_0, h_0 hold bias-like parameters
+(Z_0, M_0, state and output biases); a parameter that moves only f_0 or h_0 is invisible to a
+frequency-domain fit on a band that excludes ω = 0 once the means are removed
+(``bias_like_parameters``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flightid.errors import InputError
+from flightid.model.statespace import StateSpaceModel
+
+__all__ = ["LinearSystem", "linear_system", "bias_like_parameters"]
+
+
+@dataclass(frozen=True)
+class LinearSystem:
+    """Matrices of ẋ = f0 + A x + B u, y = h0 + C x + D u (SI units of the channels)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    f0: np.ndarray
+    h0: np.ndarray
+
+
+def _call(fn, x: np.ndarray, u: np.ndarray, theta: np.ndarray, size: int) -> np.ndarray:
+    value = np.asarray(fn(0.0, x, u, theta), dtype=float).reshape(-1)
+    if value.shape[0] != size:
+        raise InputError(
+            f"model: a model function returned {value.shape[0]} values, expected {size}"
+        )
+    return value
+
+
+def linear_system(model: StateSpaceModel, theta: np.ndarray | None = None) -> LinearSystem:
+    """The model's matrices at the parameter vector ``theta`` (full vector; default: the
+    model's values).
+
+    Raises:
+        InputError: the model has per-maneuver parameters or delays, or f / h are not
+            affine in (x, u) (checked at three seeded random points).
+    """
+    if model.maneuver_parameters:
+        raise InputError(
+            "model: frequency-domain estimation takes one parameter set for all maneuvers; "
+            f"got per-maneuver parameters {sorted(model.maneuver_parameters)}"
+        )
+    if model.output_delays or model.input_delays:
+        raise InputError(
+            "model: output and input delays are not supported by the frequency-domain "
+            "estimators (a delay is a factor e^{-jωτ}); remove them from [model]"
+        )
+    if model.f is None or not model.states:
+        raise InputError("model: frequency-domain estimation needs a model with states (f)")
+    theta = model.parameters.values if theta is None else np.asarray(theta, dtype=float)
+    theta_f = model.function_theta(theta)
+    n_x, n_u, n_y = len(model.states), len(model.inputs), len(model.outputs)
+    zx, zu = np.zeros(n_x), np.zeros(n_u)
+    f0 = _call(model.f, zx, zu, theta_f, n_x)
+    h0 = _call(model.h, zx, zu, theta_f, n_y)
+    A = np.empty((n_x, n_x))
+    C = np.empty((n_y, n_x))
+    for i in range(n_x):
+        e = np.zeros(n_x)
+        e[i] = 1.0
+        # A[:, i] = f(e_i, 0) − f_0
+        A[:, i] = _call(model.f, e, zu, theta_f, n_x) - f0
+        C[:, i] = _call(model.h, e, zu, theta_f, n_y) - h0
+    B = np.empty((n_x, n_u))
+    D = np.empty((n_y, n_u))
+    for k in range(n_u):
+        e = np.zeros(n_u)
+        e[k] = 1.0
+        # B[:, k] = f(0, e_k) − f_0
+        B[:, k] = _call(model.f, zx, e, theta_f, n_x) - f0
+        D[:, k] = _call(model.h, zx, e, theta_f, n_y) - h0
+    rng = np.random.default_rng(20261126)
+    for _ in range(3):
+        x = rng.standard_normal(n_x)
+        u = rng.standard_normal(n_u)
+        f_lin = f0 + A @ x + B @ u
+        h_lin = h0 + C @ x + D @ u
+        f_true = _call(model.f, x, u, theta_f, n_x)
+        h_true = _call(model.h, x, u, theta_f, n_y)
+        scale = 1.0 + np.abs(f_true).max() + np.abs(h_true).max()
+        gap = max(np.abs(f_true - f_lin).max(), np.abs(h_true - h_lin).max())
+        if not np.isfinite(gap) or gap > 1e-8 * scale:
+            raise InputError(
+                "model: frequency-domain estimation needs f and h linear in the states and "
+                f"inputs; at a random (x, u) they differ from their affine form by {gap:.3g} "
+                "(linearise the model about a trim point first)"
+            )
+    return LinearSystem(A, B, C, D, f0, h0)
+
+
+def bias_like_parameters(model: StateSpaceModel) -> list[str]:
+    """Free parameters that move only f_0 or h_0 (not A, B, C, D): biases, which a band
+    excluding ω = 0 on mean-removed data cannot determine."""
+    theta = model.parameters.values.astype(float)
+    base = linear_system(model, theta)
+    names = []
+    for j, name in enumerate(model.parameters.names):
+        if not model.parameters.free_mask[j]:
+            continue
+        step = np.zeros_like(theta)
+        step[j] = 1.0 + abs(theta[j])
+        moved = linear_system(model, theta + step)
+        same = all(
+            np.allclose(getattr(moved, key), getattr(base, key), rtol=1e-12, atol=1e-12)
+            for key in ("A", "B", "C", "D")
+        )
+        if same:
+            names.append(name)
+    return names

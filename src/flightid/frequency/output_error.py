@@ -1,0 +1,386 @@
+"""Frequency-domain output error for a linear state-space model.
+
+Model (Morelli & Klein, *Aircraft System Identification*, 2nd ed., ch. 7): on each maneuver
+of length T, the finite Fourier transforms X, U, Y of states, inputs and outputs at ω on the
+band satisfy, exactly for ẋ = A x + B u + c, y = C x + D u + d,
+
+    jω X(ω) + x(T) e^{−jωT} − x(0) = A X(ω) + B U(ω) + c E(ω)
+    Y(ω) = C X(ω) + D U(ω) + d E(ω),                 E(ω) = ∫_0^T e^{−jωτ} dτ
+
+so that the model output is
+
+    Y(ω) = C (jωI − A)⁻¹ [B U(ω) + c E(ω) + x(0) − x(T) e^{−jωT}] + D U(ω) + d E(ω).
+
+The boundary values x(0), x(T) and the constants c, d (what is left of biases after the
+means were removed) enter linearly; they are estimated with the model parameters as
+per-maneuver nuisance parameters (``boundary``, ``constants``), because data that do not
+start and end at trim otherwise leave a transient the model cannot explain. With the
+residuals ε(ω) = Z(ω) − Y(ω) the cost is
+
+    J(θ) = Σ_ω ε(ω)ᴴ S⁻¹ ε(ω),        S = (1/K) Σ_ω ε(ω) ε(ω)ᴴ          (K frequencies)
+
+minimised, for S fixed, by Gauss–Newton with a Levenberg–Marquardt safeguard
+(``scipy.optimize.least_squares``, method "lm") on the real-stacked weighted residuals
+r = [Re(Lᴴε); Im(Lᴴε)] with S⁻¹ = L Lᴴ; S is then re-estimated from the residuals and the
+two steps alternate until S and J settle (as the time-domain output-error method does with
+R). The sensitivities ∂Y/∂θ are central differences of the model response; they are exact
+for the nuisance parameters, in which Y is linear.
+
+Accuracy. For a circular complex residual with covariance S, each of the 2 n_y real
+components of r has variance ½, so the Fisher information is
+
+    M = 2 Σ_ω Re[∂Yᴴ/∂θ S⁻¹ ∂Y/∂θ] = 2 J_rᵀ J_r ,      Cov(θ̂) ≈ M⁻¹     (Cramér–Rao)
+
+(Morelli & Klein write the same matrix with the transform normalisation folded into S).
+The transforms at frequencies closer than 1/T are correlated, and model error colours the
+residuals across frequency; the coloured-residual correction is the sandwich
+
+    Cov_c(θ̂) = H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹,      H = J_rᵀ J_r,
+    R̂(m) = (1/K) Σ_k r_{k+m} r_kᵀ       (per maneuver, all lags; zero between maneuvers)
+
+the frequency-index analogue of Morelli & Klein's correction of the least-squares and
+output-error covariance for coloured residuals (their ch. 5 and 6; Morelli & Klein, "Determining
+the accuracy of maximum likelihood parameter estimates with colored residuals", NASA
+CR-194893, 1994). With white residuals R̂(0) → ½I, R̂(m ≠ 0) → 0 and it reduces to M⁻¹.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from flightid.errors import EstimationError, InputError
+from flightid.frequency.fourier import ManeuverSpectra
+from flightid.frequency.linear_system import LinearSystem
+
+__all__ = ["OutputErrorFit", "model_response", "nuisance_names", "output_error"]
+
+SystemFunction = Callable[[np.ndarray], LinearSystem]
+
+
+@dataclass(frozen=True)
+class OutputErrorFit:
+    """The frequency-domain output-error estimate.
+
+    ``theta`` is the full model parameter vector (fixed ones at their given values);
+    ``std`` and ``std_coloured`` are NaN for fixed parameters. Nuisance parameters (boundary
+    values, constants) are listed separately.
+    """
+
+    theta: np.ndarray
+    free: np.ndarray
+    std: np.ndarray
+    std_coloured: np.ndarray
+    covariance: np.ndarray  # free model parameters, M⁻¹
+    covariance_coloured: np.ndarray
+    nuisance_names: tuple[str, ...]
+    nuisance: np.ndarray
+    nuisance_std: np.ndarray
+    S: np.ndarray
+    cost: float
+    noise_cycles: int
+    iterations: int
+    converged: bool
+    message: str
+    model_outputs: tuple[np.ndarray, ...]
+    residuals: tuple[np.ndarray, ...]
+    cost_history: tuple[float, ...] = field(default_factory=tuple)
+
+
+def nuisance_names(
+    states: Sequence[str],
+    outputs: Sequence[str],
+    spectra: Sequence[ManeuverSpectra],
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+) -> list[str]:
+    """Names of the per-maneuver nuisance parameters, maneuver by maneuver: x(0) ``x0_s``,
+    x(T) ``xT_s`` (one ``x0_xT_s`` = x(0) − x(T)e^{−jωT} where e^{−jωT} is the same at every
+    frequency), state constants ``c_s``, output constants ``d_o`` (suffix ``_k``, k = 1...)."""
+    names = []
+    for k, s in enumerate(spectra, start=1):
+        if boundary and s.end_phase_constant:
+            names += [f"x0_xT_{x}_{k}" for x in states]
+        elif boundary:
+            names += [f"x0_{x}_{k}" for x in states] + [f"xT_{x}_{k}" for x in states]
+        if constants:
+            names += [f"c_{x}_{k}" for x in states] + [f"d_{o}_{k}" for o in outputs]
+    return names
+
+
+def _per_maneuver_count(
+    n_x: int, n_y: int, boundary: bool, constants: bool, merged: bool = False
+) -> int:
+    return ((n_x if merged else 2 * n_x) if boundary else 0) + (n_x + n_y if constants else 0)
+
+
+def model_response(
+    system: LinearSystem,
+    spectra: ManeuverSpectra,
+    nuisance: np.ndarray | None = None,
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+) -> np.ndarray:
+    """Y(ω) (K, n_y) of one maneuver; ``nuisance`` holds this maneuver's x(0), x(T), c, d in
+    the order of ``nuisance_names`` (zeros when None)."""
+    A, B, C, D = system.A, system.B, system.C, system.D
+    n_x, n_y = A.shape[0], C.shape[0]
+    merged = spectra.end_phase_constant
+    if nuisance is None:
+        nuisance = np.zeros(_per_maneuver_count(n_x, n_y, boundary, constants, merged))
+    omega = spectra.omega_rad_s
+    # right-hand side B U(ω) (K, n_x)
+    rhs = spectra.inputs @ B.T
+    i = 0
+    if boundary and merged:
+        # + (x(0) − x(T) e^{−jωT}), one constant vector
+        rhs = rhs + nuisance[None, :n_x]
+        i += n_x
+    elif boundary:
+        x_start, x_end = nuisance[i : i + n_x], nuisance[i + n_x : i + 2 * n_x]
+        i += 2 * n_x
+        # + x(0) − x(T) e^{−jωT}
+        rhs = rhs + x_start[None, :] - spectra.end_phase[:, None] * x_end[None, :]
+    if constants:
+        c, d = nuisance[i : i + n_x], nuisance[i + n_x : i + n_x + n_y]
+        # + c E(ω)
+        rhs = rhs + spectra.constant[:, None] * c[None, :]
+    # X(ω) = (jωI − A)⁻¹ rhs(ω)
+    resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
+    states = np.linalg.solve(resolvent, rhs[:, :, None])[:, :, 0]
+    # Y(ω) = C X + D U (+ d E)
+    y = states @ C.T + spectra.inputs @ D.T
+    if constants:
+        y = y + spectra.constant[:, None] * d[None, :]
+    return y
+
+
+def _real_stack(weighted: np.ndarray) -> np.ndarray:
+    # (K, n_y) complex → (K, 2 n_y) real: [Re, Im] per frequency
+    return np.concatenate([weighted.real, weighted.imag], axis=1)
+
+
+def output_error(
+    system_of: SystemFunction,
+    theta_start: np.ndarray,
+    free: np.ndarray,
+    spectra: Sequence[ManeuverSpectra],
+    states: Sequence[str],
+    outputs: Sequence[str],
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+    max_noise_cycles: int = 30,
+    tolerance: float = 1e-6,
+    scales: np.ndarray | None = None,
+) -> OutputErrorFit:
+    """Estimate the free entries of θ by frequency-domain output error.
+
+    Args:
+        system_of: θ (full vector) → ``LinearSystem``.
+        theta_start: start values (n_p,); fixed entries keep theta_start.
+        free: boolean mask (n_p,).
+        spectra: the maneuvers' transforms (``maneuver_spectra``), all on n_y outputs.
+        states, outputs: names (for nuisance names and messages).
+        boundary: estimate x(0), x(T) per maneuver; constants: estimate c, d per maneuver.
+        max_noise_cycles: alternations of the S update and the fit.
+        tolerance: relative change of J and of diag S that ends the alternation.
+        scales: typical magnitudes of θ (for the difference steps); default max(|θ|, 0.01).
+    """
+    theta_start = np.asarray(theta_start, dtype=float)
+    free = np.asarray(free, dtype=bool)
+    if theta_start.shape != free.shape or theta_start.ndim != 1:
+        raise InputError(
+            f"free: expected a mask of the shape of theta_start {theta_start.shape}, "
+            f"got {free.shape}"
+        )
+    if not spectra:
+        raise InputError("spectra: expected at least one maneuver")
+    n_x, n_y = len(states), len(outputs)
+    for s in spectra:
+        if s.outputs.shape[1] != n_y:
+            raise InputError(
+                f"spectra: maneuver {s.name!r} has {s.outputs.shape[1]} outputs, expected {n_y}"
+            )
+    counts = [
+        _per_maneuver_count(n_x, n_y, boundary, constants, s.end_phase_constant) for s in spectra
+    ]
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    n_nuisance = int(starts[-1])
+    nuis_names = nuisance_names(states, outputs, spectra, boundary=boundary, constants=constants)
+    n_free = int(free.sum())
+    n_total_freq = sum(s.frequencies_hz.size for s in spectra)
+    n_unknowns = n_free + n_nuisance
+    if 2 * n_y * n_total_freq <= n_unknowns:
+        raise InputError(
+            f"band_hz/step_hz: {n_total_freq} frequencies give {2 * n_y * n_total_freq} real "
+            f"equations for {n_unknowns} unknowns; widen the band or refine the step"
+        )
+    scales = np.maximum(np.abs(theta_start), 0.01) if scales is None else np.asarray(scales, float)
+
+    def unpack(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        theta = theta_start.copy()
+        theta[free] = p[:n_free]
+        return theta, p[n_free:]
+
+    def responses(p: np.ndarray) -> list[np.ndarray]:
+        theta, nuis = unpack(p)
+        system = system_of(theta)
+        out = []
+        for k, s in enumerate(spectra):
+            out.append(
+                model_response(
+                    system,
+                    s,
+                    nuis[starts[k] : starts[k + 1]],
+                    boundary=boundary,
+                    constants=constants,
+                )
+            )
+        return out
+
+    def residual_blocks(p: np.ndarray) -> list[np.ndarray]:
+        # ε(ω) = Z(ω) − Y(ω)
+        return [s.outputs - y for s, y in zip(spectra, responses(p), strict=True)]
+
+    def weighted(p: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        # r = [Re(Lᴴε); Im(Lᴴε)],  S⁻¹ = L Lᴴ
+        blocks = [_real_stack(e @ factor.conj()) for e in residual_blocks(p)]
+        return np.concatenate(blocks, axis=0).reshape(-1)
+
+    steps = np.concatenate([1e-6 * scales[free], np.ones(n_nuisance)])
+
+    def jacobian(p: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        columns = []
+        for j in range(p.size):
+            h = steps[j]
+            plus, minus = p.copy(), p.copy()
+            plus[j] += h
+            minus[j] -= h
+            # ∂r/∂p_j ≈ (r(p + h e_j) − r(p − h e_j)) / 2h
+            columns.append((weighted(plus, factor) - weighted(minus, factor)) / (2.0 * h))
+        return np.column_stack(columns)
+
+    p = np.concatenate([theta_start[free], np.zeros(n_nuisance)])
+    S = np.eye(n_y, dtype=complex)
+    history: list[float] = []
+    iterations = 0
+    converged = False
+    message = ""
+    cycle = 0
+    for cycle in range(1, max_noise_cycles + 1):
+        # S⁻¹ = L Lᴴ; a row εᵀ becomes (Lᴴε)ᵀ = εᵀ L̄
+        factor = np.linalg.cholesky(np.linalg.inv(S))
+        solution = least_squares(
+            lambda q, L=factor: weighted(q, L),
+            p,
+            jac=lambda q, L=factor: jacobian(q, L),
+            method="lm",
+            x_scale="jac",
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+            max_nfev=200 * (p.size + 1),
+        )
+        iterations += int(solution.nfev)
+        if cycle == 1:
+            previous = p.copy()
+        if not np.all(np.isfinite(solution.x)):
+            raise EstimationError("output_error: the fit left non-finite parameter values")
+        p = solution.x
+        eps = np.concatenate(residual_blocks(p), axis=0)
+        # S = (1/K) Σ ε εᴴ
+        S_new = eps.T @ eps.conj() / eps.shape[0]
+        if not np.all(np.isfinite(S_new)) or np.min(np.linalg.eigvalsh(S_new)) <= 0.0:
+            raise EstimationError(
+                "output_error: the residual spectral covariance S is singular (an output "
+                "fitted exactly?); S diagonal = " + str(np.real(np.diag(S_new)))
+            )
+        cost = float(np.real(np.einsum("ki,ij,kj->", eps.conj(), np.linalg.inv(S_new), eps)))
+        history.append(cost)
+        change = np.max(
+            np.abs(np.real(np.diag(S_new)) - np.real(np.diag(S))) / np.real(np.diag(S_new))
+        )
+        S = S_new
+        moved = (
+            np.max(np.abs(solution.x[:n_free] - previous[:n_free]) / scales[free])
+            if n_free
+            else 0.0
+        )
+        previous = solution.x.copy()
+        if cycle > 1 and (change < tolerance or moved < tolerance):
+            converged = True
+            message = (
+                f"converged in noise cycle {cycle}: S changed by {change:.2g} (relative), "
+                f"the parameters by {moved:.2g} (relative to their scales)"
+            )
+            break
+    if not converged:
+        message = f"not converged: S still changing after {max_noise_cycles} noise cycles"
+    factor = np.linalg.cholesky(np.linalg.inv(S))
+    Jr = jacobian(p, factor)
+    r = weighted(p, factor)
+    H = Jr.T @ Jr
+    # M = 2 Jᵣᵀ Jᵣ ,  Cov = M⁻¹
+    try:
+        cov_all = np.linalg.inv(2.0 * H)
+    except np.linalg.LinAlgError:
+        raise EstimationError(
+            "output_error: the information matrix is singular; a parameter (or nuisance "
+            "parameter) is not determined by the data on this band"
+        ) from None
+    # coloured correction: H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹, per maneuver
+    width = 2 * n_y
+    middle = np.zeros_like(H)
+    row = 0
+    for s in spectra:
+        k_count = s.frequencies_hz.size
+        rk = r[row * width : (row + k_count) * width].reshape(k_count, width)
+        jk = Jr[row * width : (row + k_count) * width].reshape(k_count, width, -1)
+        row += k_count
+        for m in range(-(k_count - 1), k_count):
+            # R̂(m) = (1/K) Σ_k r_{k+m} r_kᵀ
+            if m >= 0:
+                R_m = rk[m:].T @ rk[: k_count - m] / k_count
+                left, right = jk[m:], jk[: k_count - m]
+            else:
+                R_m = rk[: k_count + m].T @ rk[-m:] / k_count
+                left, right = jk[: k_count + m], jk[-m:]
+            # Σ_l J_{l+m}ᵀ R̂(m) J_l
+            middle += np.einsum("kai,ab,kbj->ij", left, R_m, right)
+    H_inv = np.linalg.inv(H)
+    cov_col_all = H_inv @ middle @ H_inv
+    n_p = theta_start.size
+    std = np.full(n_p, np.nan)
+    std_col = np.full(n_p, np.nan)
+    std[free] = np.sqrt(np.diag(cov_all)[:n_free])
+    std_col[free] = np.sqrt(np.abs(np.diag(cov_col_all)[:n_free]))
+    theta, nuis = unpack(p)
+    model_outputs = tuple(responses(p))
+    return OutputErrorFit(
+        theta=theta,
+        free=free,
+        std=std,
+        std_coloured=std_col,
+        covariance=cov_all[:n_free, :n_free],
+        covariance_coloured=cov_col_all[:n_free, :n_free],
+        nuisance_names=tuple(nuis_names),
+        nuisance=nuis,
+        nuisance_std=np.sqrt(
+            np.where(np.diag(cov_all)[n_free:] > 0, np.diag(cov_all)[n_free:], np.nan)
+        ),
+        S=S,
+        cost=history[-1],
+        noise_cycles=cycle,
+        iterations=iterations,
+        converged=converged,
+        message=message,
+        model_outputs=model_outputs,
+        residuals=tuple(s.outputs - y for s, y in zip(spectra, model_outputs, strict=True)),
+        cost_history=tuple(history),
+    )
