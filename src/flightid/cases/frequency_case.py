@@ -225,9 +225,11 @@ class FrequencyResult(ResultSurface):
         ]
         for row in self._frame_rows():
             if row["free"]:
+                coloured = row["std_coloured"]
+                coloured_text = f"{coloured:>12.3g}" if np.isfinite(coloured) else f"{'—':>12}"
                 lines.append(
                     f"{row['name']:<12}{row['value']:>14.6g}{row['std']:>12.3g}"
-                    f"{row['std_coloured']:>12.3g}{row['initial']:>12.6g}"
+                    f"{coloured_text}{row['initial']:>12.6g}"
                 )
             else:
                 lines.append(
