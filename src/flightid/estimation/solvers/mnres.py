@@ -60,7 +60,15 @@ two passes raised the median from 81.5 to 91 (base) — one it is; with 40 (hard
 lowered it from 338.5 to 230 and every seed but one to at most scipy lm's (seed 4: 305 →
 229, seed 6: 528 → 337). A sweep keeps the radius (what the fresh model learnt about the
 nonlinearity) but never below twice the last accepted step; it starts unbounded (the full
-Gauss–Newton step) at the first sweep and in each noise cycle.
+Gauss–Newton step) at the first sweep and in each noise cycle. The first trial on a later
+sweep is the full Gauss–Newton step too (the paper's rule: a fresh model near the optimum
+often reaches it in one step, where the kept radius, shrunk by the carried passes, took
+several doublings); if that step disappoints, the radius falls back to the kept one (or
+half the step, if shorter), not to half the full step. Measured (8 seeds, sims to
+J* + 0.01, same tree): base median 81.5 → 80 (seed 5: 85 → 83, seed 7: 82 → 81; no seed
+worse); hard40 median 230 → 239.5, every seed now at most scipy lm's (seed 6: 337 → 284
+against lm's 290; seed 0: 484 → 317; seed 7: 231 → 241 against lm's 744). Without the
+fall-back (radius ½ the full step) hard40 seed 5 took 515 and seed 0 367.
 
 The damped step: after a trial on freshly swept J was rejected, a radius below 1/8 of the
 Gauss–Newton step's length takes the Levenberg–Marquardt step on the radius instead of the
@@ -89,8 +97,10 @@ does for MNR (hfb320_longitudinal: 226 → 203 simulations in all, MNR 205, meas
 tree; base seed 7: 149 → 127).
 
 Measured (bench/peers.py, 6-DOF Navion, 8 seeds, sims to J* + 0.01): base (22 free) median
-81.5 against 116 for MNR and scipy's ``least_squares`` (lm); hard40 median 230 against MNR
-663 and lm 517 (per seed in docs/method.md).
+80 against 116 for MNR and scipy's ``least_squares`` (lm); hard40 median 239.5 against lm
+517 (per seed in docs/benchmarks.md). The full first step after a sweep costs the
+HFB-320 case (11 free, four noise cycles) 213 simulations where it took 203 (MNR 205): its
+end phases take other paths.
 
 Surface forms
 -------------
@@ -868,11 +878,16 @@ class MNRES:
             held = np.zeros(problem.n_free, dtype=bool)
             on_lower = theta <= problem.lower
             on_upper = theta >= problem.upper
+            # the first trial on the sensitivities of a later sweep is the full Gauss–Newton
+            # step (the paper's rule; the kept radius is what the carried passes learnt, and a
+            # fresh model near the optimum often reaches it in one step)
+            full_step_trial = current.fresh and fresh_failures == 0 and current.sweeps > 0
+            radius = math.inf if full_step_trial else current.radius
             for _ in range(problem.n_free + 1):
                 # after a rejected trial on swept sensitivities: the damped step if the
                 # radius has become a small part of the Gauss–Newton step (_secant_step)
                 damped = current.fresh and fresh_failures > 0
-                gn, step = _secant_step(normal, gradient, held, current.radius, damped)
+                gn, step = _secant_step(normal, gradient, held, radius, damped)
                 outward = (on_lower & (gn < 0)) | (on_upper & (gn > 0))
                 if not np.any(outward & ~held):
                     break
@@ -911,8 +926,13 @@ class MNRES:
                 current.radius = math.inf if accepted else 0.5 * length
             elif poor and (was_fresh or not accepted):
                 # a fresh model that disappoints: the step was too long; a carried one that
-                # lowered the cost but disappointed: the model is suspect, not the radius
-                current.radius = 0.5 * length
+                # lowered the cost but disappointed: the model is suspect, not the radius.
+                # A full step beyond the kept radius that disappoints falls back to that
+                # radius (or half the step, if shorter), not to half the full step.
+                if full_step_trial and length > current.radius:
+                    current.radius = min(current.radius, 0.5 * length)
+                else:
+                    current.radius = 0.5 * length
             elif ratio > _GROW and length >= 0.99 * current.radius:
                 current.radius = 2.0 * current.radius
             current.poor = current.poor + 1 if poor else 0
