@@ -114,10 +114,21 @@ def sum_of_cosines(
     return np.cos(2.0 * np.pi * np.outer(t, k) / period_s + phases[None, :]) @ a
 
 
-def _grid(harmonics: np.ndarray, period_s: float) -> np.ndarray:
-    """A fine grid over one period: ≥ 16 points per period of the highest harmonic."""
-    n = max(512, 16 * int(np.max(harmonics)))
+def _grid(harmonics: np.ndarray, period_s: float, per_cycle: int = 16) -> np.ndarray:
+    """A grid over one period: ≥ ``per_cycle`` points per period of the highest harmonic."""
+    n = max(512, per_cycle * int(np.max(harmonics)))
     return np.arange(n) * (period_s / n)
+
+
+# points per cycle of the highest harmonic where peak factors are reported: a cosine sampled
+# so misses its peak by at most 1 − cos(π/128) ≈ 3·10⁻⁴
+_RPF_PER_CYCLE = 128
+
+
+def _peak_factor(harmonics: np.ndarray, phases: np.ndarray, period_s: float) -> float:
+    """RPF of the unit multisine over one period on the dense reporting grid."""
+    t = _grid(harmonics, period_s, _RPF_PER_CYCLE)
+    return relative_peak_factor(sum_of_cosines(t, period_s, harmonics, phases))
 
 
 def optimize_phases(
@@ -126,7 +137,8 @@ def optimize_phases(
     """Phases (rad) that lower the peak factor of a flat multisine (module docstring, step 3).
 
     Starts from ``start_rad`` (default: Schroeder's phases); returns the phases with the
-    lowest RPF on the fine grid among the start and the optimised ones.
+    lowest RPF (dense grid, 128 points per cycle of the highest harmonic) among the start and
+    the optimised ones.
     """
     from scipy.optimize import minimize
 
@@ -138,7 +150,7 @@ def optimize_phases(
     arguments = 2.0 * np.pi * np.outer(t, harmonics) / period_s
 
     def rpf(phi: np.ndarray) -> float:
-        return relative_peak_factor(np.cos(arguments + phi[None, :]).sum(axis=1))
+        return _peak_factor(harmonics, phi, period_s)
 
     best, best_rpf = phases.copy(), rpf(phases)
     current = phases.copy()
@@ -193,7 +205,8 @@ def _zero_start(harmonics: np.ndarray, phases: np.ndarray, period_s: float) -> n
 @dataclass(frozen=True)
 class Multisine:
     """Orthogonal multisines: per input its harmonics (k, f = k/T), phases (rad) and peak
-    amplitude (input units); ``rpf`` and ``rpf_schroeder`` on the fine grid of one period."""
+    amplitude (input units); ``rpf`` and ``rpf_schroeder`` over one period on a dense grid
+    (128 points per cycle of the highest harmonic)."""
 
     names: tuple[str, ...]
     period_s: float
@@ -217,16 +230,16 @@ class Multisine:
         )
 
     def signals(self, t: np.ndarray) -> np.ndarray:
-        """(N, m): input j scaled so that its peak |u_j| over one fine-grid period equals its
-        amplitude (so no sample exceeds it)."""
+        """(N, m): input j scaled so that its peak |u_j| over one fine-grid period and the
+        samples ``t`` equals its amplitude (so no sample exceeds it)."""
         columns = []
         for k, phi, a in zip(self.harmonics, self.phases_rad, self.amplitudes, strict=True):
-            peak = float(
-                np.max(np.abs(sum_of_cosines(_grid(k, self.period_s), self.period_s, k, phi)))
-            )
-            u = sum_of_cosines(t, self.period_s, k, phi) * (a / peak)
-            # the fine grid misses the true peak by at most a hair: clip to the limit exactly
-            columns.append(np.clip(u, -a, a))
+            unit = sum_of_cosines(t, self.period_s, k, phi)
+            fine = sum_of_cosines(_grid(k, self.period_s), self.period_s, k, phi)
+            # the peak over the fine grid and the requested samples: scaling by it keeps every
+            # sample within ±a without clipping (which would spoil the orthogonality)
+            peak = float(max(np.max(np.abs(fine)), np.max(np.abs(unit))))
+            columns.append(unit * (a / peak))
         return np.column_stack(columns)
 
     def with_amplitudes(self, amplitudes: Sequence[float]) -> Multisine:
@@ -284,12 +297,11 @@ def design_multisine(
     phases, rpf, rpf_schroeder = [], [], []
     for k in harmonics:
         start = schroeder_phases(k.size)
-        grid = _grid(k, period_s)
-        rpf_schroeder.append(relative_peak_factor(sum_of_cosines(grid, period_s, k, start)))
+        rpf_schroeder.append(_peak_factor(k, start, period_s))
         phi = optimize_phases(k, period_s, start) if optimize else start
         phi = _zero_start(k, phi, period_s)
         phases.append(phi)
-        rpf.append(relative_peak_factor(sum_of_cosines(grid, period_s, k, phi)))
+        rpf.append(_peak_factor(k, phi, period_s))
     return Multisine(
         names,
         float(period_s),

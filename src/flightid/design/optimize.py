@@ -14,17 +14,21 @@ optional response limits (peak |Δy| of an output about its trim-input response)
    (s = 1/r for the peak ratio r, exact for a linear model, then bisection-safe reductions
    until the simulated response complies);
 3. predicts each candidate's Cramér–Rao bounds (``flightid.design.information``) and keeps
-   the one with the smallest criterion (D-optimal, A-optimal, or the named parameters).
+   the one with the smallest criterion (D-optimal, A-optimal, or the named parameters);
+4. with several inputs held back by a response limit, raises each input's own amplitude
+   factor s_j towards 1 as far as the limits allow, keeping the change where the criterion
+   improves (an input whose response does not bind is not held back by another's).
 
 Information grows with amplitude (∝ s² for a linear model), which is why amplitudes sit at
-the tightest limit; the search is over band / timing on a grid of ``candidates`` values. The
+the tightest limit; the search is over band / timing on a grid of ``candidates`` values, and
+over the amplitudes by the per-input refinement of step 4. The
 returned input is checked once more against every limit before it is handed back (amplitude,
 duration, response): a design that cannot meet them raises ``DesignError``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,7 +91,8 @@ class InputSpec:
 @dataclass(frozen=True)
 class DesignProblem:
     """Everything a design needs (module docstring). ``model`` starts in trim (its x0);
-    ``held`` gives the constant value of every model input that is not designed."""
+    ``held`` gives every model input that is not designed: a constant, or a series of one
+    value per sample of ``time`` (e.g. measured longitudinal variables of a lateral model)."""
 
     model: StateSpaceModel
     inputs: tuple[InputSpec, ...]
@@ -97,7 +102,7 @@ class DesignProblem:
     signal: str = "multisine"
     criterion: str = "d_optimal"
     parameters: tuple[str, ...] = ()
-    held: Mapping[str, float] = field(default_factory=dict)
+    held: Mapping[str, float | np.ndarray] = field(default_factory=dict)
     limits: Mapping[str, float] = field(default_factory=dict)
     band_hz: tuple[float, float] | None = None
     candidates: int = 6
@@ -137,6 +142,13 @@ class DesignProblem:
                 f"inputs: the model inputs {missing} are neither designed nor held; give them "
                 "an amplitude or a constant value"
             )
+        for name, value in self.held.items():
+            shape = np.shape(value)
+            if shape not in ((), (self.n_intervals + 1,)) or not np.all(np.isfinite(value)):
+                raise InputError(
+                    f"held.{name}: expected a finite constant or {self.n_intervals + 1} samples "
+                    f"(one per sample of time), got shape {shape}"
+                )
         for output, limit in self.limits.items():
             if output not in self.model.outputs:
                 raise InputError(
@@ -155,10 +167,19 @@ class DesignProblem:
                 )
 
     @property
+    def n_intervals(self) -> int:
+        """n = ⌊T/Δt⌋ sample intervals (the input never outlasts ``duration_s``)."""
+        return int(np.floor(self.duration_s / self.dt_s + 1e-9))
+
+    @property
+    def period_s(self) -> float:
+        """n·Δt ≤ T: the length actually sampled, and a multisine's period."""
+        return self.n_intervals * self.dt_s
+
+    @property
     def time(self) -> np.ndarray:
-        """Sample times 0, Δt, …, T (s)."""
-        n = int(round(self.duration_s / self.dt_s))
-        return np.arange(n + 1) * self.dt_s
+        """Sample times 0, Δt, …, n·Δt (s)."""
+        return np.arange(self.n_intervals + 1) * self.dt_s
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -169,9 +190,9 @@ class DesignProblem:
         return np.array([s.amplitude for s in self.inputs])
 
     def flight_data(self, perturbations: np.ndarray, name: str = "designed input") -> FlightData:
-        """The maneuver the model flies: designed inputs = trim + Δu, held inputs constant."""
+        """The maneuver the model flies: designed inputs = trim + Δu, held inputs as given."""
         t = self.time
-        channels = {n: np.full(t.shape, float(v)) for n, v in self.held.items()}
+        channels = {n: np.broadcast_to(np.asarray(v, float), t.shape) for n, v in self.held.items()}
         for j, spec in enumerate(self.inputs):
             channels[spec.name] = spec.trim + perturbations[:, j]
         return FlightData(t, {n: channels[n] for n in self.model.inputs}, name=name)
@@ -185,7 +206,7 @@ class Candidate:
     time: np.ndarray
     perturbations: np.ndarray
     input_names: tuple[str, ...]
-    amplitude_factor: float  # common s ≤ 1 applied to the amplitude limits
+    amplitude_factors: tuple[float, ...]  # s_j ≤ 1 per input: Δu_j peak = s_j × its limit
     setting: dict  # band_hz per input (multisine) or pulse_s and start_s per input (steps)
     accuracy: PredictedAccuracy
     criterion_value: float
@@ -272,9 +293,10 @@ def evaluate_input(
     setting: dict | None = None,
     multisine: Multisine | None = None,
     scale_to_limits: bool = False,
+    factors: tuple[float, ...] | None = None,
 ) -> Candidate:
     """Predicted accuracy and response of the input Δu (N, m) about trim (no limit scaling
-    unless ``scale_to_limits``)."""
+    unless ``scale_to_limits``; ``factors`` records the amplitude factors Δu was made with)."""
     perturbations = np.asarray(perturbations, dtype=float)
     expected = (problem.time.size, len(problem.inputs))
     if perturbations.shape != expected:
@@ -298,7 +320,7 @@ def evaluate_input(
         problem.time,
         perturbations,
         problem.names,
-        factor,
+        tuple(float(f) * factor for f in (factors or (1.0,) * len(problem.inputs))),
         dict(setting or {}),
         accuracy,
         accuracy.criterion(problem.criterion, problem.parameters),
@@ -324,7 +346,7 @@ def _multisine_candidates(problem: DesignProblem):
     """(setting, Δu, multisine) for each scaled band (module docstring, step 1)."""
     bands = _input_bands(problem)
     common = len(set(bands)) == 1
-    period = problem.duration_s
+    period = problem.period_s
     m = len(problem.inputs)
     # the narrowest band still needs ≥ 3 harmonics per input: c_min from that
     widths = [hi - lo for lo, hi in bands]
@@ -358,7 +380,9 @@ def _multisine_candidates(problem: DesignProblem):
 def _pulse_units(problem: DesignProblem, spec: InputSpec) -> float:
     if spec.pulse_s is not None:
         return float(spec.pulse_s)
-    trim_inputs = {**problem.held, **{s.name: s.trim for s in problem.inputs}}
+    # held series enter with their first sample (the flight condition the pulses start from)
+    held = {n: float(np.ravel(v)[0]) for n, v in problem.held.items()}
+    trim_inputs = {**held, **{s.name: s.trim for s in problem.inputs}}
     theta = problem.model.function_theta(problem.model.parameters.values)
     f_n = natural_frequency_hz(
         problem.model.f,
@@ -385,7 +409,7 @@ def _step_candidates(problem: DesignProblem):
             setting[spec.name] = {"pulse_s": float(pulse), "start_s": float(start)}
             start += length + problem.gap_s
         # the last sequence must end (and the response have time to show) inside T
-        if start - problem.gap_s > problem.duration_s - problem.dt_s:
+        if start - problem.gap_s > problem.period_s - problem.dt_s:
             continue
         yield setting, np.column_stack(columns), None
 
@@ -436,7 +460,8 @@ def design_input(problem: DesignProblem, progress=None) -> tuple[Candidate, list
         tried.append(candidate)
         if progress is not None:
             progress(
-                f"candidate {len(tried)}: {setting} amplitude × {candidate.amplitude_factor:.3g}, "
+                f"candidate {len(tried)}: {setting} amplitude × "
+                f"{candidate.amplitude_factors[0]:.3g}, "
                 f"{problem.criterion} = {candidate.criterion_value:.6g}"
             )
     if not tried:
@@ -447,8 +472,58 @@ def design_input(problem: DesignProblem, progress=None) -> tuple[Candidate, list
         )
         raise DesignError(f"design: no feasible input ({detail})")
     best = min(tried, key=lambda c: c.criterion_value)
+    best = _raise_amplitudes(problem, best, progress)
     _check_limits(problem, best)
     return best, tried
+
+
+def _feasible(problem: DesignProblem, perturbations: np.ndarray, base: np.ndarray) -> bool:
+    return _limit_ratio(problem, _response_peaks(problem, perturbations, base)) <= 1.0
+
+
+def _raise_amplitudes(problem: DesignProblem, candidate: Candidate, progress=None) -> Candidate:
+    """Step 4: with several inputs and a common factor s < 1, raise each input's own factor
+    s_j towards 1 (bisection, 10 halvings, on the simulated response limits) and keep the
+    change where the criterion improves — an input whose response is not the binding one
+    need not be held back by another's."""
+    factors = np.array(candidate.amplitude_factors)
+    if len(problem.inputs) < 2 or not problem.limits or np.all(factors >= 1.0):
+        return candidate
+    # Δu at every input's amplitude limit
+    unit = candidate.perturbations / factors[None, :]
+    base = _outputs(problem, np.zeros_like(unit))
+    best = candidate
+    for j in range(len(problem.inputs)):
+        trial = factors.copy()
+        trial[j] = 1.0
+        if not _feasible(problem, unit * trial, base):
+            low, high = factors[j], 1.0
+            for _ in range(10):
+                trial[j] = 0.5 * (low + high)
+                if _feasible(problem, unit * trial, base):
+                    low = trial[j]
+                else:
+                    high = trial[j]
+            trial[j] = low
+        if trial[j] <= factors[j] * (1 + 1e-3):
+            continue
+        multisine = (
+            candidate.multisine.with_amplitudes(trial * problem.amplitudes)
+            if candidate.multisine is not None
+            else None
+        )
+        raised = evaluate_input(
+            problem, unit * trial, candidate.signal, candidate.setting, multisine,
+            factors=tuple(trial),
+        )  # fmt: skip
+        if raised.criterion_value < best.criterion_value:
+            if progress is not None:
+                progress(
+                    f"amplitude of {problem.inputs[j].name} raised to {trial[j]:.3g} × its "
+                    f"limit: {problem.criterion} = {raised.criterion_value:.6g}"
+                )
+            best, factors = raised, trial
+    return best
 
 
 def named_std(candidate: Candidate) -> dict[str, float]:
@@ -456,7 +531,3 @@ def named_std(candidate: Candidate) -> dict[str, float]:
     return {
         n: float(s) for n, s in zip(candidate.accuracy.names, candidate.accuracy.std, strict=True)
     }
-
-
-def as_sequence(value: Sequence[float] | float, n: int) -> list[float]:  # pragma: no cover
-    return [float(value)] * n if np.isscalar(value) else [float(v) for v in value]

@@ -136,9 +136,9 @@ class DesignResult:
                 **{n: best.perturbations[:, j] for j, n in enumerate(best.input_names)},
             },
             "trim": {spec.name: spec.trim for spec in problem.inputs},
-            "held": dict(problem.held),
+            "held": {n: np.ravel(v).tolist() for n, v in problem.held.items()},
             "amplitude_limits": {spec.name: spec.amplitude for spec in problem.inputs},
-            "amplitude_factor": best.amplitude_factor,
+            "amplitude_factors": dict(zip(best.input_names, best.amplitude_factors, strict=True)),
             "setting": best.setting,
             "peak_factors": self.peak_factors(),
             "noise_std": dict(zip(accuracy.output_names, accuracy.noise_std.tolist(), strict=True)),
@@ -160,7 +160,7 @@ class DesignResult:
             "candidates": [
                 {
                     "setting": c.setting,
-                    "amplitude_factor": c.amplitude_factor,
+                    "amplitude_factors": list(c.amplitude_factors),
                     "criterion_value": c.criterion_value,
                 }
                 for c in self.tried
