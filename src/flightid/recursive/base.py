@@ -119,10 +119,22 @@ class RecursiveEstimatorBase:
             )
         self.k += 1
         self._t_current = t
-        if self.k == 1:
-            self._first(t, u, z)
-        else:
-            self._step(self._t_prev, t, self._u_prev, u, z)
+        try:
+            # overflow / invalid values are caught below and by _checked as divergence
+            with np.errstate(over="ignore", invalid="ignore"):
+                if self.k == 1:
+                    self._first(t, u, z)
+                else:
+                    self._step(self._t_prev, t, self._u_prev, u, z)
+        except FlightIdError:
+            raise
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+            # a singular or non-finite innovation covariance, inf/NaN reaching LAPACK
+            raise RecursiveDivergenceError(
+                f"{self.method}: the filter diverged at sample {self.k} (t = {t} s): "
+                f"{type(exc).__name__}: {exc}",
+                sample=self.k,
+            ) from None
         self._t_prev, self._u_prev = t, u
 
     # helpers for the state-space filters -------------------------------------------

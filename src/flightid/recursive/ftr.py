@@ -19,6 +19,9 @@ over the n_f frequencies with real parts (Θ = [X U], n_f × n_p, n_p = n_x + n_
     σ_i² = Σ_ω |jωX_i − Θθ_i|² / (n_f − n_p)
     std_i = sqrt(diag(σ_i² Re(ΘᴴΘ)⁻¹))
 
+An update whose Re(ΘᴴΘ) is singular (condition number ≥ 1e12: no excitation yet) is
+skipped and counted (``skipped_updates``); the estimate stays that of the last update.
+
 A coefficient may be reported with a known part removed (``offsets``): for the short period
 A_12 = 1 + Z_q, so Z_q = A_12 − 1 with the std of A_12.
 """
@@ -33,6 +36,10 @@ from flightid.errors import FlightIdError, InputError, describe
 from flightid.recursive.base import RecursiveEstimatorBase
 
 __all__ = ["FourierTransformRegression", "NoEstimateYetError", "frequency_grid_hz"]
+
+
+# Re(ΘᴴΘ) with a larger condition number is taken as singular (update skipped)
+MAX_CONDITION = 1e12
 
 
 class NoEstimateYetError(FlightIdError, LookupError):
@@ -138,6 +145,7 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         self._theta: np.ndarray | None = None
         self._std: np.ndarray | None = None
         self.updates: list[tuple[int, float, np.ndarray, np.ndarray]] = []
+        self.skipped_updates = 0  # updates without information (Re(ΘᴴΘ) singular)
 
     # ---------------------------------------------------------------- transform
 
@@ -185,13 +193,12 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         n_f, n_p = Theta.shape
         # Re(ΘᴴΘ) and its inverse
         information = np.real(Theta.conj().T @ Theta)
-        try:
-            covariance = np.linalg.inv(information)
-        except np.linalg.LinAlgError:
-            raise InputError(
-                f"ftr: Re(ΘᴴΘ) is singular at sample {self.k}; the signals carry no information "
-                "at the chosen frequencies yet"
-            ) from None
+        if not np.linalg.cond(information) < MAX_CONDITION:
+            raise np.linalg.LinAlgError(
+                f"ftr: Re(ΘᴴΘ) is singular at sample {self.k} (condition number ≥ "
+                f"{MAX_CONDITION:.0e}): the signals carry no information at the frequencies yet"
+            )
+        covariance = np.linalg.inv(information)
         for i in range(self.n_states):
             # response jω X_i
             response = 1j * self.omega * self.X[:, i]
@@ -205,7 +212,12 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         return theta_all, std_all
 
     def _update(self, t: float) -> None:
-        theta, std = self.regression()
+        try:
+            theta, std = self.regression()
+        except np.linalg.LinAlgError:
+            # nothing to regress on yet (e.g. before the input starts): no estimate here
+            self.skipped_updates += 1
+            return
         theta = theta.ravel() - self.offsets
         std = std.ravel()
         if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(std))):
