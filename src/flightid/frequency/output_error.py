@@ -23,8 +23,8 @@ minimised, for S fixed, by Gauss–Newton with a Levenberg–Marquardt safeguard
 (``scipy.optimize.least_squares``, method "lm") on the real-stacked weighted residuals
 r = [Re(Lᴴε); Im(Lᴴε)] with S⁻¹ = L Lᴴ; S is then re-estimated from the residuals and the
 two steps alternate until S and J settle (as the time-domain output-error method does with
-R). The sensitivities ∂Y/∂θ are central differences of the model response; they are exact
-for the nuisance parameters, in which Y is linear.
+R). The sensitivities ∂Y/∂θ are central differences of the model response; those of the
+nuisance parameters, in which Y is linear, are written out (``nuisance_sensitivities``).
 
 Accuracy. For a circular complex residual with covariance S, each of the 2 n_y real
 components of r has variance ½, so the Fisher information is
@@ -56,7 +56,13 @@ from flightid.errors import EstimationError, InputError
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
 
-__all__ = ["OutputErrorFit", "model_response", "nuisance_names", "output_error"]
+__all__ = [
+    "OutputErrorFit",
+    "model_response",
+    "nuisance_names",
+    "nuisance_sensitivities",
+    "output_error",
+]
 
 SystemFunction = Callable[[np.ndarray], LinearSystem]
 
@@ -160,6 +166,37 @@ def model_response(
     return y
 
 
+def nuisance_sensitivities(
+    system: LinearSystem,
+    spectra: ManeuverSpectra,
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+) -> np.ndarray:
+    """∂Y/∂(nuisance) (K, n_y, count) of one maneuver, in ``nuisance_names`` order:
+
+    ∂Y/∂x(0) = C G,   ∂Y/∂x(T) = −e^{−jωT} C G,   ∂Y/∂c = E C G,   ∂Y/∂d = E I,
+    G(ω) = (jωI − A)⁻¹.
+    """
+    A, C = system.A, system.C
+    n_x, n_y = A.shape[0], C.shape[0]
+    omega = spectra.omega_rad_s
+    resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
+    # C G(ω) (K, n_y, n_x)
+    cg = C[None] @ np.linalg.inv(resolvent)
+    blocks = []
+    if boundary and spectra.end_phase_constant:
+        blocks.append(cg)
+    elif boundary:
+        blocks += [cg, -spectra.end_phase[:, None, None] * cg]
+    if constants:
+        blocks.append(spectra.constant[:, None, None] * cg)
+        blocks.append(spectra.constant[:, None, None] * np.eye(n_y)[None])
+    if not blocks:
+        return np.zeros((omega.size, n_y, 0), dtype=complex)
+    return np.concatenate(blocks, axis=2)
+
+
 def _real_stack(weighted: np.ndarray) -> np.ndarray:
     # (K, n_y) complex → (K, 2 n_y) real: [Re, Im] per frequency
     return np.concatenate([weighted.real, weighted.imag], axis=1)
@@ -253,18 +290,29 @@ def output_error(
         blocks = [_real_stack(e @ factor.conj()) for e in residual_blocks(p)]
         return np.concatenate(blocks, axis=0).reshape(-1)
 
-    steps = np.concatenate([1e-6 * scales[free], np.ones(n_nuisance)])
+    steps = 1e-6 * scales[free]
 
     def jacobian(p: np.ndarray, factor: np.ndarray) -> np.ndarray:
         columns = []
-        for j in range(p.size):
+        for j in range(n_free):
             h = steps[j]
             plus, minus = p.copy(), p.copy()
             plus[j] += h
             minus[j] -= h
-            # ∂r/∂p_j ≈ (r(p + h e_j) − r(p − h e_j)) / 2h
+            # ∂r/∂θ_j ≈ (r(θ + h e_j) − r(θ − h e_j)) / 2h
             columns.append((weighted(plus, factor) - weighted(minus, factor)) / (2.0 * h))
-        return np.column_stack(columns)
+        model_part = np.column_stack(columns) if columns else np.zeros((0, 0))
+        # nuisance: Y is linear in them, ∂ε/∂p = −∂Y/∂p exactly (nuisance_sensitivities)
+        system = system_of(unpack(p)[0])
+        nuisance_part = np.zeros((model_part.shape[0], n_nuisance))
+        row = 0
+        for k, s in enumerate(spectra):
+            sens = nuisance_sensitivities(system, s, boundary=boundary, constants=constants)
+            w = np.einsum("kyq,yz->kzq", -sens, factor.conj())
+            block = np.concatenate([w.real, w.imag], axis=1).reshape(-1, sens.shape[2])
+            nuisance_part[row : row + block.shape[0], starts[k] : starts[k + 1]] = block
+            row += block.shape[0]
+        return np.hstack([model_part, nuisance_part]) if n_free else nuisance_part
 
     p = np.concatenate([theta_start[free], np.zeros(n_nuisance)])
     S = np.eye(n_y, dtype=complex)
