@@ -67,7 +67,7 @@ class ExtendedForgettingRLS(AugmentedFilter):
         # S = λI + C Φ P Φᵀ Cᵀ
         S = lam * np.eye(aug.n_y) + C_phi @ self.P @ C_phi.T
         # k = P Φᵀ Cᵀ S⁻¹
-        gain = linalg.solve(S, C_phi @ self.P, assume_a="pos").T
+        gain = np.linalg.solve(S, C_phi @ self.P).T
         # (S is not an innovation covariance here: no innovation test for EFRLS)
         nu = z - aug.outputs(x_pred[None, :], u, t)[0]
         self._innovation(nu, None)

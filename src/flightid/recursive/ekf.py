@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy import linalg
 
 from flightid.errors import InputError, describe
 from flightid.recursive.augmented import AugmentedModel, absolute_steps
@@ -89,7 +88,7 @@ class ExtendedKalmanFilter(AugmentedFilter):
         # S = C P̃ Cᵀ + R0
         S = C @ P_pred @ C.T + self.R0
         # K = P̃ Cᵀ S⁻¹
-        K = linalg.solve(S, C @ P_pred, assume_a="pos").T
+        K = np.linalg.solve(S, C @ P_pred).T
         nu = z - y_pred
         self._innovation(nu, S)
         # x̂ = x̃ + K (z − g(x̃, u))

@@ -108,7 +108,7 @@ class UnscentedKalmanFilter(AugmentedFilter):
         P_yy = _spread(wc, Y, y_pred, Y, y_pred) + self.R0
         P_xy = _spread(wc, X, x_pred, Y, y_pred)
         # K = P_xy P_yy⁻¹
-        K = linalg.solve(P_yy, P_xy.T, assume_a="pos").T
+        K = np.linalg.solve(P_yy, P_xy.T).T
         nu = z - y_pred
         self._innovation(nu, P_yy)
         # x̂ = x̃ + K (z − ỹ),  P̂ = P_xx − K P_yy Kᵀ
@@ -162,7 +162,7 @@ class AugmentedUnscentedKalmanFilter(AugmentedFilter):
         y_pred = wm @ Y
         P_yy = _spread(wc, Y, y_pred, Y, y_pred)
         P_xy = _spread(wc, X, x_pred, Y, y_pred)
-        K = linalg.solve(P_yy, P_xy.T, assume_a="pos").T
+        K = np.linalg.solve(P_yy, P_xy.T).T
         nu = z - y_pred
         self._innovation(nu, P_yy)
         self.x, self.P = self._checked(x_pred + K @ nu, P_xx - K @ P_yy @ K.T)
