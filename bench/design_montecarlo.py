@@ -30,6 +30,7 @@ falls outside ±15 % of its prediction.
 Usage::
 
     python bench/design_montecarlo.py [--runs 300] [--seed 17] [--case attas|example3|all]
+        [--figures docs/figures]
 """
 
 from __future__ import annotations
@@ -244,12 +245,64 @@ def peak_factor_lines(designs) -> list[str]:
     return lines
 
 
+def signal_figure(path: Path) -> None:
+    """The generators: doublet, 2-1-1 and 3-2-1-1 timed to f_n = 0.5 Hz, and a two-input
+    orthogonal multisine with Schroeder and optimised phases."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from flightid.design.multisine import design_multisine, schroeder_phases, sum_of_cosines
+    from flightid.design.signals import doublet, pulse_width_s, three_two_one_one, two_one_one
+
+    t = np.arange(0.0, 8.0 + 1e-9, 0.01)
+    f_n = 0.5
+    figure, axes = plt.subplots(3, 1, figsize=(7.5, 6.0))
+    for k, (label, generator, signal) in enumerate(
+        (("doublet", doublet, "doublet"), ("2-1-1", two_one_one, "211"),
+         ("3-2-1-1", three_two_one_one, "3211"))
+    ):  # fmt: skip
+        pulse = pulse_width_s(signal, f_n)
+        axes[0].plot(
+            t, generator(t, 0.5, pulse, 1.0) - 2.5 * k, label=f"{label}, Δt = {pulse:.2f} s"
+        )
+    axes[0].set_title("step inputs timed to f_n = 0.5 Hz", fontsize=9)
+    axes[0].legend(fontsize=7, loc="lower right")
+    axes[0].set_yticks([])
+    period = 20.0
+    multisine = design_multisine(("u1", "u2"), period, (0.1, 1.5), [1.0, 1.0])
+    tm = np.arange(0.0, period + 1e-9, 0.02)
+    optimised = multisine.signals(tm)
+    for j in range(2):
+        k = multisine.harmonics[j]
+        schroeder = sum_of_cosines(tm, period, k, schroeder_phases(k.size))
+        ax = axes[1 + j]
+        ax.plot(tm, schroeder / np.max(np.abs(schroeder)), color="0.6", lw=0.8,
+                label=f"Schroeder phases, RPF {multisine.rpf_schroeder[j]:.3f}")  # fmt: skip
+        ax.plot(tm, optimised[:, j], lw=0.9, label=f"optimised, RPF {multisine.rpf[j]:.3f}")
+        ax.set_ylabel(f"u{j + 1}")
+        ax.legend(fontsize=7, loc="lower right")
+    axes[1].set_title(
+        "orthogonal multisines, 20 s, 0.1–1.5 Hz, harmonics dealt alternately", fontsize=9
+    )
+    axes[2].set_xlabel("time (s)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=300)
     parser.add_argument("--seed", type=int, default=17)
     parser.add_argument("--case", choices=("attas", "example3", "all"), default="all")
+    parser.add_argument(
+        "--figures", default=None, help="also write design_signals.png into this folder"
+    )
     args = parser.parse_args(argv)
+    if args.figures:
+        signal_figure(Path(args.figures) / "design_signals.png")
     started = time.perf_counter()
     lines, worst, designs = [], 0.0, []
     if args.case in ("attas", "all"):
