@@ -66,7 +66,8 @@ class FourierTransformRegression(RecursiveEstimatorBase):
     ``feed(t, u, z)``: ``u`` the n_u inputs, ``z`` the n_x measured states.
 
     Args:
-        n_states, n_inputs: numbers of state and input signals.
+        n_states: number of state signals (the measured outputs taken as states).
+        n_inputs: number of input signals.
         frequencies_hz: the analysis frequencies f (Hz), more than n_x + n_u of them.
         update_every: samples between least-squares updates (M; updates at k mod M = 0).
         parameter_names: n_x rows of n_x + n_u names (row i: A_i1…A_in_x, B_i1…B_in_u);

@@ -141,7 +141,8 @@ class RecursiveEstimator:
         Args:
             report: the reported value: ``"last_N"`` (mean over the last N history rows:
                 samples, or FTR updates) or ``"final"`` (the last row).
-            units, initial: per parameter, for the tables.
+            units: per parameter, for the tables.
+            initial: start value per parameter (None for the FTR).
             settings: the estimator's settings, kept in the result.
             meta: case information (title, file, model, outputs, output_units, R0,
                 maneuvers) for the results.json entry.
