@@ -455,7 +455,7 @@ def test_innovation_test_warns_when_the_noise_model_is_wrong(linear_data):
     assert right.converged and not right.warnings
     assert not wrong.converged
     assert "innovations lie far outside their covariance" in wrong.warnings[0]
-    assert wrong.to_dict()["status"] == "stalled"
+    assert wrong.to_dict()["status"] == "inconsistent"
 
 
 def test_compiled_and_python_batch_loops_agree_and_match_a_direct_rk4():

@@ -206,7 +206,9 @@ class RecursiveResult(ResultSurface):
             "method": self.method,
             "estimator": "recursive",
             "converged": self.converged,
-            "status": "converged" if self.converged else "stalled",
+            # a one-pass filter does not iterate: "completed", or "inconsistent" when a health
+            # check failed (docs/schema/results.schema.json)
+            "status": "completed" if self.converged else "inconsistent",
             "message": message,
             "cost": None,
             "iterations": 1,
