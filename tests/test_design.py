@@ -174,17 +174,21 @@ def test_predicted_bounds_of_a_linear_regression_closed_form_and_monte_carlo():
     )
 
 
-def _first_order_model(a=-1.2, b=0.8) -> StateSpaceModel:
-    def f(t, x, u, p):
-        # ẋ = a x + b u
-        return np.array([p[0] * x[0] + p[1] * u[0]])
+def _lag_f(t, x, u, p):
+    # ẋ = a x + b₁u₁ + b₂u₂
+    return np.array([p[0] * x[0] + p[1] * u[0] + p[2] * u[1]])
 
-    def h(t, x, u, p):
-        return np.array([x[0]])
 
-    return StateSpaceModel(
-        ("x",), ("u",), ("y",), f, h, Parameters([Parameter("a", a), Parameter("b", b)]), x0=(0.0,)
+def _lag_h(t, x, u, p):
+    return np.array([x[0]])
+
+
+def _lag_model(a=-1.2, b1=0.8, b2=0.5, b2_free=True) -> StateSpaceModel:
+    """A first-order lag with two inputs (one model, so one compiled kernel, for the tests)."""
+    parameters = Parameters(
+        [Parameter("a", a), Parameter("b1", b1), Parameter("b2", b2, free=b2_free)]
     )
+    return StateSpaceModel(("x",), ("u1", "u2"), ("y",), _lag_f, _lag_h, parameters, x0=(0.0,))
 
 
 def test_predicted_bounds_of_a_first_order_system_closed_form_and_estimator_monte_carlo():
@@ -193,8 +197,9 @@ def test_predicted_bounds_of_a_first_order_system_closed_form_and_estimator_mont
     a, b, u0, sigma = -1.2, 0.8, 1.0, 0.02
     t = np.arange(0.0, 6.0 + 1e-9, 0.02)
     step = np.where(t > 0.5 - 1e-9, u0, 0.0)
-    data = FlightData(t, {"u": step})
-    model = _first_order_model(a, b)
+    idle = np.zeros_like(t)  # u₂ = 0 and b₂ fixed: ẋ = a x + b u
+    data = FlightData(t, {"u1": step, "u2": idle})
+    model = _lag_model(a, b, b2_free=False)
     predicted = predict_accuracy(model, data, {"y": sigma}, input_interpolation="zoh")
     # closed form after the step at t₀ = 0.5 s (τ = t − t₀ ≥ 0), zero before
     tau = np.clip(t - 0.5, 0.0, None)
@@ -209,9 +214,11 @@ def test_predicted_bounds_of_a_first_order_system_closed_form_and_estimator_mont
     rng = np.random.default_rng(21)
     estimates = []
     for _ in range(150):
-        noisy = FlightData(t, {"u": step}, {"y": clean + rng.normal(0.0, sigma, t.size)})
+        noisy = FlightData(
+            t, {"u1": step, "u2": idle}, {"y": clean + rng.normal(0.0, sigma, t.size)}
+        )
         result = estimate(model, noisy, noise="fixed", R=[sigma**2], input_interpolation="zoh")
-        estimates.append(result.values)
+        estimates.append(result.values[:2])  # a, b₁ (b₂ is fixed)
     realised = np.std(np.array(estimates), axis=0, ddof=1)
     # 150 runs: σ's own relative spread ≈ 1/√298 ≈ 6 %; 15 % is 2.5 of it
     np.testing.assert_allclose(realised, predicted.std, rtol=0.15)
@@ -391,3 +398,25 @@ def test_flightid_design_json_on_the_shipped_short_period_case(capsys):
     assert entry["response_peak"]["alpha"] <= 0.0543 and entry["response_peak"]["q"] <= 0.139
     reference = entry["reference"]["predicted"]
     assert all(document["predicted"][n] < reference[n] for n in names)
+
+
+def test_step_inputs_follow_one_another_and_a_too_short_duration_is_named():
+    from flightid.design.optimize import DesignError
+
+    specs = (InputSpec("u1", 0.2, pulse_s=0.5), InputSpec("u2", 0.1, pulse_s=0.3))
+    problem = DesignProblem(
+        _lag_model(a=-2.0, b1=1.0, b2=0.5), specs, 12.0, 0.05, {"y": 0.01}, signal="3211",
+        candidates=1,
+        start_s=1.0, gap_s=2.0,
+    )  # fmt: skip
+    best, _ = design_input(problem)
+    t = best.time
+    first = np.flatnonzero(best.perturbations[:, 0])
+    second = np.flatnonzero(best.perturbations[:, 1])
+    # u1: 7 × 0.5 s from t = 1 s; u2 starts a 2 s gap after u1 ends (t = 6.5 s); together
+    # they need 1 + 3.5 + 2 + 7 × 0.3 = 8.6 s
+    assert t[first[0]] == pytest.approx(1.0) and t[first[-1]] == pytest.approx(4.45)
+    assert t[second[0]] == pytest.approx(6.5) and t[second[-1]] == pytest.approx(8.55)
+    short = replace(problem, duration_s=6.0)
+    with pytest.raises(DesignError, match=r"duration_s: no candidate fits in 6 s; .* needs 8\.6 s"):
+        design_input(short)

@@ -414,6 +414,21 @@ def _step_candidates(problem: DesignProblem):
         yield setting, np.column_stack(columns), None
 
 
+def _shortest_steps(problem: DesignProblem) -> str:
+    """What the shortest step candidate needs (for the message when none fits)."""
+    shortest = min(np.geomspace(0.5, 2.0, problem.candidates)) if problem.candidates > 1 else 1.0
+    lengths = [
+        sequence_length_s(problem.signal, shortest * _pulse_units(problem, spec))
+        for spec in problem.inputs
+    ]
+    needed = problem.start_s + sum(lengths) + problem.gap_s * (len(lengths) - 1)
+    return (
+        f"the shortest {problem.signal} candidate needs {needed:.4g} s (start_s "
+        f"{problem.start_s:g} + sequences {[round(v, 3) for v in lengths]} + gaps); lengthen "
+        "duration_s or give a shorter pulse_s"
+    )
+
+
 def _check_limits(problem: DesignProblem, candidate: Candidate) -> None:
     """The returned input obeys every limit (amplitude, duration, response) or DesignError."""
     peaks = candidate.peak_amplitudes
@@ -465,12 +480,11 @@ def design_input(problem: DesignProblem, progress=None) -> tuple[Candidate, list
                 f"{problem.criterion} = {candidate.criterion_value:.6g}"
             )
     if not tried:
-        detail = (
-            "; ".join(reasons[:3])
-            if reasons
-            else ("no candidate fits in duration_s (the step sequences with their gaps are longer)")
+        if reasons:
+            raise DesignError(f"design: no feasible input ({'; '.join(reasons[:3])})")
+        raise DesignError(
+            f"duration_s: no candidate fits in {problem.duration_s:g} s; {_shortest_steps(problem)}"
         )
-        raise DesignError(f"design: no feasible input ({detail})")
     best = min(tried, key=lambda c: c.criterion_value)
     best = _raise_amplitudes(problem, best, progress)
     _check_limits(problem, best)
