@@ -420,3 +420,38 @@ def test_step_inputs_follow_one_another_and_a_too_short_duration_is_named():
     short = replace(problem, duration_s=6.0)
     with pytest.raises(DesignError, match=r"duration_s: no candidate fits in 6 s; .* needs 8\.6 s"):
         design_input(short)
+
+
+def test_design_result_files_hold_the_input_and_the_predicted_bounds(tmp_path):
+    import csv
+
+    from flightid.design.result import DesignResult
+
+    problem = DesignProblem(
+        _short_period(), (InputSpec("de", 0.03, -0.02, (0.1, 1.5)),), 10.0, 0.05,
+        {"alpha": 0.002, "q": 0.003}, candidates=2,
+    )  # fmt: skip
+    best, tried = design_input(problem)
+    result = DesignResult(problem, best, tuple(tried), title="files")
+    main = result.write_files(tmp_path)
+    assert main.name == "results.json"
+    document = json.loads(main.read_text())
+    entry = document["results"][0]
+    assert entry["predicted"] == {
+        n: float(s) for n, s in zip(best.accuracy.names, best.accuracy.std, strict=True)
+    }
+    with open(tmp_path / "designed_input.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 201 and list(rows[0]) == ["time_s", "de", "delta_de"]
+    for row in rows:
+        # the absolute column is trim + Δu, and Δu stays within its amplitude
+        assert float(row["de"]) == pytest.approx(-0.02 + float(row["delta_de"]), abs=1e-9)
+        assert abs(float(row["delta_de"])) <= 0.03 + 1e-12
+    with open(tmp_path / "predicted_accuracy.csv", newline="") as handle:
+        table = {r["name"]: float(r["predicted_std"]) for r in csv.DictReader(handle)}
+    np.testing.assert_allclose(
+        [table[n] for n in best.accuracy.names], best.accuracy.std, rtol=1e-5
+    )
+    assert (tmp_path / "design.png").stat().st_size > 10_000
+    frame = result.to_frame()
+    assert list(frame.index) == list(best.accuracy.names)

@@ -1,6 +1,7 @@
 """The result of an input design: the designed input, its predicted accuracy, and reports.
 
 ``DesignResult`` answers the common result calls (``flightid.results``): ``summary()``,
+``to_frame()``,
 ``to_dict()`` (one results.json entry: ``parameters`` [{name, value, std, free, unit,
 initial}] with std the *predicted* Cramér–Rao bound, plus ``inputs`` {time, one series per
 input}, ``predicted`` {name: σ}, the settings, peak factors and the reference maneuver's
@@ -176,6 +177,21 @@ class DesignResult:
                 "criterion_value": ref.criterion(problem.criterion, problem.parameters),
             }
         return entry
+
+    def to_frame(self):
+        """The predicted accuracy as a pandas DataFrame indexed by parameter name: value,
+        predicted std (and the reference's, with a reference maneuver)."""
+        from flightid.results import require_pandas
+
+        pandas = require_pandas("DesignResult.to_frame()")
+        accuracy = self.best.accuracy
+        rows = []
+        for j, name in enumerate(accuracy.names):
+            row = {"name": name, "value": accuracy.values[j], "std": accuracy.std[j]}
+            if self.reference is not None:
+                row["reference_std"] = self.reference[0].std_of(name)
+            rows.append(row)
+        return pandas.DataFrame(rows).set_index("name")
 
     def to_json(self, indent: int | None = 2) -> str:
         from flightid.report.jsonout import dumps
