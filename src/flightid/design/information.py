@@ -13,8 +13,9 @@ the accuracy to expect: the Cramér–Rao lower bounds
     C = M⁻¹,   σ_j = √C_jj,   ρ_ij = C_ij / (σ_i σ_j).
 
 G comes from the sensitivity equations integrated alongside the states, and M from
-``flightid.estimation.gauss_newton.information_matrix``: the very matrix the output-error
-estimator forms at convergence, so the prediction and the estimator's own bounds agree.
+``flightid.estimation.gauss_newton.information_matrix``, the function the output-error
+estimator forms its Cramér–Rao bounds with at convergence (there from central-difference G),
+so the prediction and the estimator's own bounds are the same formula.
 
 Criteria (smaller is better), with s_j = max(|θ_j|, typical_j) making them unit-free:
 
