@@ -111,7 +111,16 @@ def _affine_model(nonlinear: bool = False) -> StateSpaceModel:
         return np.array([x[0], x[1]])
 
     params = Parameters(
-        {"Z0": 0.01, "Za": -0.5, "Zq": 0.1, "Zde": 0.7, "M0": 0.2, "Ma": -5.0, "Mq": -2.0, "Mde": -7.0}
+        {
+            "Z0": 0.01,
+            "Za": -0.5,
+            "Zq": 0.1,
+            "Zde": 0.7,
+            "M0": 0.2,
+            "Ma": -5.0,
+            "Mq": -2.0,
+            "Mde": -7.0,
+        }
     )
     return StateSpaceModel(STATES, ("de",), STATES, f, h, params, x0=(0.0, 0.0))
 

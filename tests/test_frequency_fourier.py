@@ -114,7 +114,12 @@ def test_boundary_terms_are_constant_on_a_harmonic_grid():
             "signals",
         ),
         (lambda: finite_fourier_transform(np.ones(4), [0, 1, 3, 4.0], [0.1]), "uniform"),
-        (lambda: finite_fourier_transform(np.ones(4), np.arange(4.0), [0.1, 0.3, 0.4], method="czt"), "czt"),
+        (
+            lambda: finite_fourier_transform(
+                np.ones(4), np.arange(4.0), [0.1, 0.3, 0.4], method="czt"
+            ),
+            "czt",
+        ),
         (lambda: remove_trend(np.ones(4), np.arange(4.0), "cubic"), "detrend"),
         (
             lambda: maneuver_spectra(TIME, np.ones(TIME.size), np.ones(TIME.size), [20.0]),

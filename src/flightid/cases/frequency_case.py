@@ -6,7 +6,8 @@
     step_hz = 0.04               # spacing of the transform, Hz (1/T: independent points)
     detrend = "mean"             # "mean", "linear" or "none", before transforming
     boundary = true              # estimate x(0), x(T) of each maneuver (nuisance)
-    constants = true             # estimate constant offsets c, d per maneuver (nuisance)
+    constants = true             # estimate constant output offsets d per maneuver (nuisance;
+                                 # also state offsets c when boundary = false)
     start = "case"               # output error: start at the case's values or at the
                                  # frequency-domain equation-error estimates
     max_noise_cycles = 30        # alternations of the S update and the fit

@@ -15,6 +15,14 @@ The boundary values x(0), x(T) and the constants c, d (what is left of biases af
 means were removed) enter linearly; they are estimated with the model parameters as
 per-maneuver nuisance parameters (``boundary``, ``constants``), because data that do not
 start and end at trim otherwise leave a transient the model cannot explain. With the
+boundary values estimated, the state constants are redundant: from
+(jωI − A)⁻¹/(jω) = [(jωI − A)⁻¹ − I/(jω)] A⁻¹ and E = (1 − e^{−jωT})/(jω),
+
+    C (jωI − A)⁻¹ c E(ω) = C (jωI − A)⁻¹ A⁻¹c (1 − e^{−jωT}) − C A⁻¹c E(ω),
+
+a boundary term with x(0) = x(T) = A⁻¹c plus an output constant d = −C A⁻¹c; so c is
+estimated only when the boundary values are not (``boundary = false``). Kept, it would make
+the information matrix exactly singular. With the
 residuals ε(ω) = Z(ω) − Y(ω) the cost is
 
     J(θ) = Σ_ω ε(ω)ᴴ S⁻¹ ε(ω),        S = (1/K) Σ_ω ε(ω) ε(ω)ᴴ          (K frequencies)
@@ -113,15 +121,19 @@ def nuisance_names(
             names += [f"x0_xT_{x}_{k}" for x in states]
         elif boundary:
             names += [f"x0_{x}_{k}" for x in states] + [f"xT_{x}_{k}" for x in states]
+        if constants and not boundary:
+            names += [f"c_{x}_{k}" for x in states]
         if constants:
-            names += [f"c_{x}_{k}" for x in states] + [f"d_{o}_{k}" for o in outputs]
+            names += [f"d_{o}_{k}" for o in outputs]
     return names
 
 
 def _per_maneuver_count(
     n_x: int, n_y: int, boundary: bool, constants: bool, merged: bool = False
 ) -> int:
-    return ((n_x if merged else 2 * n_x) if boundary else 0) + (n_x + n_y if constants else 0)
+    boundary_count = (n_x if merged else 2 * n_x) if boundary else 0
+    # state constants c only without boundary values (else redundant), output constants d
+    return boundary_count + ((n_y if boundary else n_x + n_y) if constants else 0)
 
 
 def model_response(
@@ -152,10 +164,13 @@ def model_response(
         i += 2 * n_x
         # + x(0) − x(T) e^{−jωT}
         rhs = rhs + x_start[None, :] - spectra.end_phase[:, None] * x_end[None, :]
-    if constants:
-        c, d = nuisance[i : i + n_x], nuisance[i + n_x : i + n_x + n_y]
+    if constants and not boundary:
+        c = nuisance[i : i + n_x]
+        i += n_x
         # + c E(ω)
         rhs = rhs + spectra.constant[:, None] * c[None, :]
+    if constants:
+        d = nuisance[i : i + n_y]
     # X(ω) = (jωI − A)⁻¹ rhs(ω)
     resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
     states = np.linalg.solve(resolvent, rhs[:, :, None])[:, :, 0]
@@ -189,8 +204,9 @@ def nuisance_sensitivities(
         blocks.append(cg)
     elif boundary:
         blocks += [cg, -spectra.end_phase[:, None, None] * cg]
-    if constants:
+    if constants and not boundary:
         blocks.append(spectra.constant[:, None, None] * cg)
+    if constants:
         blocks.append(spectra.constant[:, None, None] * np.eye(n_y)[None])
     if not blocks:
         return np.zeros((omega.size, n_y, 0), dtype=complex)
@@ -224,7 +240,8 @@ def output_error(
         free: boolean mask (n_p,).
         spectra: the maneuvers' transforms (``maneuver_spectra``), all on n_y outputs.
         states, outputs: names (for nuisance names and messages).
-        boundary: estimate x(0), x(T) per maneuver; constants: estimate c, d per maneuver.
+        boundary: estimate x(0), x(T) per maneuver; constants: estimate the output
+            constants d per maneuver (and the state constants c when boundary is False).
         max_noise_cycles: alternations of the S update and the fit.
         tolerance: relative change of J and of diag S that ends the alternation.
         scales: typical magnitudes of θ (for the difference steps); default max(|θ|, 0.01).
@@ -373,15 +390,21 @@ def output_error(
     factor = np.linalg.cholesky(np.linalg.inv(S))
     Jr = jacobian(p, factor)
     r = weighted(p, factor)
+    if not (np.all(np.isfinite(Jr)) and np.all(np.isfinite(r))):
+        raise EstimationError(
+            "output_error: non-finite residuals or sensitivities at the estimate (a model "
+            "pole on the band?)"
+        )
     H = Jr.T @ Jr
-    # M = 2 Jᵣᵀ Jᵣ ,  Cov = M⁻¹
-    try:
-        cov_all = np.linalg.inv(2.0 * H)
-    except np.linalg.LinAlgError:
+    # scaled to unit diagonal before judging the condition: parameters differ in size
+    diagonal = np.sqrt(np.diag(H))
+    if np.any(diagonal == 0.0) or np.linalg.cond(H / np.outer(diagonal, diagonal)) > 1e13:
         raise EstimationError(
             "output_error: the information matrix is singular; a parameter (or nuisance "
             "parameter) is not determined by the data on this band"
-        ) from None
+        )
+    # M = 2 Jᵣᵀ Jᵣ ,  Cov = M⁻¹
+    cov_all = np.linalg.inv(2.0 * H)
     # coloured correction: H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹, per maneuver
     width = 2 * n_y
     middle = np.zeros_like(H)

@@ -1,0 +1,85 @@
+"""Frequency-domain versus time-domain output error on the ATTAS flight data (issue 16,
+part 2).
+
+Runs the time-domain standard cases (examples/cases/attas_short_period.toml,
+attas_lateral.toml: output error, RK4, R estimated) and their frequency-domain
+counterparts (*_frequency_domain.toml: output error on 0.1–1.5 Hz), and prints a markdown
+table per case: value ± σ (Cramér–Rao) of each, the frequency-domain coloured-residual σ,
+and z = (θ_fd − θ_td)/sqrt(σ_fd² + σ_td²) with the Cramér–Rao σ of both; |z| ≤ 2 is
+"agrees". Parameters the frequency domain does not estimate (constants, biases) are listed
+as such.
+
+Usage::
+
+    python bench/frequency_comparison.py [--band LOW HIGH]
+
+``--band`` reruns the frequency-domain cases on another band (a sensitivity check; the case
+files' band is 0.1–1.5 Hz).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from flightid.cases import load_case
+from flightid.cases.frequency_case import run_frequency_case
+from flightid.cases.run import run_case
+
+ROOT = Path(__file__).resolve().parents[1]
+PAIRS = [
+    ("attas_short_period.toml", "attas_short_period_frequency_domain.toml"),
+    ("attas_lateral.toml", "attas_lateral_frequency_domain.toml"),
+]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--band", nargs=2, type=float, default=None)
+    args = parser.parse_args()
+    for td_name, fd_name in PAIRS:
+        td_case = load_case(ROOT / "examples/cases" / td_name)
+        fd_case = load_case(ROOT / "examples/cases" / fd_name)
+        if args.band is not None:
+            table = dict(fd_case.frequency_domain)
+            table["band_hz"] = list(args.band)
+            fd_case = replace(fd_case, frequency_domain=table)
+        started = time.perf_counter()
+        td = run_case(td_case, None).to_dict()
+        td_time = time.perf_counter() - started
+        started = time.perf_counter()
+        fd = run_frequency_case(fd_case, None).to_dict()
+        fd_time = time.perf_counter() - started
+        band = fd["frequency_domain"]["band_hz"]
+        print(
+            f"\n{td_name} (time domain, {td_time:.1f} s) vs {fd_name} "
+            f"(band {band[0]:g}-{band[1]:g} Hz, {fd_time:.1f} s)\n"
+        )
+        print("| parameter | time domain ± σ | frequency domain ± σ_CR | σ_coloured | z | agrees |")
+        print("|---|---|---|---|---|---|")
+        td_rows = {p["name"]: p for p in td["parameters"]}
+        agree = total = 0
+        for p in fd["parameters"]:
+            t = td_rows[p["name"]]
+            if not p["estimated"]:
+                print(f"| {p['name']} | {t['value']:.5g} ± {t['std']:.2g} | not estimated | | | |")
+                continue
+            # z = (θ_fd − θ_td) / sqrt(σ_fd² + σ_td²)
+            z = (p["value"] - t["value"]) / np.hypot(p["std"], t["std"])
+            ok = abs(z) <= 2.0
+            agree += ok
+            total += 1
+            print(
+                f"| {p['name']} | {t['value']:.5g} ± {t['std']:.2g} | "
+                f"{p['value']:.5g} ± {p['std']:.2g} | {p['std_coloured']:.2g} | {z:+.2f} | "
+                f"{'yes' if ok else 'no'} |"
+            )
+        print(f"\n{agree} of {total} estimated parameters within 2 combined σ")
+
+
+if __name__ == "__main__":
+    main()
