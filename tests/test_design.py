@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -398,6 +399,13 @@ def test_flightid_design_json_on_the_shipped_short_period_case(capsys):
     assert entry["response_peak"]["alpha"] <= 0.0543 and entry["response_peak"]["q"] <= 0.139
     reference = entry["reference"]["predicted"]
     assert all(document["predicted"][n] < reference[n] for n in names)
+    # the document is a results.json of layout 1: its entry is a design entry of the schema
+    import jsonschema
+
+    schema = json.loads(Path("docs/schema/results.schema.json").read_text())
+    jsonschema.Draft202012Validator(schema).validate(document)
+    design_only = {"$ref": "#/$defs/design_entry", "$defs": schema["$defs"]}
+    jsonschema.Draft202012Validator(design_only).validate(entry)
 
 
 def test_step_inputs_follow_one_another_and_a_too_short_duration_is_named():
