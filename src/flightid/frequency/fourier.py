@@ -260,7 +260,9 @@ class ManeuverSpectra:
         """True if e^{−jωT} is the same at every frequency (frequencies spaced by a
         multiple of 1/T): then x(0) and x(T) enter only as x(0) − x(T) e^{−jωT}, one
         unknown per state instead of two."""
-        return bool(np.ptp(self.end_phase.real) + np.ptp(self.end_phase.imag) < 1e-9)
+        # spread of e^{−jωT} over the band below 1e-6 (rad): merged; a spacing close to but
+        # not at 1/T leaves x(0) and x(T) nearly collinear (the fit reports it singular)
+        return bool(np.ptp(self.end_phase.real) + np.ptp(self.end_phase.imag) < 1e-6)
 
     @property
     def omega_rad_s(self) -> np.ndarray:
