@@ -239,7 +239,8 @@ def output_error(
         theta_start: start values (n_p,); fixed entries keep theta_start.
         free: boolean mask (n_p,).
         spectra: the maneuvers' transforms (``maneuver_spectra``), all on n_y outputs.
-        states, outputs: names (for nuisance names and messages).
+        states: state names (for the nuisance names).
+        outputs: output names (for the nuisance names and messages).
         boundary: estimate x(0), x(T) per maneuver; constants: estimate the output
             constants d per maneuver (and the state constants c when boundary is False).
         max_noise_cycles: alternations of the S update and the fit.

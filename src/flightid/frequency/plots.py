@@ -48,7 +48,7 @@ def bode_figure(result, *, max_pairs: int = 6):
                 # the data's phase, taken to the branch nearest the model's
                 ph = np.rad2deg(np.angle(ratio))
                 ph = ph + 360.0 * np.round((np.rad2deg(np.unwrap(np.deg2rad(ref))) - ph) / 360.0)
-                label = f"data (maneuver {m + 1})"
+                label = f"data Z/U (maneuver {m + 1})"
                 gain.semilogx(f, 20 * np.log10(np.abs(ratio)), ".", ms=4, label=label)
                 phase.semilogx(f, ph, ".", ms=4)
         gain.set_title(f"{result.outputs[j]} / {result.inputs[k]}", fontsize=9)
