@@ -15,6 +15,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 
@@ -59,9 +60,13 @@ DISAGREE_SP = {"Ma"}
 DISAGREE_LAT = {"Lp", "Lda", "Np", "Nr", "Ndr", "Yp", "Yda"}
 
 
+SCHEMA = json.loads((ROOT / "docs/schema/results.schema.json").read_text())
+
+
 def _run_json(case: Path, capsys) -> dict:
     assert main(["run", str(case), "--json", "--quiet"]) == 0
     document = json.loads(capsys.readouterr().out)
+    jsonschema.Draft202012Validator(SCHEMA).validate(document)
     assert document["schema_version"] == "1"
     assert len(document["results"]) == 1
     return document["results"][0]

@@ -25,6 +25,7 @@ with their start value, ``free: false``, ``estimated: false`` and the reason.
 
 from __future__ import annotations
 
+import hashlib
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -155,6 +156,10 @@ class FrequencyResult(ResultSurface):
     wall_time_s: float
     case_info: dict = field(default_factory=dict)
     maneuvers: tuple[dict, ...] = ()
+    output_units: tuple[str, ...] = ()
+    cost_history: tuple[float, ...] = ()
+    evaluation_history: tuple[int, ...] = ()
+    sample_interval_s: float = float("nan")
 
     # ---------------------------------------------------------------- model helpers
     def model_transfer(self, frequencies_hz: np.ndarray) -> np.ndarray:
@@ -163,6 +168,14 @@ class FrequencyResult(ResultSurface):
         A, B, C, D = self.system.A, self.system.B, self.system.C, self.system.D
         eye = np.eye(A.shape[0])
         return np.array([C @ np.linalg.solve(si * eye - A, B) + D for si in s])
+
+    def equivalent_variances(self) -> np.ndarray:
+        """Time-domain equivalent of the residual spectral covariance, R_j = S_jj/(Δt T)
+        (T the mean record length), per output; NaN without S (equation error)."""
+        if self.S is None:
+            return np.full(len(self.outputs), np.nan)
+        duration = float(np.mean([s.duration_s for s in self.spectra]))
+        return np.real(np.diag(self.S)) / (self.sample_interval_s * duration)
 
     def model_response_has_signal(self, j: int, k: int) -> bool:
         """True if output j responds to input k in the model."""
@@ -263,16 +276,29 @@ class FrequencyResult(ResultSurface):
             if row["name"] in self.not_estimated:
                 entry["note"] = self.not_estimated[row["name"]]
             parameters.append(entry)
+        r_equivalent = self.equivalent_variances()
         return {
             "method": f"frequency_{self.method}",
             "converged": bool(self.converged),
-            "status": "converged" if self.converged else "not_converged",
+            "status": "converged" if self.converged else "max_iterations",
             "message": self.message,
             "cost": None if self.cost is None else finite_or_none(self.cost),
             "iterations": int(self.iterations),
+            "equivalent_evaluations": int(self.iterations),
+            "accuracy_evaluations": 2 * int(self.free.sum()) if self.S is not None else 0,
             "noise_cycles": int(self.noise_cycles),
+            "noise_policy": "spectral covariance S from the residuals"
+            if self.S is not None
+            else "least squares (σ² per equation)",
+            "integration": "none (frequency domain)",
             "wall_time_s": float(self.wall_time_s),
+            "R": [finite_or_none(v) for v in r_equivalent],
             "outputs": list(self.outputs),
+            "output_units": list(self.output_units) or [""] * len(self.outputs),
+            "fit_rms": [finite_or_none(np.sqrt(v)) for v in r_equivalent],
+            "cost_history": [finite_or_none(v) for v in self.cost_history],
+            "evaluation_history": [int(v) for v in self.evaluation_history],
+            "prediction": [],
             "parameters": parameters,
             "frequency_domain": {
                 "band_hz": list(self.settings.band_hz),
@@ -293,6 +319,9 @@ class FrequencyResult(ResultSurface):
                 ),
                 "std_note": "std: Cramér–Rao M⁻¹; std_coloured: coloured-residual sandwich "
                 "(flightid.frequency.output_error)",
+                "R_note": "R and fit_rms are time-domain equivalents of the spectral "
+                "residual covariance, R_j = S_jj / (Δt T) (white noise of variance σ² has "
+                "E|V(ω)|² = Δt T σ²); null for equation error",
             },
             "case": dict(self.case_info),
             "maneuvers": list(self.maneuvers),
@@ -354,7 +383,7 @@ def run_frequency_case(
 ) -> FrequencyResult:
     """Run the case's frequency-domain estimation; ``CaseError`` for a malformed table or a
     model the frequency domain cannot take."""
-    from flightid.cases.build import build_model, load_maneuvers, resolve_data_dir
+    from flightid.cases.build import base_model, build_model, load_maneuvers, resolve_data_dir
     from flightid.frequency.equation_error import equation_error
     from flightid.frequency.fourier import frequency_grid, maneuver_spectra
     from flightid.frequency.linear_system import bias_like_parameters, linear_system
@@ -362,9 +391,16 @@ def run_frequency_case(
 
     settings = frequency_settings(case.frequency_domain)
     started = _time.perf_counter()
+    case_file = Path(case.path) if case.path is not None else None
+    case_sha256 = (
+        hashlib.sha256(case_file.read_bytes()).hexdigest()
+        if case_file is not None and case_file.is_file()
+        else ""
+    )
     directory = resolve_data_dir(case, data_dir)
     maneuvers = load_maneuvers(case, directory)
-    model, maneuvers = build_model(case, maneuvers)
+    base, description = base_model(case, directory)
+    model, maneuvers = build_model(case, maneuvers, base=base)
     try:
         linear_system(model)
         bias_like = bias_like_parameters(model)
@@ -445,6 +481,8 @@ def run_frequency_case(
             S = cost = None
             converged, message, cycles, iterations = True, "closed-form least squares", 0, 0
             nuisance: tuple = ()
+            cost_history: tuple = ()
+            evaluation_history: tuple = ()
         else:
             start = ee.theta if settings.start == "equation_error" else theta0
             fit = output_error(
@@ -465,6 +503,7 @@ def run_frequency_case(
             converged, message = fit.converged, fit.message
             cycles, iterations = fit.noise_cycles, fit.iterations
             model_outputs = fit.model_outputs
+            cost_history, evaluation_history = fit.cost_history, fit.evaluation_history
             nuisance = tuple(zip(fit.nuisance_names, fit.nuisance, fit.nuisance_std, strict=True))
             system = system_of(values)
     except InputError as exc:
@@ -498,7 +537,16 @@ def run_frequency_case(
         noise_cycles=cycles,
         iterations=iterations,
         wall_time_s=_time.perf_counter() - started,
-        case_info={"title": case.title, "file": str(case.path)},
+        case_info={
+            "title": case.title,
+            "file": str(case.path),
+            "sha256": case_sha256,
+            "model": description,
+        },
+        output_units=tuple(maneuvers[0].units.get(n, "") for n in outputs),
+        cost_history=cost_history,
+        evaluation_history=evaluation_history,
+        sample_interval_s=float(np.mean([m.dt for m in maneuvers])),
         maneuvers=tuple({"name": m.name, "samples": m.n_samples, "dt": m.dt} for m in maneuvers),
     )
     if not np.all(np.isfinite(result.values[free])) or not np.all(np.isfinite(result.std[free])):

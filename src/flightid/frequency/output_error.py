@@ -102,6 +102,7 @@ class OutputErrorFit:
     model_outputs: tuple[np.ndarray, ...]
     residuals: tuple[np.ndarray, ...]
     cost_history: tuple[float, ...] = field(default_factory=tuple)
+    evaluation_history: tuple[int, ...] = field(default_factory=tuple)  # nfev per noise cycle
 
 
 def nuisance_names(
@@ -335,6 +336,7 @@ def output_error(
     p = np.concatenate([theta_start[free], np.zeros(n_nuisance)])
     S = np.eye(n_y, dtype=complex)
     history: list[float] = []
+    evaluations: list[int] = []
     iterations = 0
     converged = False
     message = ""
@@ -354,6 +356,7 @@ def output_error(
             max_nfev=200 * (p.size + 1),
         )
         iterations += int(solution.nfev)
+        evaluations.append(int(solution.nfev))
         if cycle == 1:
             previous = p.copy()
         if not np.all(np.isfinite(solution.x)):
@@ -455,4 +458,5 @@ def output_error(
         model_outputs=model_outputs,
         residuals=tuple(s.outputs - y for s, y in zip(spectra, model_outputs, strict=True)),
         cost_history=tuple(history),
+        evaluation_history=tuple(evaluations),
     )
