@@ -98,9 +98,9 @@ tree; base seed 7: 149 → 127).
 
 Measured (bench/peers.py, 6-DOF Navion, 8 seeds, sims to J* + 0.01): base (22 free) median
 80 against 116 for MNR and scipy's ``least_squares`` (lm); hard40 median 239.5 against lm
-517 (per seed in docs/benchmarks.md). The full first step after a sweep costs the
+517 (per seed in docs/benchmarks.md). The full first step after a sweep cost the
 HFB-320 case (11 free, four noise cycles) 213 simulations where it took 203 (MNR 205): its
-end phases take other paths.
+end phases took other paths; the noise-cycle rule below brings it to 119.
 
 Noise cycles
 ------------
