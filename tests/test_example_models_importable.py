@@ -30,3 +30,25 @@ def test_model_functions_live_in_a_registered_module(path):
         module = sys.modules.get(function.__module__)
         assert module is not None, (path.name, function.__module__)
         assert module.__dict__ is function.__globals__, (path.name, function.__module__)
+
+
+def test_a_model_file_built_on_another_shares_its_module():
+    # hfb320_upper.py imports hfb320.py with import_model_module: the module flightid loads
+    # for a case naming hfb320.py itself is the very same object (one compilation, one
+    # cache entry), and its f is the renamed model's f
+    from flightid.cases.usermodel import import_model_module
+
+    folder = MODELS[0].parent
+    upper = load_user_model(folder / "hfb320_upper.py")
+    base = load_user_model(folder / "hfb320.py")
+    assert import_model_module(folder / "hfb320.py") is base.module
+    assert upper.f is base.f and upper.h is base.h
+    assert list(upper.parameters.values()) == list(base.parameters.values())
+    assert list(upper.parameters)[:3] == ["CD0", "CDV", "CDAL"]
+
+
+def test_import_model_module_names_a_missing_file(tmp_path):
+    from flightid.cases.usermodel import UserModelError, import_model_module
+
+    with pytest.raises(UserModelError, match="does not exist"):
+        import_model_module(tmp_path / "no_such_model.py")

@@ -6,18 +6,13 @@ recursive-estimation reference (CASES.md §8.2, "Parameter names in the referenc
 f and h are those of ``attas_short_period.py`` (same θ order, same start values).
 """
 
-import importlib.util
-import sys
 from pathlib import Path
 
-_spec = importlib.util.spec_from_file_location(
-    "flightid_example_attas_short_period", Path(__file__).with_name("attas_short_period.py")
-)
-_base = importlib.util.module_from_spec(_spec)
-# registered: numba finds the module of f's and h's globals by name when it loads their
-# compiled kernels from its disk cache
-sys.modules[_spec.name] = _base
-_spec.loader.exec_module(_base)
+from flightid.cases.usermodel import import_model_module
+
+# the module flightid imports for a case naming that file (registered in sys.modules, so
+# numba reloads the compiled f and h from its disk cache)
+_base = import_model_module(Path(__file__).with_name("attas_short_period.py"))
 
 STATES = _base.STATES
 INPUTS = _base.INPUTS

@@ -5,19 +5,13 @@ Same f, h, states, inputs, outputs and start values as ``hfb320.py``; only the n
 (CDAL = C_Dα, CMQ = C_mq, ...).
 """
 
-import importlib.util
-import sys
 from pathlib import Path
 
-_spec = importlib.util.spec_from_file_location(
-    "flightid_example_hfb320", Path(__file__).with_name("hfb320.py")
-)
-_base = importlib.util.module_from_spec(_spec)
-# registered, as importlib's recipe does: numba finds the module of f's and h's globals by
-# name when it loads their compiled kernels from its disk cache (unregistered, every run
-# compiled them again)
-sys.modules[_spec.name] = _base
-_spec.loader.exec_module(_base)
+from flightid.cases.usermodel import import_model_module
+
+# the module flightid imports for a case naming that file (registered in sys.modules, so
+# numba reloads the compiled f and h from its disk cache)
+_base = import_model_module(Path(__file__).with_name("hfb320.py"))
 
 STATES = _base.STATES
 INPUTS = _base.INPUTS

@@ -102,8 +102,24 @@ def _names(value: Any, name: str, path: Path) -> tuple[str, ...]:
     return tuple(value)
 
 
-def load_user_model(path: str | Path) -> UserModel:
-    """Import a model module from a file and check its definitions."""
+def import_model_module(path: str | Path) -> ModuleType:
+    """Import a Python file as a module, once per process, registered in ``sys.modules``.
+
+    The module's name is derived from the file's absolute path, so every caller that imports
+    the same file gets the same module — flightid for ``[model] module``, and a model file
+    that builds on another one::
+
+        from pathlib import Path
+        from flightid.cases.usermodel import import_model_module
+
+        _base = import_model_module(Path(__file__).with_name("attas_short_period.py"))
+        f, h = _base.f, _base.h
+
+    Registered, because numba finds the module of a compiled function's globals by name when
+    it loads the function's kernels from its disk cache: a module imported by path and not
+    registered recompiles them in every process. Raises ``UserModelError`` if the file does
+    not exist or its import fails (the message names the file and the error).
+    """
     path = Path(path).resolve()
     if not path.is_file():
         raise UserModelError(f"model.module: {path} does not exist")
@@ -125,6 +141,14 @@ def load_user_model(path: str | Path) -> UserModel:
             # SystemExit: a module that calls sys.exit() / exit() at import time
             del sys.modules[module_name]
             raise _import_failure(path, exc) from exc
+    return module
+
+
+def load_user_model(path: str | Path) -> UserModel:
+    """Import a model module from a file (``import_model_module``) and check its
+    definitions."""
+    path = Path(path).resolve()
+    module = import_model_module(path)
     states = _names(_get(module, "STATES", path), "STATES", path)
     inputs = _names(_get(module, "INPUTS", path), "INPUTS", path)
     outputs = _names(_get(module, "OUTPUTS", path), "OUTPUTS", path)
