@@ -208,6 +208,14 @@ class AugmentedFilter(RecursiveEstimatorBase):
         self.P0 = diagonal_matrix(p0, augmented.n, "p0")
         self.reset()
 
+    def _additive_noise(self, q_states, r0) -> tuple[np.ndarray, np.ndarray]:
+        """Q = diag(Q_states, 0, …, 0) (n × n; the parameters get no process noise) and R0
+        (n_y × n_y), from numbers (× I) or diagonal values."""
+        n_x, n = self.augmented.n_x, self.augmented.n
+        Q = np.zeros((n, n))
+        Q[:n_x, :n_x] = diagonal_matrix(q_states, n_x, "q_states")
+        return Q, diagonal_matrix(r0, self.augmented.n_y, "r0")
+
     def reset(self) -> None:
         super().reset()
         self.x = self.augmented.x_a0.copy()

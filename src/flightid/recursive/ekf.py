@@ -27,7 +27,7 @@ import numpy as np
 
 from flightid.errors import InputError, describe
 from flightid.recursive.augmented import AugmentedModel, absolute_steps
-from flightid.recursive.base import AugmentedFilter, diagonal_matrix
+from flightid.recursive.base import AugmentedFilter
 
 __all__ = ["ExtendedKalmanFilter", "transition_series"]
 
@@ -69,10 +69,8 @@ class ExtendedKalmanFilter(AugmentedFilter):
         jacobian_step: float | Sequence[float] = 1e-4,
     ) -> None:
         super().__init__(augmented, p0)
-        n_x, n = augmented.n_x, augmented.n
-        self.Q = np.zeros((n, n))
-        self.Q[:n_x, :n_x] = diagonal_matrix(q_states, n_x, "q_states")
-        self.R0 = diagonal_matrix(r0, augmented.n_y, "r0")
+        self.Q, self.R0 = self._additive_noise(q_states, r0)
+        n = augmented.n
         steps = np.asarray(jacobian_step, dtype=float)
         if steps.ndim > 1 or (steps.ndim == 1 and steps.size != n) or not np.all(steps > 0):
             raise InputError(

@@ -91,11 +91,8 @@ class UnscentedKalmanFilter(AugmentedFilter):
         r0: float | Sequence[float],
     ) -> None:
         super().__init__(augmented, p0)
-        n_x, n = augmented.n_x, augmented.n
-        self.Q = np.zeros((n, n))
-        self.Q[:n_x, :n_x] = diagonal_matrix(q_states, n_x, "q_states")
-        self.R0 = diagonal_matrix(r0, augmented.n_y, "r0")
-        self.wm, self.wc, self.gamma = unscented_weights(n)
+        self.Q, self.R0 = self._additive_noise(q_states, r0)
+        self.wm, self.wc, self.gamma = unscented_weights(augmented.n)
 
     def _correct(self, t: float, X: np.ndarray, u, z) -> None:
         wm, wc = self.wm, self.wc
