@@ -219,3 +219,17 @@ def test_setting_lengths_are_checked_against_the_model():
     case = parse_case(raw, ROOT / "examples/cases/unstab_sp_recursive_ekf.toml")
     with pytest.raises(CaseError, match="recursive.q_states: expected a number or a list of 2"):
         run_recursive_case(case, DATA)
+
+
+def test_flightid_validate_checks_the_recursive_table(tmp_path, capsys):
+    # `flightid validate` runs the [recursive] checks too: a misspelt key is a one-line error
+    # naming it (exit 1), before any data is read
+    from flightid.cli.main import main
+
+    case = tmp_path / "bad.toml"
+    case.write_text(
+        '[data]\nfile = "x.csv"\n[data.outputs]\ny = { column = 2 }\n[model]\n'
+        'module = "m.py"\n[recursive]\nmethod = "ekf"\nforgeting = 0.9\n'
+    )
+    assert main(["validate", str(case)]) == 1
+    assert "recursive.forgeting: unknown key" in capsys.readouterr().err

@@ -74,6 +74,17 @@ def run(args: argparse.Namespace) -> int:
     from flightid.cases.build import build_model, unbiased_model
 
     case = load_case(args.case)
+    # an estimator's own table is checked by its module (a bad key: CaseError naming it)
+    if case.recursive:
+        from flightid.cases.recursive_case import recursive_settings
+
+        settings = recursive_settings(case.recursive)
+        print(f"[recursive]: method {settings['method']}, settings valid")
+    if case.frequency_domain:
+        from flightid.cases.frequency_case import frequency_settings
+
+        frequency_settings(case.frequency_domain)
+        print("[frequency_domain]: settings valid")
     if case.staged:
         prepared = _stages(case, args.data_dir)
         if prepared is None:
