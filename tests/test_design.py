@@ -442,8 +442,10 @@ def test_design_result_files_hold_the_input_and_the_predicted_bounds(tmp_path):
     best, tried = design_input(problem)
     result = DesignResult(problem, best, tuple(tried), title="files")
     main = result.write_files(tmp_path)
-    assert main.name == "results.json"
-    document = json.loads(main.read_text())
+    assert main.name == "report.html"
+    page = main.read_text()
+    assert "data:image/png;base64," in page and 'href="designed_input.csv"' in page
+    document = json.loads((tmp_path / "results.json").read_text())
     entry = document["results"][0]
     assert entry["predicted"] == {
         n: float(s) for n, s in zip(best.accuracy.names, best.accuracy.std, strict=True)

@@ -339,7 +339,8 @@ class FrequencyResult(ResultSurface):
         return figure
 
     def write_files(self, directory: Path) -> Path:
-        """results.json, frequency_spectra.csv, frequency_bode.png, frequency_spectra.png."""
+        """results.json, frequency_spectra.csv, frequency_bode.png, frequency_spectra.png and
+        report.html (``flightid.report.summary_page``); returns the path of report.html."""
         import matplotlib.pyplot as plt
 
         from flightid.frequency.plots import spectra_figure
@@ -372,7 +373,17 @@ class FrequencyResult(ResultSurface):
         ):
             figure.savefig(directory / name, dpi=100)
             plt.close(figure)
-        return main
+        # report.html: the summary, the Bode and spectra figures embedded, links to the files
+        from flightid.report.summary_page import write_summary_page
+
+        summary = self.summary()
+        return write_summary_page(
+            directory,
+            summary.splitlines()[0],
+            summary,
+            figures=["frequency_bode.png", "frequency_spectra.png"],
+            files=[main.name, "frequency_spectra.csv"],
+        )
 
 
 Progress = Callable[[str], None]

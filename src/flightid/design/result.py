@@ -244,8 +244,9 @@ class DesignResult:
         return figure
 
     def write_files(self, directory: Path) -> Path:
-        """results.json, designed_input.csv, predicted_accuracy.csv and design.png in
-        ``directory``; returns the path of results.json."""
+        """results.json, designed_input.csv, predicted_accuracy.csv, design.png and
+        report.html (``flightid.report.summary_page``) in ``directory``; returns the path of
+        report.html."""
         import matplotlib.pyplot as plt
 
         from flightid.report.jsonout import dumps
@@ -283,4 +284,14 @@ class DesignResult:
                 writer.writerow(row)
         figure = self.plot(directory / "design.png")
         plt.close(figure)
-        return main
+        # report.html: the summary, the figure embedded, links to the files
+        from flightid.report.summary_page import write_summary_page
+
+        summary = self.summary()
+        return write_summary_page(
+            directory,
+            summary.splitlines()[0],
+            summary,
+            figures=["design.png"],
+            files=[main.name, "designed_input.csv", "predicted_accuracy.csv"],
+        )

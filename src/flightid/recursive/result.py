@@ -302,8 +302,9 @@ class RecursiveResult(ResultSurface):
         return figure
 
     def write_files(self, directory: str | Path) -> Path:
-        """results.json, parameter_histories.csv and figures/parameter_histories.png in
-        ``directory``; returns the path of results.json."""
+        """results.json, parameter_histories.csv, figures/parameter_histories.png and
+        report.html (``flightid.report.summary_page``) in ``directory``; returns the path of
+        report.html."""
         import matplotlib.pyplot as plt
 
         from flightid.report.jsonout import dumps
@@ -324,7 +325,17 @@ class RecursiveResult(ResultSurface):
         )
         figure = self.plot(directory / "figures" / "parameter_histories.png")
         plt.close(figure)
-        return path
+        # report.html: the summary, the figure embedded, links to the files
+        from flightid.report.summary_page import write_summary_page
+
+        summary = self.summary()
+        return write_summary_page(
+            directory,
+            summary.splitlines()[0],
+            summary,
+            figures=["figures/parameter_histories.png"],
+            files=[path.name, "parameter_histories.csv"],
+        )
 
 
 def _plain(value: Any) -> Any:
