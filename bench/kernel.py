@@ -17,7 +17,10 @@ and the hand-written kernel take turns within a round; the batch is timed apart)
    (target ≤ 1.1).
 2. a batch of ``--batch`` trajectories (different θ): ``Simulator.run`` on the batch against
    ``--batch`` × its single-trajectory time (speed-up; target ≥ 1.7 on 2 cores), with
-   ``--batch`` × the hand-written kernel for reference.
+   ``--batch`` × the hand-written kernel for reference, and a hand-written parallel batch
+   (``hand_simulate_batch``: the hand kernel in a ``prange``, outputs asserted identical),
+   timed in turns with flightid's batch: where the machine gives a process's threads less
+   than two CPUs, both batches are slow alike.
 3. sensitivity equations: ``Simulator.run_with_sensitivities`` (the kernel of
    ``MNR(sensitivities="equations")``) for the 22 free parameters against ``Simulator.run`` on
    the 23-trajectory forward-difference batch (θ and θ + δ_j e_j) — the two ways to get the
@@ -182,6 +185,14 @@ def hand_simulate(theta, x0, t, u, c, y):
             x[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
+@numba.njit(cache=True, parallel=True)
+def hand_simulate_batch(thetas, x0, t, u, c, y):
+    """``hand_simulate`` over a batch, one trajectory per ``prange`` iteration, outputs into
+    y (B × N × 8): the hand-written reference for the parallel batch."""
+    for b in numba.prange(thetas.shape[0]):
+        hand_simulate(thetas[b], x0, t, u, c, y[b])
+
+
 class Setup:
     """The benchmark model and data, flightid's simulator, and the hand kernel's arguments."""
 
@@ -206,6 +217,12 @@ class Setup:
     def hand(self, theta: np.ndarray) -> np.ndarray:
         hand_simulate(theta[self.order], self.x0, self.t, self.u, self.c, self.y)
         return self.y
+
+    def hand_batch(self, thetas: np.ndarray) -> np.ndarray:
+        y = np.empty((thetas.shape[0], *self.y.shape))
+        hand_simulate_batch(np.ascontiguousarray(thetas[:, self.order]), self.x0, self.t,
+                            self.u, self.c, y)  # fmt: skip
+        return y
 
     def flightid(self, thetas: np.ndarray) -> np.ndarray:
         return self.simulator.run(thetas).outputs
@@ -263,7 +280,13 @@ def main() -> None:
     )
     # the batch apart: after a parallel call numba's worker thread stays awake for a while
     # and slowed the next serial calls (measured 1.14-1.28× instead of 1.04×)
-    (t_batch,) = best_times([lambda: setup.flightid(batch)], args.repeats)
+    y_lib, y_hand = setup.flightid(batch), setup.hand_batch(batch)
+    assert np.array_equal(y_lib, y_hand), "hand-written parallel batch disagrees with flightid"
+    # flightid's batch and the hand-written parallel batch in turns (both parallel): a
+    # process whose threads share one effective CPU slows both alike
+    t_batch, t_hand_batch = best_times(
+        [lambda: setup.flightid(batch), lambda: setup.hand_batch(batch)], args.repeats
+    )
     print()
     print("| kernel | µs per trajectory | ratio to hand-written |")
     print("|---|---:|---:|")
@@ -280,6 +303,9 @@ def main() -> None:
           f"{t_lib / t_hand:.2f} |")  # fmt: skip
     print(f"| flightid Simulator.run, batch | {t_batch * 1e3:.2f} | "
           f"{args.batch * t_lib / t_batch:.2f} |")  # fmt: skip
+    print(f"| hand-written parallel batch (prange) | {t_hand_batch * 1e3:.2f} | "
+          f"{args.batch * t_lib / t_hand_batch:.2f} |")  # fmt: skip
+    print(f"\nflightid batch / hand-written parallel batch: {t_batch / t_hand_batch:.2f}")
 
     free = np.arange(theta.size, dtype=np.int64)
     steps = 1e-6 * np.maximum(np.abs(theta), 0.05)
