@@ -345,3 +345,39 @@ def test_a_second_process_compiles_nothing(tmp_path):
     assert runs[0]["compiles"] > 0
     assert runs[1]["compiles"] == 0
     assert runs[1]["out"] == runs[0]["out"]
+
+
+def test_prune_removes_only_generated_files_unused_for_the_period(tmp_path):
+    # three generated sources: one neither read nor written for 40 days (removed, with its
+    # numba cache entries), one written 40 days ago but read yesterday (kept: atime is the
+    # sign of use — files are never touched, numba records their time stamps), one new
+    import os
+    import time
+
+    from flightid.aircraft.generated import prune
+
+    now = time.time()
+    day = 86400.0
+    old, used, new = (tmp_path / f"flightid_generated_{k}.py" for k in ("aa", "bb", "cc"))
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+    for path in (old, used, new):
+        path.write_text("x = 1\n")
+        (cache / f"{path.stem}.f_out-26.py311.1.nbc").write_bytes(b"")
+        (cache / f"{path.stem}.f_out-26.py311.nbi").write_bytes(b"")
+    other = tmp_path / "notes.py"  # not a generated file: never touched
+    other.write_text("")
+    os.utime(old, (now - 40 * day, now - 40 * day))
+    os.utime(used, (now - 1 * day, now - 40 * day))
+    os.utime(other, (now - 400 * day, now - 400 * day))
+    assert prune(tmp_path, days=30) == 1
+    assert not old.exists() and used.exists() and new.exists() and other.exists()
+    assert sorted(p.name.split(".")[0] for p in cache.iterdir()) == [
+        "flightid_generated_bb",
+        "flightid_generated_bb",
+        "flightid_generated_cc",
+        "flightid_generated_cc",
+    ]
+    # keep= is never removed, however old
+    os.utime(used, (now - 50 * day, now - 50 * day))
+    assert prune(tmp_path, days=30, keep=used) == 0 and used.exists()

@@ -19,6 +19,13 @@ The folder is ``$NUMBA_CACHE_DIR/flightid_generated`` if that is set, else
 ``$XDG_CACHE_HOME/flightid/generated`` (default ``~/.cache/flightid/generated``). Where no
 folder is writable, or ``FLIGHTID_KERNEL_CACHE=0`` turns the disk cache off, the module is
 made by ``exec`` (correct, compiled in every process).
+
+Clean-up: each new file written prunes the folder of generated files (and their numba cache
+entries beside them) neither read nor written for ``PRUNE_AFTER_DAYS`` days — a file is
+never touched to mark it used, because numba's cache entries record its time stamp, so the
+last read (atime) is the sign of use. A pruned source that is needed again is written again
+and its kernels compiled once more: the cost of a wrong guess is one compilation, never a
+wrong kernel.
 """
 
 from __future__ import annotations
@@ -31,9 +38,11 @@ import tempfile
 import types
 from pathlib import Path
 
-__all__ = ["load_source", "source_folder", "module_name"]
+__all__ = ["load_source", "module_name", "prune", "source_folder"]
 
 _PREFIX = "flightid_generated_"
+# generated files neither read nor written for this long are removed (module docstring)
+PRUNE_AFTER_DAYS = 30
 
 
 def module_name(source: str) -> str:
@@ -81,6 +90,33 @@ def _write_once(path: Path, source: str) -> bool:
     return True
 
 
+def prune(folder: Path, days: float = PRUNE_AFTER_DAYS, keep: Path | None = None) -> int:
+    """Remove the generated files in ``folder`` last read and written more than ``days``
+    days ago (``keep`` excepted), with numba's cache entries for them in the folder and its
+    ``__pycache__``; returns the number of sources removed. Errors (a file another process
+    removed first, no permission) are skipped: pruning is best effort."""
+    import time
+
+    limit = time.time() - days * 86400.0
+    removed = 0
+    for path in folder.glob(f"{_PREFIX}*.py"):
+        if keep is not None and path == keep:
+            continue
+        try:
+            stat = path.stat()
+            if max(stat.st_atime, stat.st_mtime) >= limit:
+                continue
+            path.unlink()
+        except OSError:
+            continue
+        removed += 1
+        # numba's index (.nbi) and data (.nbc) files of the module's functions
+        for cache_dir in (folder, folder / "__pycache__"):
+            for entry in cache_dir.glob(f"{path.stem}.*.nb[ic]"):
+                entry.unlink(missing_ok=True)
+    return removed
+
+
 def load_source(source: str) -> types.ModuleType:
     """The module of ``source``: imported from its content-named file (module docstring),
     else made by ``exec``; one module per source and process."""
@@ -90,7 +126,10 @@ def load_source(source: str) -> types.ModuleType:
         return module
     folder = source_folder()
     path = folder / f"{name}.py" if folder is not None else None
+    new_file = path is not None and not path.exists()
     if path is not None and _write_once(path, source):
+        if new_file:
+            prune(folder, keep=path)
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
