@@ -344,13 +344,11 @@ class FrequencyResult(ResultSurface):
         import matplotlib.pyplot as plt
 
         from flightid.frequency.plots import spectra_figure
-        from flightid.report.jsonout import dumps
-        from flightid.results import results_document
+        from flightid.report.summary_page import write_results_json, write_summary_page
 
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
-        main = directory / "results.json"
-        main.write_text(dumps(results_document([self.to_dict()])) + "\n", encoding="utf-8")
+        main = write_results_json(directory, self.to_dict())
         header = ["maneuver", "frequency_hz"]
         for o in self.outputs:
             header += [f"{o}_measured_re", f"{o}_measured_im", f"{o}_model_re", f"{o}_model_im"]
@@ -374,13 +372,9 @@ class FrequencyResult(ResultSurface):
             figure.savefig(directory / name, dpi=100)
             plt.close(figure)
         # report.html: the summary, the Bode and spectra figures embedded, links to the files
-        from flightid.report.summary_page import write_summary_page
-
-        summary = self.summary()
         return write_summary_page(
             directory,
-            summary.splitlines()[0],
-            summary,
+            self.summary(),
             figures=["frequency_bode.png", "frequency_spectra.png"],
             files=[main.name, "frequency_spectra.csv"],
         )

@@ -249,13 +249,11 @@ class DesignResult:
         report.html."""
         import matplotlib.pyplot as plt
 
-        from flightid.report.jsonout import dumps
-        from flightid.results import results_document
+        from flightid.report.summary_page import write_results_json, write_summary_page
 
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
-        main = directory / "results.json"
-        main.write_text(dumps(results_document([self.to_dict()])) + "\n", encoding="utf-8")
+        main = write_results_json(directory, self.to_dict())
         absolute = self._absolute_inputs()
         with open(directory / "designed_input.csv", "w", newline="", encoding="utf-8") as handle:
             writer = csv.writer(handle)
@@ -285,13 +283,9 @@ class DesignResult:
         figure = self.plot(directory / "design.png")
         plt.close(figure)
         # report.html: the summary, the figure embedded, links to the files
-        from flightid.report.summary_page import write_summary_page
-
-        summary = self.summary()
         return write_summary_page(
             directory,
-            summary.splitlines()[0],
-            summary,
+            self.summary(),
             figures=["design.png"],
             files=[main.name, "designed_input.csv", "predicted_accuracy.csv"],
         )

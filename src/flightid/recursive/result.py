@@ -307,13 +307,11 @@ class RecursiveResult(ResultSurface):
         report.html."""
         import matplotlib.pyplot as plt
 
-        from flightid.report.jsonout import dumps
-        from flightid.results import results_document
+        from flightid.report.summary_page import write_results_json, write_summary_page
 
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
-        path = directory / "results.json"
-        path.write_text(dumps(results_document([self.to_dict()])) + "\n")
+        path = write_results_json(directory, self.to_dict())
         columns, rows = self.history_table()
         np.savetxt(
             directory / "parameter_histories.csv",
@@ -326,13 +324,9 @@ class RecursiveResult(ResultSurface):
         figure = self.plot(directory / "figures" / "parameter_histories.png")
         plt.close(figure)
         # report.html: the summary, the figure embedded, links to the files
-        from flightid.report.summary_page import write_summary_page
-
-        summary = self.summary()
         return write_summary_page(
             directory,
-            summary.splitlines()[0],
-            summary,
+            self.summary(),
             figures=["figures/parameter_histories.png"],
             files=[path.name, "parameter_histories.csv"],
         )

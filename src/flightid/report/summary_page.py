@@ -1,6 +1,6 @@
-"""report.html for the results that have no output-error report of their own: recursive
-estimation (``flightid.recursive``), frequency-domain estimation (``flightid.frequency``)
-and input design (``flightid.design``).
+"""results.json and report.html for the results that have no output-error report of their
+own: recursive estimation (``flightid.recursive``), frequency-domain estimation
+(``flightid.frequency``) and input design (``flightid.design``).
 
 One page that stands alone, like the output-error report (``flightid.report.html``): the
 title, when and by which flightid it was written, the result's text summary (the same text
@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-__all__ = ["write_summary_page"]
+__all__ = ["write_results_json", "write_summary_page"]
 
 _STYLE = (
     "body{font-family:sans-serif;max-width:72em;margin:2em auto;padding:0 1em}"
@@ -25,26 +25,40 @@ _STYLE = (
 )
 
 
+def write_results_json(directory: str | Path, entry: dict) -> Path:
+    """Write ``directory/results.json`` — the layout-1 document
+    (``flightid.results.results_document``) with the one ``entry``, strict JSON
+    (``flightid.report.jsonout``), UTF-8 — and return its path."""
+    from flightid.report.jsonout import dumps
+    from flightid.results import results_document
+
+    path = Path(directory) / "results.json"
+    path.write_text(dumps(results_document([entry])) + "\n", encoding="utf-8")
+    return path
+
+
 def write_summary_page(
     directory: str | Path,
-    title: str,
     summary: str,
     figures: Sequence[str | Path] = (),
     files: Sequence[str | Path] = (),
+    title: str | None = None,
 ) -> Path:
     """Write ``directory/report.html`` and return its path.
 
     Args:
         directory: the result folder (exists).
-        title: the page's heading (the case title).
         summary: the result's text summary, shown as it is printed.
         figures: PNG files to embed, in order (missing ones are skipped, not an error: a
             result may have drawn fewer figures).
         files: data files to link, relative to ``directory`` or absolute inside it.
+        title: the page's heading; default the summary's first line (its title line).
     """
     from flightid import __version__
 
     directory = Path(directory)
+    if title is None:
+        title = summary.splitlines()[0] if summary else "flightid result"
     written = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
     parts = [
         "<!DOCTYPE html>",
