@@ -139,6 +139,16 @@ def test_a_nonlinear_model_is_refused_by_name():
         linear_system(_affine_model(nonlinear=True))
 
 
+@pytest.mark.parametrize("estimator", [output_error, equation_error])
+def test_a_free_mask_of_the_wrong_length_is_a_named_error_in_both_estimators(estimator):
+    # both estimators check their start and mask the same way (output_error.checked_start)
+    spectra = [maneuver_spectra(*simulate(1), frequency_grid((0.1, 1.5), 0.04))]
+    with pytest.raises(InputError, match="free: expected a mask of the shape of theta_start"):
+        estimator(system_of, TRUTH, np.ones(5, bool), spectra, STATES, STATES)
+    with pytest.raises(InputError, match="spectra: expected at least one maneuver"):
+        estimator(system_of, TRUTH, np.ones(6, bool), [], STATES, STATES)
+
+
 def test_too_few_frequencies_is_a_named_error():
     short = [maneuver_spectra(*simulate(1), frequency_grid((0.1, 0.14), 0.04))]
     with pytest.raises(InputError, match="band_hz/step_hz"):

@@ -36,6 +36,7 @@ import numpy as np
 from flightid.errors import InputError
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
+from flightid.frequency.output_error import checked_start
 
 __all__ = ["ComplexRegression", "complex_least_squares", "EquationErrorFit", "equation_error"]
 
@@ -143,8 +144,7 @@ def equation_error(
     Every state must be measured: an output whose row of [C D] is the unit vector of that
     state (the output named like the state, typically).
     """
-    theta_start = np.asarray(theta_start, dtype=float)
-    free = np.asarray(free, dtype=bool)
+    theta_start, free = checked_start(theta_start, free, spectra)
     n_x = len(states)
     ab0, cd0, g_ab, g_cd = _affine_rows(system_of, theta_start, free)
     n_z = ab0.shape[1]

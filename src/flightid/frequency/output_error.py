@@ -219,6 +219,24 @@ def _real_stack(weighted: np.ndarray) -> np.ndarray:
     return np.concatenate([weighted.real, weighted.imag], axis=1)
 
 
+def checked_start(
+    theta_start: np.ndarray, free: np.ndarray, spectra: Sequence[ManeuverSpectra]
+) -> tuple[np.ndarray, np.ndarray]:
+    """θ_start as floats and ``free`` as a boolean mask of its shape, with at least one
+    maneuver's spectra (the arguments of ``output_error`` and ``equation_error``); else
+    ``InputError`` saying what came."""
+    theta_start = np.asarray(theta_start, dtype=float)
+    free = np.asarray(free, dtype=bool)
+    if theta_start.shape != free.shape or theta_start.ndim != 1:
+        raise InputError(
+            f"free: expected a mask of the shape of theta_start {theta_start.shape}, "
+            f"got {free.shape}"
+        )
+    if not spectra:
+        raise InputError("spectra: expected at least one maneuver")
+    return theta_start, free
+
+
 def output_error(
     system_of: SystemFunction,
     theta_start: np.ndarray,
@@ -248,15 +266,7 @@ def output_error(
         tolerance: relative change of J and of diag S that ends the alternation.
         scales: typical magnitudes of θ (for the difference steps); default max(|θ|, 0.01).
     """
-    theta_start = np.asarray(theta_start, dtype=float)
-    free = np.asarray(free, dtype=bool)
-    if theta_start.shape != free.shape or theta_start.ndim != 1:
-        raise InputError(
-            f"free: expected a mask of the shape of theta_start {theta_start.shape}, "
-            f"got {free.shape}"
-        )
-    if not spectra:
-        raise InputError("spectra: expected at least one maneuver")
+    theta_start, free = checked_start(theta_start, free, spectra)
     n_x, n_y = len(states), len(outputs)
     for s in spectra:
         if s.outputs.shape[1] != n_y:
