@@ -230,22 +230,22 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         self._theta, self._std = theta, std
         self.updates.append((self.k, t, theta.copy(), std.copy()))
 
-    @property
-    def theta(self) -> np.ndarray:
-        """Estimates of the last update (offsets removed)."""
-        if self._theta is None:
+    def _last_update(self, values: np.ndarray | None) -> np.ndarray:
+        """A copy of ``values`` of the last update, or ``NoEstimateYetError`` before the
+        first one."""
+        if values is None:
             raise NoEstimateYetError(
                 f"ftr: no estimate yet; the first update comes at sample {self.update_every} "
                 f"({self.k} fed)"
             )
-        return self._theta.copy()
+        return values.copy()
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Estimates of the last update (offsets removed)."""
+        return self._last_update(self._theta)
 
     @property
     def theta_std(self) -> np.ndarray:
         """Standard deviations of the last update."""
-        if self._std is None:
-            raise NoEstimateYetError(
-                f"ftr: no estimate yet; the first update comes at sample {self.update_every} "
-                f"({self.k} fed)"
-            )
-        return self._std.copy()
+        return self._last_update(self._std)
