@@ -132,13 +132,30 @@ def print_summary(result) -> None:
             print(f"  {n:<10} RMS error {e:.4g}   R² {r:.4f}")
 
 
+def _answer_then_files(args: argparse.Namespace, document: dict, show, folder, write) -> None:
+    """The answer to stdout first — ``document`` as JSON with ``--json``, else ``show()``
+    prints the text — so that a failure to write files cannot lose it; then, with a result
+    folder, ``write(directory) -> Path`` fills it and a progress line names the main file."""
+    from flightid.cases.run import stderr_progress
+    from flightid.report.jsonout import dumps
+
+    if args.json:
+        print(dumps(document))
+    else:
+        show()
+    sys.stdout.flush()
+    if folder is not None:
+        path = folder.write(write)
+        if not args.quiet:
+            stderr_progress(f"results written to {folder.target} ({path.name} there)")
+
+
 def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, run_case
     from flightid.cases.run import stderr_progress
     from flightid.cases.stages import has_regression_stages
     from flightid.report.folder import ResultFolder
-    from flightid.report.jsonout import dumps
     from flightid.results import results_document
 
     case = load_case(args.case)
@@ -167,18 +184,15 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if engine is not None:
                 engine.close()
-        # the answer goes to stdout first: a failure to write files cannot lose it
-        if args.json:
-            print(dumps(results_document([result.to_dict()])))
-        else:
-            print_summary(result)
-        sys.stdout.flush()
-        if folder is not None:
-            from flightid.report.html import write_files
+        from flightid.report.html import write_files
 
-            path = folder.write(lambda directory: write_files(result, directory))
-            if not args.quiet:
-                stderr_progress(f"results written to {folder.target} ({path.name} there)")
+        _answer_then_files(
+            args,
+            results_document([result.to_dict()]),
+            lambda: print_summary(result),
+            folder,
+            lambda directory: write_files(result, directory),
+        )
     finally:
         if folder is not None:
             folder.release()
@@ -190,7 +204,6 @@ def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
     and returns a result with the common surface (``summary()``, ``to_dict()``) and
     ``write_files(directory) -> Path`` (the file to name in the progress line)."""
     from flightid.cases.run import stderr_progress
-    from flightid.report.jsonout import dumps
     from flightid.results import results_document
 
     if case.recursive and case.frequency_domain:
@@ -203,17 +216,14 @@ def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
         from flightid.cases.recursive_case import run_recursive_case as run_own
     else:
         from flightid.cases.frequency_case import run_frequency_case as run_own
-    progress = None if args.quiet else stderr_progress
-    result = run_own(case, args.data_dir, progress=progress)
-    if args.json:
-        print(dumps(results_document([result.to_dict()])))
-    else:
-        print(result.summary())
-    sys.stdout.flush()
-    if folder is not None:
-        path = folder.write(result.write_files)
-        if progress is not None:
-            progress(f"results written to {folder.target} ({path.name} there)")
+    result = run_own(case, args.data_dir, progress=None if args.quiet else stderr_progress)
+    _answer_then_files(
+        args,
+        results_document([result.to_dict()]),
+        lambda: print(result.summary()),
+        folder,
+        result.write_files,
+    )
     return 0
 
 
@@ -237,32 +247,27 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
     )
     document = results_document(run.to_dict()["results"])
     document["stages"] = run.stages_dict()
-    if args.json:
-        print(dumps(document))
-    else:
+
+    def show() -> None:
         print(run.summary())
         if run.output_error is not None:
             print()
             print_summary(run.output_error)
-    sys.stdout.flush()
-    if folder is not None:
 
-        def write(directory: Path) -> Path:
-            (directory / "stages.json").write_text(
-                json.dumps(json.loads(dumps({"stages": run.stages_dict()})), indent=2) + "\n",
-                encoding="utf-8",
-            )
-            # stages.html: the regression fits and their residual whiteness
-            from flightid.report.stages_report import write_stages_files
+    def write(directory: Path) -> Path:
+        (directory / "stages.json").write_text(
+            json.dumps(json.loads(dumps({"stages": run.stages_dict()})), indent=2) + "\n",
+            encoding="utf-8",
+        )
+        # stages.html: the regression fits and their residual whiteness
+        from flightid.report.stages_report import write_stages_files
 
-            page = write_stages_files(run, directory, case.output.get("figures", True))
-            if run.output_error is None:
-                return page
-            from flightid.report.html import write_files
+        page = write_stages_files(run, directory, case.output.get("figures", True))
+        if run.output_error is None:
+            return page
+        from flightid.report.html import write_files
 
-            return write_files(run.output_error, directory)
+        return write_files(run.output_error, directory)
 
-        path = folder.write(write)
-        if not args.quiet:
-            stderr_progress(f"results written to {folder.target} ({path.name} there)")
+    _answer_then_files(args, document, show, folder, write)
     return 0
