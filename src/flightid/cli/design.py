@@ -18,7 +18,6 @@ stderr. Exit status 0 after a design, 1 on any failure (one line ``flightid: err
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def register(subparsers) -> None:
@@ -38,8 +37,9 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--out",
         default=None,
-        help="write results.json, designed_input.csv, predicted_accuracy.csv and design.png "
-        "to this folder (a folder that already holds a run is refused unless --overwrite)",
+        help="write results.json, designed_input.csv, predicted_accuracy.csv, design.png and "
+        "report.html to this folder (a folder that already holds a run is refused unless "
+        "--overwrite)",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace the run in --out")
     parser.add_argument(
@@ -58,29 +58,31 @@ def run(args: argparse.Namespace) -> int:
 
     from flightid.cases import load_case
     from flightid.cases.run import stderr_progress
+    from flightid.cli.run import answer_then_files
     from flightid.design.case import run_design_case
     from flightid.report.folder import ResultFolder
-    from flightid.report.jsonout import dumps
     from flightid.results import results_document
 
     case = load_case(args.case)
     folder = ResultFolder.open(Path(args.out), overwrite=args.overwrite) if args.out else None
     try:
-        progress = None if args.quiet else stderr_progress
-        result = run_design_case(case, args.data_dir, progress=progress)
-        if args.json:
+        result = run_design_case(
+            case, args.data_dir, progress=None if args.quiet else stderr_progress
+        )
+
+        def document() -> dict:
+            # results.json's layout, with the design's inputs and predicted σ at the top
             entry = result.to_dict()
-            document = results_document([entry])
-            document["inputs"] = entry["inputs"]
-            document["predicted"] = entry["predicted"]
-            print(dumps(document))
-        else:
-            print(result.summary())
-        sys.stdout.flush()
-        if folder is not None:
-            path = folder.write(result.write_files)
-            if progress is not None:
-                progress(f"design written to {folder.target} ({path.name} there)")
+            return {
+                **results_document([entry]),
+                "inputs": entry["inputs"],
+                "predicted": entry["predicted"],
+            }
+
+        answer_then_files(
+            args, document, lambda: print(result.summary()), folder, result.write_files,
+            written="design",
+        )  # fmt: skip
     finally:
         if folder is not None:
             folder.release()

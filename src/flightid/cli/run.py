@@ -132,22 +132,25 @@ def print_summary(result) -> None:
             print(f"  {n:<10} RMS error {e:.4g}   R² {r:.4f}")
 
 
-def _answer_then_files(args: argparse.Namespace, document: dict, show, folder, write) -> None:
-    """The answer to stdout first — ``document`` as JSON with ``--json``, else ``show()``
-    prints the text — so that a failure to write files cannot lose it; then, with a result
-    folder, ``write(directory) -> Path`` fills it and a progress line names the main file."""
+def answer_then_files(
+    args: argparse.Namespace, document, show, folder, write, written: str = "results"
+) -> None:
+    """The answer to stdout first — ``document()`` as JSON with ``--json`` (built only then),
+    else ``show()`` prints the text — so that a failure to write files cannot lose it; then,
+    with a result folder, ``write(directory) -> Path`` fills it and a progress line
+    ("``written`` written to …") names the main file. Also used by ``flightid design``."""
     from flightid.cases.run import stderr_progress
     from flightid.report.jsonout import dumps
 
     if args.json:
-        print(dumps(document))
+        print(dumps(document()))
     else:
         show()
     sys.stdout.flush()
     if folder is not None:
         path = folder.write(write)
         if not args.quiet:
-            stderr_progress(f"results written to {folder.target} ({path.name} there)")
+            stderr_progress(f"{written} written to {folder.target} ({path.name} there)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -186,9 +189,9 @@ def run(args: argparse.Namespace) -> int:
                 engine.close()
         from flightid.report.html import write_files
 
-        _answer_then_files(
+        answer_then_files(
             args,
-            results_document([result.to_dict()]),
+            lambda: results_document([result.to_dict()]),
             lambda: print_summary(result),
             folder,
             lambda directory: write_files(result, directory),
@@ -217,9 +220,9 @@ def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
     else:
         from flightid.cases.frequency_case import run_frequency_case as run_own
     result = run_own(case, args.data_dir, progress=None if args.quiet else stderr_progress)
-    _answer_then_files(
+    answer_then_files(
         args,
-        results_document([result.to_dict()]),
+        lambda: results_document([result.to_dict()]),
         lambda: print(result.summary()),
         folder,
         result.write_files,
@@ -269,5 +272,5 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
 
         return write_files(run.output_error, directory)
 
-    _answer_then_files(args, document, show, folder, write)
+    answer_then_files(args, lambda: document, show, folder, write)
     return 0
