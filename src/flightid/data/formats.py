@@ -17,6 +17,8 @@ ArduPilot DataFlash    pymavlink         ``pip install 'flightid[ardupilot]'``
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +33,35 @@ from flightid.data.loaders import (
 )
 from flightid.results import MissingDependencyError
 
-__all__ = ["read_parquet", "read_mat73", "is_mat73", "read_ulog", "read_dataflash"]
+__all__ = [
+    "Stream",
+    "read_parquet",
+    "read_mat73",
+    "is_mat73",
+    "read_ulog",
+    "read_dataflash",
+    "ulog_streams",
+    "dataflash_streams",
+]
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One message stream of a flight log, on its own time base, as the log stored it.
+
+    Attributes:
+        name: the stream's name as a case names it (ULog topic, ``topic:1`` for
+            multi-instance 1; DataFlash message type, ``IMU[1]`` for instance 1); column names
+            write it ``topic_1`` / ``IMU_1``.
+        time_s: the stream's time stamps (s since boot), as stored (jitter, drop-outs kept).
+        fields: ``{field: values}``, one value per time stamp (array fields ``q[0]`` → ``q_0``).
+        units: ``{field: unit}`` where the log states one (DataFlash FMTU); else absent.
+    """
+
+    name: str
+    time_s: np.ndarray
+    fields: dict[str, np.ndarray]
+    units: dict[str, str] = dataclasses.field(default_factory=dict)
 
 
 def _require(module: str, extra: str, what: str) -> Any:
@@ -194,10 +224,10 @@ def _column_name(stream: str, field: str, prefix: bool) -> str:
 
 def _streams_table(
     path: Path,
-    streams: list[tuple[str, np.ndarray, dict[str, np.ndarray], dict[str, str]]],
+    streams: list[Stream],
     constants: dict[str, float] | None = None,
 ) -> Table:
-    """One ``Table`` from message streams ``(name, time in s, {field: values}, {field: unit})``.
+    """One ``Table`` from message streams.
 
     The first stream sets the time base (column ``t``, s); each further stream is linearly
     interpolated at those times,
@@ -205,19 +235,21 @@ def _streams_table(
     and only rows of the first stream inside the span all streams cover are kept (no
     extrapolation). With one stream, columns are named by field; with several, ``stream.field``.
     """
-    base_time = streams[0][1]
-    lo = max(float(s[1][0]) for s in streams)
-    hi = min(float(s[1][-1]) for s in streams)
+    base_time = streams[0].time_s
+    lo = max(float(s.time_s[0]) for s in streams)
+    hi = min(float(s.time_s[-1]) for s in streams)
     keep = (base_time >= lo) & (base_time <= hi)
     if keep.sum() < 2:
         raise DataFileError(
-            f"{path}: the streams {[s[0] for s in streams]} overlap in fewer than 2 samples "
-            f"of {streams[0][0]!r} (common span {lo:.6g}..{hi:.6g} s)"
+            f"{path}: the streams {[s.name for s in streams]} overlap in fewer than 2 samples "
+            f"of {streams[0].name!r} (common span {lo:.6g}..{hi:.6g} s)"
         )
     t = base_time[keep]
     prefix = len(streams) > 1
     columns, names, units = [t], ["t"], ["s"]
-    for k, (stream, time, fields, field_units) in enumerate(streams):
+    for k, one in enumerate(streams):
+        stream = one.name.replace(":", "_").replace("[", "_").replace("]", "")
+        time, fields, field_units = one.time_s, one.fields, one.units
         if k > 0 and np.any(np.diff(time) <= 0):
             raise DataFileError(
                 f"{path}: stream {stream!r}: time stamps not increasing; cannot interpolate"
@@ -228,6 +260,50 @@ def _streams_table(
             names.append(_column_name(stream, field, prefix))
             units.append(field_units.get(field, ""))
     return _finish_table(np.column_stack(columns), names, units, str(path), constants)
+
+
+def _open_ulog(path: Path) -> Any:
+    pyulog = _require("pyulog", "px4", f"the PX4 ULog file {path}")
+    try:
+        return pyulog.ULog(str(path))
+    except Exception as exc:  # pyulog raises ULogException, struct.error, ...
+        raise DataFileError(f"{path}: not a readable PX4 ULog file ({exc})") from None
+
+
+def ulog_streams(
+    path: str | Path, variable: str | None = None
+) -> tuple[list[Stream], dict[str, float]]:
+    """The topics of a PX4 ULog as ``Stream`` objects (each on its own time base) and the
+    log's numeric parameters.
+
+    ``variable`` names the topics, ``"vehicle_attitude,sensor_combined"`` (``"topic:1"``:
+    multi-instance 1); ``None`` reads every topic. Time: ``timestamp`` (µs since boot) × 10⁻⁶.
+    """
+    path = Path(path)
+    ulog = _open_ulog(path)
+    datasets = {}
+    for d in ulog.data_list:
+        datasets[f"{d.name}:{d.multi_id}"] = d
+        if d.multi_id == 0:
+            datasets[d.name] = d
+    available = sorted(
+        {d.name if d.multi_id == 0 else f"{d.name}:{d.multi_id}" for d in ulog.data_list}
+    )
+    names = available if variable is None else _topics(variable, available, path, "ULog file")
+    streams = []
+    for name in names:
+        d = datasets[name]
+        fields = {
+            _column_name("", k, False): np.asarray(v, dtype=float)
+            for k, v in d.data.items()
+            if k != "timestamp" and np.asarray(v).dtype.kind in "biuf"
+        }
+        time = np.asarray(d.data["timestamp"], dtype=float) * 1e-6  # µs → s
+        streams.append(Stream(name, time, fields, {}))
+    constants = {
+        k: float(v) for k, v in ulog.initial_parameters.items() if isinstance(v, (int, float))
+    }
+    return streams, constants
 
 
 def read_ulog(path: str | Path, variable: str | None = None) -> Table:
@@ -241,42 +317,18 @@ def read_ulog(path: str | Path, variable: str | None = None) -> Table:
     Numeric parameters of the log are kept as ``Table.constants``.
     """
     path = Path(path)
-    pyulog = _require("pyulog", "px4", f"the PX4 ULog file {path}")
-    try:
-        ulog = pyulog.ULog(str(path))
-    except Exception as exc:  # pyulog raises ULogException, struct.error, ...
-        raise DataFileError(f"{path}: not a readable PX4 ULog file ({exc})") from None
-    datasets = {}
-    for d in ulog.data_list:
-        datasets[f"{d.name}:{d.multi_id}"] = d
-        if d.multi_id == 0:
-            datasets[d.name] = d
-    available = sorted(
-        {d.name if d.multi_id == 0 else f"{d.name}:{d.multi_id}" for d in ulog.data_list}
-    )
-    streams = []
-    for name in _topics(variable, available, path, "ULog file"):
-        d = datasets[name]
-        fields = {k: v for k, v in d.data.items() if k != "timestamp"}
-        time = np.asarray(d.data["timestamp"], dtype=float) * 1e-6  # µs → s
-        streams.append((name.replace(":", "_"), time, fields, {}))
-    constants = {
-        k: float(v) for k, v in ulog.initial_parameters.items() if isinstance(v, (int, float))
-    }
+    streams, constants = ulog_streams(path, variable)
+    if variable is None and len(streams) > 1:
+        _topics(None, [s.name for s in streams], path, "ULog file")
     return _streams_table(path, streams, constants)
 
 
-def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
-    """ArduPilot DataFlash log (binary ``.bin``, or the text ``.log`` form; needs pymavlink:
-    the ``ardupilot`` extra) → ``Table``.
+def dataflash_streams(path: str | Path, variable: str | None = None) -> list[Stream]:
+    """The message types of an ArduPilot DataFlash log as ``Stream`` objects (each on its own
+    time base, ``TimeUS`` × 10⁻⁶ s), with the units of the log's FMTU/UNIT messages.
 
-    ``variable`` names the message types to read, ``"ATT,IMU"``; a type logged for several
-    instances (an instance field such as ``IMU.I``) is named with the instance, ``"IMU[1]"``.
-    Time ``t`` (s) is the first type's ``TimeUS`` (µs since boot) × 10⁻⁶; see
-    ``_streams_table`` for the time base. Columns: ``TYPE.Field`` (one type: ``Field``);
-    text fields are left out. Values carry the scale of their format character (``c``:
-    int16 × 0.01, ``L``: int32 × 10⁻⁷, ...), and units come from the log's FMTU/UNIT
-    messages where it has them (informational; declare them in the mapping as for CSV).
+    ``variable`` names the types, ``"ATT,IMU"`` (``"IMU[1]"``: instance 1); ``None`` reads
+    every type that has a ``TimeUS`` field. Values carry the scale of their format character.
     """
     path = Path(path)
     dfreader = _require("pymavlink.DFReader", "ardupilot", f"the ArduPilot DataFlash log {path}")
@@ -309,8 +361,13 @@ def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
         base = name.split("[")[0]
         if base != name and sum(n.split("[")[0] == base for n in records) == 1:
             aliases[base] = name
+    wanted_names = (
+        sorted(records)
+        if variable is None
+        else _topics(variable, sorted(set(records) | set(aliases)), path, "DataFlash log")
+    )
     streams = []
-    for wanted in _topics(variable, sorted(set(records) | set(aliases)), path, "DataFlash log"):
+    for wanted in wanted_names:
         name = aliases.get(wanted, wanted)
         count = len(records[name]["TimeUS"])
         fields = {
@@ -318,7 +375,26 @@ def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
         }
         time = fields.pop("TimeUS") * 1e-6  # µs → s
         units = {k: formats[name].get_unit(k) for k in fields}
-        streams.append((name.replace("[", "_").replace("]", ""), time, fields, units))
+        streams.append(Stream(name, time, fields, units))
+    return streams
+
+
+def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
+    """ArduPilot DataFlash log (binary ``.bin``, or the text ``.log`` form; needs pymavlink:
+    the ``ardupilot`` extra) → ``Table``.
+
+    ``variable`` names the message types to read, ``"ATT,IMU"``; a type logged for several
+    instances (an instance field such as ``IMU.I``) is named with the instance, ``"IMU[1]"``.
+    Time ``t`` (s) is the first type's ``TimeUS`` (µs since boot) × 10⁻⁶; see
+    ``_streams_table`` for the time base. Columns: ``TYPE.Field`` (one type: ``Field``);
+    text fields are left out. Values carry the scale of their format character (``c``:
+    int16 × 0.01, ``L``: int32 × 10⁻⁷, ...), and units come from the log's FMTU/UNIT
+    messages where it has them (informational; declare them in the mapping as for CSV).
+    """
+    path = Path(path)
+    streams = dataflash_streams(path, variable)
+    if variable is None and len(streams) > 1:
+        _topics(None, [s.name for s in streams], path, "DataFlash log")
     return _streams_table(path, streams)
 
 
