@@ -75,7 +75,9 @@ def airplane_constants() -> np.ndarray:
     )  # fmt: skip
 
 
-@numba.njit(cache=True, fastmath=False)
+# Not cached (cache=True): this file runs as a script and is loaded by path in the tests, and
+# a numba cache written under one of those module names cannot be loaded under the other.
+@numba.njit(fastmath=False)
 def _rates(x, de, dr, da, thrust, th, c, out):
     """dx/dt of x = (u, v, w, p, q, r, l_xz, l_yz, l_zz) into ``out`` [2.5–2.16]."""
     m, Ix, Iy, Iz, Ixz, S, b, cbar, rho, g = (
@@ -132,7 +134,7 @@ def _rates(x, de, dr, da, thrust, th, c, out):
     out[8] = q * lxz - p * lyz
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(fastmath=False)
 def _outputs(x, y):
     """(V, α, β, Θ, Φ, p, q, r) into ``y`` [2.19–2.23]."""
     u, v, w = x[0], x[1], x[2]
@@ -147,7 +149,7 @@ def _outputs(x, y):
     y[7] = x[5]
 
 
-@numba.njit(cache=True, fastmath=False)
+@numba.njit(fastmath=False)
 def hand_simulate(theta, x0, t, u, c, y):
     """RK4 (linear input interpolation) of one trajectory; outputs into y (N × 8)."""
     n_x = 9
@@ -185,7 +187,7 @@ def hand_simulate(theta, x0, t, u, c, y):
             x[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(parallel=True)
 def hand_simulate_batch(thetas, x0, t, u, c, y):
     """``hand_simulate`` over a batch, one trajectory per ``prange`` iteration, outputs into
     y (B × N × 8): the hand-written reference for the parallel batch."""

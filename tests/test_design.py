@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from data_paths import needs_data
 from flightid.cases import load_case
 from flightid.cases.checks import CaseError
 from flightid.data.flightdata import FlightData
@@ -380,6 +381,7 @@ def test_design_table_errors_name_the_key(tmp_path, design, message):
         run_design_case(case)
 
 
+@needs_data("fvsysid/fAttasElv1.mat")
 def test_flightid_design_json_on_the_shipped_short_period_case(capsys):
     from flightid.cli.main import main
 

@@ -19,10 +19,13 @@ import jsonschema
 import numpy as np
 import pytest
 
+from data_paths import needs_data
 from flightid.cases import load_case
 from flightid.cases.checks import CaseError
 from flightid.cases.frequency_case import run_frequency_case
 from flightid.cli.main import main
+
+pytestmark = needs_data("fvsysid")
 
 ROOT = Path(__file__).resolve().parents[1]
 SP_CASE = ROOT / "examples/cases/attas_short_period_frequency_domain.toml"
