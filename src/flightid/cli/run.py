@@ -26,8 +26,8 @@ estimation, the files are written to a temporary folder beside it and moved into
 once (``flightid.report.folder``), after the summary has been printed; a folder that already
 holds a run is replaced (whole) only with ``--overwrite``, and only when flightid wrote every
 file in it (its manifest ``.flightid-run``). The current folder, the home folder and a folder
-holding the case file, its data or its model module are refused. All JSON is strict: NaN and ±inf
-become null and are listed under ``"nonfinite"`` (``flightid.report.jsonout``).
+holding the case file, its data or its model module are refused. All JSON is strict: NaN and
+±inf become null and are listed under ``"nonfinite"`` (``flightid.report.jsonout``).
 """
 
 from __future__ import annotations
@@ -160,19 +160,18 @@ def open_result_folder(case, args: argparse.Namespace, given: str | None):
     out = output_folder(case, given)
     if out is None:
         return None
-    folder = ResultFolder.open(
-        out, overwrite=args.overwrite, keep=case_inputs(case, getattr(args, "data_dir", None))
+    return ResultFolder.open(
+        out,
+        overwrite=args.overwrite,
+        keep=case_inputs(case, getattr(args, "data_dir", None)),
+        notify=print_note,
     )
-    print_notices(folder)
-    return folder
 
 
-def print_notices(folder) -> None:
-    """What the result folder has to say that is not an error, one ``flightid: note:`` line
-    each (shown with ``--quiet`` too: they concern the user's files)."""
-    for notice in folder.notices:
-        print(f"flightid: note: {notice}", file=sys.stderr)
-    folder.notices.clear()
+def print_note(text: str) -> None:
+    """A result folder's notice (not an error) as one ``flightid: note:`` line on stderr,
+    shown with ``--quiet`` too: it concerns the user's files."""
+    print(f"flightid: note: {text}", file=sys.stderr)
 
 
 def print_summary(result) -> None:
@@ -204,7 +203,6 @@ def answer_then_files(
     sys.stdout.flush()
     if folder is not None:
         path = folder.write(write)
-        print_notices(folder)
         if not args.quiet:
             stderr_progress(f"{written} written to {folder.target} ({path.name} there)")
 

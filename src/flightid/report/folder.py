@@ -291,10 +291,10 @@ def _make_folder(parent: Path, prefix: str) -> Path:
 
 def _refused_places(keep: Iterable[str | os.PathLike]) -> list[tuple[Path, str]]:
     """(folder, what it is) that a result folder may neither be nor hold."""
-    places = [(Path.cwd(), "the current folder")]
+    places = [(Path(p), f"{Path(p).name}, an input of this run") for p in keep]
+    places.append((Path.cwd(), "the current folder"))
     with contextlib.suppress(RuntimeError, KeyError):
         places.append((Path.home(), "the home folder"))
-    places += [(Path(p), f"{Path(p).name}, an input of this run") for p in keep]
     refused = []
     for path, what in places:
         # the path as given (a symbolic link in the case folder) and the file it points to
@@ -308,15 +308,23 @@ class ResultFolder:
     """A checked and locked result folder (see the module docstring).
 
     Use ``ResultFolder.open(path, overwrite=...)`` before the work, ``write(writer)`` after it
-    and ``release()`` (or a ``with`` block) at the end. ``notices`` lists what the user should
-    know that is not an error (an old run restored or kept after an interrupted replace).
+    and ``release()`` (or a ``with`` block) at the end. What the user should know that is
+    not an error (an old run restored or kept after an interrupted replace) goes to
+    ``notify`` when given, else to the list ``notices``.
     """
 
-    def __init__(self, target: Path, overwrite: bool, label: str) -> None:
+    def __init__(
+        self,
+        target: Path,
+        overwrite: bool,
+        label: str,
+        notify: Callable[[str], None] | None = None,
+    ) -> None:
         self.target = target
         self.overwrite = overwrite
         self.label = label
         self.notices: list[str] = []
+        self._notify = notify
         self._lock_path = target.parent / f".{target.name}.flightid-lock"
         self._lock_fd: int | None = None
 
@@ -330,6 +338,7 @@ class ResultFolder:
         overwrite: bool = False,
         label: str = "--out",
         keep: Iterable[str | os.PathLike] = (),
+        notify: Callable[[str], None] | None = None,
     ) -> ResultFolder:
         """Check ``path`` as a result folder and lock it (raises ``OutputError``).
 
@@ -340,6 +349,8 @@ class ResultFolder:
             label: how the path is named in messages (the CLI option).
             keep: the run's inputs (case file, data files, model module): the folder may
                 neither be one of them nor hold one.
+            notify: called with each notice as it arises (else they are kept in
+                ``notices``), also when ``open`` then refuses the folder.
         """
         text = os.fspath(path)
         if not text.strip():
@@ -347,7 +358,7 @@ class ResultFolder:
         target = Path(text).expanduser().resolve()
         if target.parent == target:
             raise OutputError(f"{label} {text}: the root folder cannot be a result folder")
-        folder = cls(target, overwrite, label)
+        folder = cls(target, overwrite, label, notify)
         folder._check_place(keep)
         folder._check()
         folder._lock()
@@ -358,6 +369,12 @@ class ResultFolder:
             folder.release()
             raise
         return folder
+
+    def _note(self, text: str) -> None:
+        if self._notify is not None:
+            self._notify(text)
+        else:
+            self.notices.append(text)
 
     def _fail(self, problem: str) -> OutputError:
         return OutputError(f"{self.label} {self.target}: {problem}")
@@ -507,12 +524,12 @@ class ResultFolder:
             target = self.target
             if not target.exists() or (target.is_dir() and not _entries(target)):
                 os.rename(old, target)
-                self.notices.append(
+                self._note(
                     f"the run that an interrupted --overwrite had set aside ({old.name}) was "
                     f"moved back to {target}"
                 )
             else:
-                self.notices.append(
+                self._note(
                     f"{old} holds a run that an interrupted --overwrite set aside; it is kept: "
                     "look through it and delete it yourself"
                 )
@@ -619,7 +636,7 @@ class ResultFolder:
             os.rename(old, target)
             raise
         if not _remove(old):
-            self.notices.append(f"the replaced run could not be removed entirely: {old}")
+            self._note(f"the replaced run could not be removed entirely: {old}")
 
     def _merge(self, tmp: Path) -> None:
         """A folder with other files: move our entries in, the manifest last."""
