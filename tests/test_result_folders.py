@@ -352,6 +352,14 @@ def test_set_aside_run_is_kept_and_named_when_the_target_exists(case, tmp_path, 
     assert (target / "results.json").is_file()
 
 
+def test_leftovers_of_a_folder_named_with_glob_characters_are_found(case, tmp_path):
+    stale = tmp_path / ".run[1].flightid-tmp-dead"
+    stale.mkdir()
+    (stale / "results.json").write_text("{")
+    assert _run(case, str(tmp_path / "run[1]")) == 0
+    assert not stale.exists() and _leftovers(tmp_path) == []
+
+
 # ------------------------------------------------------------------ SIGTERM
 
 
