@@ -178,6 +178,32 @@ def test_design_with_an_empty_out_is_refused_before_designing(tmp_path, monkeypa
     assert os.listdir(tmp_path) == []
 
 
+def test_design_refuses_its_case_folder_and_writes_a_manifest(tmp_path, monkeypatch, capsys):
+    from types import SimpleNamespace
+
+    import flightid.design.case as design_case
+
+    def write_files(directory: Path) -> Path:
+        (directory / "design.csv").write_text("time,de\n0,0\n")
+        return directory / "design.csv"
+
+    result = SimpleNamespace(
+        summary=lambda: "design",
+        to_dict=lambda: {"inputs": {}, "predicted": {}},
+        write_files=write_files,
+    )
+    monkeypatch.setattr(design_case, "run_design_case", lambda *args, **kwargs: result)
+    case = tmp_path / "design" / "short_period_design.toml"
+    case.parent.mkdir()
+    shutil.copy(ROOT / "examples/cases/short_period_design.toml", case)
+    assert main(["design", str(case), "--out", str(case.parent), "--quiet"]) == 1
+    assert f"holds {case.name}, an input of this run" in capsys.readouterr().err
+    assert os.listdir(case.parent) == [case.name]
+    out = tmp_path / "out"
+    assert main(["design", str(case), "--out", str(out), "--quiet"]) == 0
+    assert set(json.loads((out / RUN_MARKER).read_text())["files"]) == {"design.csv"}
+
+
 # ------------------------------------------------------------------ the manifest
 
 
