@@ -35,7 +35,7 @@ from flightid.cases.run import Prediction
 from flightid.cli.main import main
 from flightid.errors import InputError
 from flightid.report import jsonout
-from flightid.report.folder import RUN_MARKER, OutputError, ResultFolder
+from flightid.report.folder import RUN_MARKER, OutputError, ResultFolder, write_manifest
 from flightid.report.html import write_files, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -110,7 +110,7 @@ def _old_run(directory: Path) -> None:
     (directory / "results.json").write_text('{"results": ["old"]}')
     (directory / "report.html").write_text("old report")
     (directory / "figures" / "fit_9_stale.png").write_bytes(b"stale")
-    (directory / RUN_MARKER).write_text("{}")
+    write_manifest(directory)  # as flightid writes it: --overwrite may replace the folder
 
 
 def _one_error_line(stderr: str) -> str:
@@ -191,7 +191,6 @@ def test_overwrite_replaces_the_whole_folder(fake_run, tmp_path, capsys):
     case, _ = fake_run
     target = tmp_path / "run"
     _old_run(target)
-    (target / "notes.txt").write_text("part of the old run folder")
     assert main(["run", str(case), "--out", str(target), "--overwrite", "--quiet"]) == 0
     names = sorted(p.relative_to(target).as_posix() for p in target.rglob("*"))
     # figures = false in this case: no figures folder, and nothing of the old run survives
@@ -348,6 +347,7 @@ def test_sigint_during_the_final_rename_is_held_until_the_run_is_in_place(
         renames.append(Path(dst).name)
         real_rename(src, dst)
 
+    old_manifest = (target / RUN_MARKER).read_text()
     folder = ResultFolder.open(target, overwrite=True)
     real_commit = folder._commit
 
@@ -366,9 +366,10 @@ def test_sigint_during_the_final_rename_is_held_until_the_run_is_in_place(
     finally:
         folder.release()
     # old run set aside, new run moved in: two renames, each with a SIGINT sent during it
-    assert renames == [f".run.flightid-old-{os.getpid()}", "run"]
+    assert len(renames) == 2 and renames[1] == "run"
+    assert renames[0].startswith(f".run.flightid-old-{os.getpid()}-")
     # the interrupt came after the commit: the new run is complete and the old one gone
-    assert (target / RUN_MARKER).read_text() != "{}"
+    assert (target / RUN_MARKER).read_text() != old_manifest
     assert not (target / "figures" / "fit_9_stale.png").exists()
     assert _strict_loads((target / "results.json").read_text())["results"][0]["parameters"]
     assert _leftovers(tmp_path) == []

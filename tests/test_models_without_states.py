@@ -167,7 +167,9 @@ def test_case_file_with_a_module_without_states(tmp_path, capsys):
     np.savetxt(tmp_path / "flight.csv", rows, delimiter=",", header="time,u1,u2,y", comments="")
     (tmp_path / "regression.py").write_text(MODULE)
     (tmp_path / "case.toml").write_text(CASE)
-    code = main(["run", str(tmp_path / "case.toml"), "--json", "--quiet", "--out", str(tmp_path)])
+    # the result folder is a folder of its own: the case's folder is refused
+    out = str(tmp_path / "out")
+    code = main(["run", str(tmp_path / "case.toml"), "--json", "--quiet", "--out", out])
     assert code == 0
     (entry,) = json.loads(capsys.readouterr().out)["results"]
     assert entry["converged"] is True

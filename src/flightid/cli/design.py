@@ -54,17 +54,15 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # imported here: `flightid --help` must not load numpy/scipy/numba
-    from pathlib import Path
-
     from flightid.cases import load_case
     from flightid.cases.run import stderr_progress
-    from flightid.cli.run import answer_then_files
+    from flightid.cli.run import answer_then_files, open_result_folder
     from flightid.design.case import run_design_case
-    from flightid.report.folder import ResultFolder
     from flightid.results import results_document
 
     case = load_case(args.case)
-    folder = ResultFolder.open(Path(args.out), overwrite=args.overwrite) if args.out else None
+    # only --out: a design case's output.dir is not its result folder
+    folder = open_result_folder(case, args, args.out) if args.out is not None else None
     try:
         result = run_design_case(
             case, args.data_dir, progress=None if args.quiet else stderr_progress

@@ -9,6 +9,11 @@ Every failure ends in one line on stderr and a non-zero exit status:
     flightid: error: internal error: <type>: <message> (run with --debug for the traceback)
                                                                exit 1 (a bug)
     flightid: interrupted                                      exit 130 (Ctrl-C, SIGINT)
+    flightid: terminated                                       exit 143 (SIGTERM)
+
+SIGTERM (``kill PID``, a job scheduler's stop) is handled like Ctrl-C: the command stops
+where it is, its result-folder lock and temporary files are removed, nothing half written
+stays.
 
 ``--debug`` (before or after the command) adds the Python traceback.
 """
@@ -19,7 +24,9 @@ import argparse
 import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 import traceback
 
 from flightid import __version__
@@ -29,6 +36,7 @@ from flightid.errors import error_line
 SUBCOMMAND_MODULES = ("batch", "design", "paper", "regress", "run", "validate")
 EXIT_ERROR = 1
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 DEBUG_HELP = "show the Python traceback of a failure"
 
 
@@ -64,7 +72,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: raised where the program was, so that every clean-up Ctrl-C runs
+    (``finally`` blocks, the result folder's lock and temporary folder) runs for it too."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM raises ``Terminated`` while the command runs (only from the main thread, and
+    only where SIGTERM had its default action: a handler the caller installed is kept)."""
+    installed = False
+    if threading.current_thread() is threading.main_thread():
+        with contextlib.suppress(ValueError, OSError):
+            if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+                signal.signal(signal.SIGTERM, _raise_terminated)
+                installed = True
+    try:
+        yield
+    finally:
+        if installed:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def main(argv: list[str] | None = None) -> int:
+    with _sigterm_as_interrupt():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -77,6 +116,11 @@ def main(argv: list[str] | None = None) -> int:
     debug = bool(getattr(args, "debug", False))
     try:
         return int(args.func(args) or 0)
+    except Terminated:
+        if debug:
+            traceback.print_exc()
+        print("flightid: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         if debug:
             traceback.print_exc()

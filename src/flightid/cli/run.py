@@ -24,8 +24,10 @@ estimation ran (read ``converged``/``status``), 1 on any failure (one line
 estimates.csv, figures/*.png and report.html. The folder is checked and locked before the
 estimation, the files are written to a temporary folder beside it and moved into place at
 once (``flightid.report.folder``), after the summary has been printed; a folder that already
-holds a run is replaced (whole) only with ``--overwrite``. All JSON is strict: NaN and ±inf
-become null and are listed under ``"nonfinite"`` (``flightid.report.jsonout``).
+holds a run is replaced (whole) only with ``--overwrite``, and only when flightid wrote every
+file in it (its manifest ``.flightid-run``). The current folder, the home folder and a folder
+holding the case file, its data or its model module are refused. All JSON is strict: NaN and
+±inf become null and are listed under ``"nonfinite"`` (``flightid.report.jsonout``).
 """
 
 from __future__ import annotations
@@ -75,7 +77,8 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace the run already in --out (the whole folder is replaced)",
+        help="replace the run already in --out (the whole folder is replaced; refused, naming "
+        "them, when it holds files flightid did not write or that changed since)",
     )
     parser.add_argument(
         "--json",
@@ -110,14 +113,65 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
 
 def output_folder(case, given: str | None) -> Path | None:
     """The result folder: ``--out``, else the case's ``output.dir`` (relative to the case
-    file), else None."""
+    file), else None. An empty name is refused (it would be the current or the case's
+    folder)."""
+    from flightid.report.folder import OutputError
+
     if given is not None:
+        if not given.strip():
+            raise OutputError("--out: expected a folder name, got an empty string")
         return Path(given)
     configured = case.output.get("dir")
     if configured is None:
         return None
+    if not str(configured).strip():
+        raise OutputError("output.dir: expected a folder name, got an empty string")
     path = Path(configured).expanduser()
     return path if path.is_absolute() else case.directory / path
+
+
+def case_inputs(case, data_dir: str | None) -> list[Path]:
+    """The files a run reads — the case file, its model module, its data files — which its
+    result folder may neither be nor hold."""
+    from flightid.cases.build import resolve_data_dir
+
+    inputs = [Path(case.path)]
+    module = case.model.get("module")
+    if isinstance(module, str):
+        inputs.append(case.directory / module)
+    try:
+        directory: Path | None = resolve_data_dir(case, data_dir)
+    except Exception:  # a bad data_dir is reported by the run itself
+        directory = None
+    for spec in (*case.maneuvers, *case.prediction):
+        path = Path(spec.file)
+        if path.is_absolute():
+            inputs.append(path)
+        elif directory is not None:
+            inputs.append(directory / path)
+    return inputs
+
+
+def open_result_folder(case, args: argparse.Namespace, given: str | None):
+    """The checked and locked result folder of a run (``flightid.report.folder``), or None
+    without ``--out`` / ``output.dir``; notes about an earlier interrupted run go to stderr."""
+    from flightid.report.folder import ResultFolder
+
+    out = output_folder(case, given)
+    if out is None:
+        return None
+    return ResultFolder.open(
+        out,
+        overwrite=args.overwrite,
+        keep=case_inputs(case, getattr(args, "data_dir", None)),
+        notify=print_note,
+    )
+
+
+def print_note(text: str) -> None:
+    """A result folder's notice (not an error) as one ``flightid: note:`` line on stderr,
+    shown with ``--quiet`` too: it concerns the user's files."""
+    print(f"flightid: note: {text}", file=sys.stderr)
 
 
 def print_summary(result) -> None:
@@ -158,14 +212,12 @@ def run(args: argparse.Namespace) -> int:
     from flightid.cases import load_case, run_case
     from flightid.cases.run import stderr_progress
     from flightid.cases.stages import has_regression_stages
-    from flightid.report.folder import ResultFolder
     from flightid.results import results_document
 
     case = load_case(args.case)
-    out = output_folder(case, args.out)
     # the result folder is checked (and locked) before any work, so that a bad --out costs
     # nothing and a second run into the same folder stops here
-    folder = ResultFolder.open(out, overwrite=args.overwrite) if out is not None else None
+    folder = open_result_folder(case, args, args.out)
     try:
         if case.staged and has_regression_stages(case):
             return _run_stages(case, args, folder)
