@@ -4,7 +4,7 @@ input channels.
 
 Input channels searched by default (those the log has): PX4 ``px4.aileron``,
 ``px4.elevator``, ``px4.rudder``, ``px4.throttle`` (``actuator_controls_0`` or the torque
-and thrust setpoints) and ``vehicle_rates_setpoint.roll/pitch/yaw``; ArduPilot ``SIDD.Targ``,
+and thrust setpoints) and ``vehicle_rates_setpoint.roll/pitch/yaw``; ArduPilot
 ``RATE.RDes/PDes/YDes`` and the RC sticks ``ardupilot.aileron`` ... ; a table file: its
 columns (the first eight). The overview adds the body rates and the roll and pitch angles.
 """
@@ -32,7 +32,6 @@ DEFAULT_INPUTS = (
     "vehicle_rates_setpoint.roll",
     "vehicle_rates_setpoint.pitch",
     "vehicle_rates_setpoint.yaw",
-    "SIDD.Targ",
     "RATE.RDes",
     "RATE.PDes",
     "RATE.YDes",
