@@ -27,12 +27,13 @@ _KIND_COLOURS = {
 def _mode_strip(ax, modes: Sequence, runs: Sequence, span: tuple[float, float]) -> None:
     names = sorted({m.name for m in modes})
     colours = {n: f"C{k % 10}" for k, n in enumerate(names)}
+    low = 0.5 if runs else 0.0  # modes on top, SysID runs below where there are any
     for interval in modes:
         stop = span[1] if math.isinf(interval.stop_s) else interval.stop_s
-        ax.axvspan(interval.start_s, stop, 0.5, 1.0, color=colours[interval.name], alpha=0.35)
+        ax.axvspan(interval.start_s, stop, low, 1.0, color=colours[interval.name], alpha=0.35)
         ax.text(
             0.5 * (interval.start_s + stop),
-            0.75,
+            0.5 * (1.0 + low),
             interval.name,
             ha="center",
             va="center",
