@@ -66,6 +66,7 @@ def load_maneuvers(
         path = path if path.is_absolute() else data_dir / path
         where = f"{key} (maneuver {i + 1} '{spec.name}', {path})"
         try:
+            start, stop = _maneuver_span(spec, path)
             table = read_table(path, spec.format, variable=spec.variable)
             data = to_flight_data(
                 table,
@@ -73,8 +74,8 @@ def load_maneuvers(
                 inputs=case.data.get("inputs"),
                 outputs=case.data.get("outputs"),
                 name=spec.name,
-                start=spec.start,
-                stop=spec.stop,
+                start=start,
+                stop=stop,
                 gaps=spec.gaps,
                 dt=spec.dt,
                 constants=case.data.get("constants"),
@@ -85,6 +86,19 @@ def load_maneuvers(
             raise CaseError(f"{where}: {exc}") from None
         maneuvers.append(data)
     return maneuvers
+
+
+def _maneuver_span(spec: ManeuverSpec, path: Path) -> tuple[float | None, float | None]:
+    """(start, stop) in s: the spec's, or the interval of its flight ``mode`` in the log
+    (``flightid.logs.modes``; the last mode runs to the end of the data)."""
+    if spec.mode is None:
+        return spec.start, spec.stop
+    from flightid.logs.modes import log_mode_intervals, select_mode
+
+    interval = select_mode(
+        log_mode_intervals(path), spec.mode, spec.mode_index, "mode", str(path.name)
+    )
+    return interval.start_s, None if math.isinf(interval.stop_s) else interval.stop_s
 
 
 # ------------------------------------------------------------------------------ base model

@@ -120,7 +120,18 @@ _DATA = {
     "signals",
     "steps",
 }
-_MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps", "dt"}
+_MANEUVER = {
+    "file",
+    "name",
+    "start",
+    "stop",
+    "variable",
+    "format",
+    "gaps",
+    "dt",
+    "mode",
+    "mode_index",
+}
 _MODEL = {
     "module",
     "type",
@@ -218,6 +229,10 @@ class ManeuverSpec:
     format: str = "auto"
     gaps: str = "error"
     dt: float | None = None  # s: regenerate time as t_0 + k·dt (None: the stored times)
+    # the flight mode whose interval is the maneuver (start/stop from the log), and which
+    # of its occurrences (1-based; None: the mode must occur once)
+    mode: str | None = None
+    mode_index: int | None = None
 
 
 @dataclass(frozen=True)
@@ -302,6 +317,27 @@ def _initial_state_types(section: Mapping[str, Any], key: str) -> None:
             _number(start, where)
 
 
+def _maneuver_mode(
+    item: Mapping[str, Any], where: str, start: Any, stop: Any
+) -> tuple[str | None, int | None]:
+    """``mode`` (a flight-mode name: the maneuver is that mode's interval in the log) and
+    ``mode_index`` (1-based occurrence); a mode excludes start/stop, an index needs a mode."""
+    if "mode" not in item:
+        if "mode_index" in item:
+            raise CaseError(f'{where}.mode_index: give the mode too (mode = "...")')
+        return None, None
+    mode = _string(item["mode"], f"{where}.mode")
+    if not mode.strip():
+        raise CaseError(f"{where}.mode: expected a flight-mode name, got an empty string")
+    if start is not None or stop is not None:
+        raise CaseError(
+            f"{where}: give either mode (the mode's interval) or start/stop, not both "
+            f"(got mode = {mode!r}, start = {start!r}, stop = {stop!r})"
+        )
+    index = item.get("mode_index")
+    return mode, None if index is None else _integer(index, f"{where}.mode_index", 1)
+
+
 def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]) -> list:
     given = [k for k in ("file", "files", "maneuvers") if k in section]
     if len(given) != 1:
@@ -335,6 +371,7 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
         dt = item.get("dt", defaults.get("dt"))
         if dt is not None and _number(dt, f"{where}.dt") <= 0:
             raise CaseError(f"{where}.dt: expected a positive sampling interval (s), got {dt!r}")
+        mode, mode_index = _maneuver_mode(item, where, start, stop)
         result.append(
             ManeuverSpec(
                 file=file,
@@ -355,6 +392,8 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
                     ("error", "join"),
                 ),
                 dt=None if dt is None else float(dt),
+                mode=mode,
+                mode_index=mode_index,
             )
         )
     names = [m.name for m in result]

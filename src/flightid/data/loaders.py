@@ -53,6 +53,13 @@ from flightid.data.flightdata import FlightData
 from flightid.data.preprocess import apply_steps, parse_derivative, parse_smooth, segment_slices
 from flightid.data.units import channel_conversion, parse_unit
 from flightid.errors import InputError, InputTypeError, describe
+from flightid.logs.signals import (
+    BUILTIN_SIGNALS,
+    builtin_signal,
+    quaternion_pitch,
+    quaternion_roll,
+    quaternion_yaw,
+)
 
 __all__ = [
     "DataFileError",
@@ -490,6 +497,10 @@ _FUNCTIONS = {
     # log (natural): x > 0
     "log": _Function(1, np.log, lambda x: x <= 0, "x > 0"),
     "abs": _Function(1, np.abs),
+    # ZYX Euler angles (rad) of a Hamilton quaternion (w, x, y, z), flightid.logs.signals
+    "quat_roll": _Function(4, quaternion_roll),
+    "quat_pitch": _Function(4, quaternion_pitch),
+    "quat_yaw": _Function(4, quaternion_yaw),
 }
 
 
@@ -643,15 +654,32 @@ def parse_expression(text: str) -> tuple:
 
 def _lookup(name: int | str, table: Table, where: str, names: Mapping[str, Any] | None):
     """A name's values: a signal or constant of ``names`` (signals: arrays over all rows),
-    else the table's column (``$N`` is always the column)."""
+    else the table's column (``$N`` is always the column), else a built-in log signal
+    (``px4.roll``, ... of ``flightid.logs.signals``, from the table's columns)."""
     if names and isinstance(name, str) and name in names:
         return names[name]
     try:
         return table.column(name, where)
     except ChannelError as exc:
+        if isinstance(name, str) and name in BUILTIN_SIGNALS and name not in table.names:
+            return _builtin(name, table, where)
         if not names or not isinstance(name, str):
             raise
         raise ChannelError(f"{exc}; nor a signal or constant (known: {sorted(names)})") from None
+
+
+def _builtin(name: str, table: Table, where: str) -> np.ndarray:
+    """A built-in log signal from the table's columns, or a ``ChannelError`` naming the
+    columns (streams) it needs."""
+    try:
+        values, _ = builtin_signal(name, table.names.__contains__, table.column)
+    except KeyError as exc:
+        raise ChannelError(
+            f"{where}: the built-in signal {name!r} needs the columns {exc.args[0]}; "
+            f"read those streams (variable = ...) — {table.source or 'the table'} has "
+            f"{[n for n in table.names if n][:12]}"
+        ) from None
+    return values
 
 
 def _evaluate(
