@@ -26,7 +26,7 @@ from flightid import __version__
 from flightid.errors import error_line
 
 # Sub-command modules, in the order they appear in --help.
-SUBCOMMAND_MODULES = ("batch", "design", "paper", "regress", "run", "validate")
+SUBCOMMAND_MODULES = ("batch", "design", "example_logs", "paper", "regress", "run", "validate")
 EXIT_ERROR = 1
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 DEBUG_HELP = "show the Python traceback of a failure"
