@@ -214,7 +214,9 @@ def write_ulog(
     field's ULog type per stream name (``{"vehicle_status": {"nav_state": "uint8_t"}}``);
     the default is ``float`` (float32, as PX4 logs most values). ``parameters``: int →
     ``int32_t``, float → ``float``. ``dropouts``: (time s, duration s) of logger drop-outs,
-    written as ULog dropout messages (duration in ms). ``info``: string info messages such
+    written as ULog dropout messages (a dropout message holds only its duration, in ms; it
+    is placed among the data by its time, and readers date it by the message before it).
+    ``info``: string info messages such
     as ``{"sys_name": "PX4"}``. Returns the path.
     """
     pyulog = _require("pyulog", "px4", f"writing the PX4 ULog file {path}")
