@@ -472,3 +472,26 @@ def test_cli_example_logs_writes_refuses_and_overwrites_only_its_files(tmp_path,
     assert not (folder / "fixedwing_roll.bin").is_symlink()
     assert main(["example-logs", "--out", ""]) == 1
     assert "empty" in capsys.readouterr().err
+
+
+def test_writers_replace_a_file_only_with_overwrite_and_never_through_a_link(tmp_path):
+    pytest.importorskip("pyulog")
+    pytest.importorskip("pymavlink")
+    t = np.array([0.0, 0.01, 0.02])
+    stream = Stream("ATT", t, {"A": t}, {"A": "deg"})
+    for write, name in ((write_ulog, "log.ulg"), (write_dataflash, "log.bin")):
+        path = tmp_path / name
+        path.write_text("the user's file")
+        with pytest.raises(LogWriteError, match="already exists"):
+            write(path, [stream])
+        assert path.read_text() == "the user's file"
+        write(path, [stream], overwrite=True)
+        assert path.read_bytes()[:2] in (b"UL", b"\xa3\x95")
+        victim = tmp_path / f"victim_{name}"
+        victim.write_text("keep")
+        path.unlink()
+        path.symlink_to(victim)
+        with pytest.raises(LogWriteError, match="already exists"):
+            write(path, [stream])
+        write(path, [stream], overwrite=True)
+        assert victim.read_text() == "keep" and not path.is_symlink()

@@ -62,10 +62,10 @@ def run(args: argparse.Namespace) -> int:
             "replace them (nothing else in the folder is touched)"
         )
     folder.mkdir(parents=True, exist_ok=True)
-    for target in targets:
-        if target.is_symlink():  # replace the link itself, never write through it
-            target.unlink()
-    logs = [write_multirotor_ulog(targets[0]), write_fixedwing_dataflash(targets[1])]
+    logs = [
+        write_multirotor_ulog(targets[0], overwrite=args.overwrite),
+        write_fixedwing_dataflash(targets[1], overwrite=args.overwrite),
+    ]
     for log in logs:
         _describe(log)
     return 0

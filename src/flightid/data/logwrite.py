@@ -80,6 +80,20 @@ def _stamps_us(stream: Stream) -> np.ndarray:
     return stamps
 
 
+def _target(path: str | Path, overwrite: bool) -> Path:
+    """The file to write: an existing one (or a link) only with ``overwrite``; a link is
+    removed first, so that the log is never written through it into another file."""
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        if not overwrite:
+            raise LogWriteError(f"{path}: already exists; pass overwrite=True to replace it")
+        if path.is_dir() and not path.is_symlink():
+            raise LogWriteError(f"{path}: is a folder, not a log file")
+        if path.is_symlink():
+            path.unlink()
+    return path
+
+
 def _exact_integers(
     values: np.ndarray, low: float, high: float, where: str, scale: float = 1.0
 ) -> np.ndarray:
@@ -205,6 +219,7 @@ def write_ulog(
     field_types: Mapping[str, Mapping[str, str]] | None = None,
     dropouts: Sequence[tuple[float, float]] = (),
     info: Mapping[str, str] | None = None,
+    overwrite: bool = False,
 ) -> Path:
     """Write ``streams`` as a PX4 ULog file (needs pyulog: the ``px4`` extra).
 
@@ -217,7 +232,8 @@ def write_ulog(
     written as ULog dropout messages (a dropout message holds only its duration, in ms; it
     is placed among the data by its time, and readers date it by the message before it).
     ``info``: string info messages such
-    as ``{"sys_name": "PX4"}``. Returns the path.
+    as ``{"sys_name": "PX4"}``. An existing file is replaced only with ``overwrite``.
+    Returns the path.
     """
     pyulog = _require("pyulog", "px4", f"writing the PX4 ULog file {path}")
     if not hasattr(pyulog.ULog, "write_ulog"):
@@ -255,7 +271,7 @@ def write_ulog(
         log._msg_info_dict[key] = str(value)
         log._msg_info_dict_types[key] = f"char[{len(str(value).encode())}]"
     log._dropouts = [_ulog_dropout(time_s, duration_s) for time_s, duration_s in dropouts]
-    path = Path(path)
+    path = _target(path, overwrite)
     log.write_ulog(str(path))
     return path
 
@@ -497,6 +513,7 @@ def write_dataflash(
     formats: Mapping[str, Mapping[str, str]] | None = None,
     parameters: Mapping[str, float] | None = None,
     instance_field: str = "I",
+    overwrite: bool = False,
 ) -> Path:
     """Write ``streams`` as a binary ArduPilot DataFlash log (``.bin``; needs pymavlink:
     the ``ardupilot`` extra, whose message packer writes every message).
@@ -509,7 +526,8 @@ def write_dataflash(
     describes itself as ArduPilot's does: FMT for every type, UNIT and MULT tables and an
     FMTU per type giving each field's unit (``Stream.units``; ArduPilot's unit ids for
     its labels, e.g. ``d`` deg, ``E`` rad/s, ``Y`` us). ``parameters`` are written as PARM
-    messages at time 0. Messages are written in time order. Returns the path.
+    messages at time 0. Messages are written in time order. An existing file is replaced
+    only with ``overwrite``. Returns the path.
     """
     dfreader = _require("pymavlink.DFReader", "ardupilot", f"writing the DataFlash log {path}")
     kinds = _df_types(streams, formats or {}, instance_field)
@@ -544,7 +562,7 @@ def write_dataflash(
             raise LogWriteError(f"parameter name {name!r}: expected 1–16 ASCII characters")
         out += pack(meta["PARM"], [0, name, float(value)])
     out += _df_data(dfreader, streams, kinds, pack)
-    path = Path(path)
+    path = _target(path, overwrite)
     path.write_bytes(bytes(out))
     return path
 

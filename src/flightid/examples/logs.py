@@ -271,12 +271,15 @@ def _quaternion(roll: np.ndarray, pitch: float, yaw: float) -> np.ndarray:
     )
 
 
-def write_multirotor_ulog(path: str | Path, seed: int = 42) -> ExampleLog:
+def write_multirotor_ulog(
+    path: str | Path, seed: int = 42, *, overwrite: bool = False
+) -> ExampleLog:
     """Simulate the multirotor roll-rate loop and write it as a PX4 ULog at ``path``.
 
     Returns the truth (``ExampleLog``): ω_n = 42 rad/s, ζ = 0.6, τ = 0.025 s; the ACRO window
     with the sweep (0.8…12 Hz, 0.8 rad/s) and three doublets (±1.2 rad/s, 2 × 0.1 s), the
-    POSCTL hover around it, three ~30 ms drop-outs. About 40 s, ~0.55 MB.
+    POSCTL hover around it, three ~30 ms drop-outs. About 40 s, ~0.55 MB. An existing
+    file is replaced only with ``overwrite``.
     """
     rng = np.random.default_rng(seed)
     wn, zeta, tau = MR_TRUTH["omega_n"], MR_TRUTH["zeta"], MR_TRUTH["tau"]
@@ -351,6 +354,7 @@ def write_multirotor_ulog(path: str | Path, seed: int = 42) -> ExampleLog:
         field_types={"vehicle_status": {"nav_state": "uint8_t", "arming_state": "uint8_t"}},
         dropouts=dropouts,
         info={"sys_name": "PX4", "ver_hw": "SITL"},
+        overwrite=overwrite,
     )
     boot, end = _MR_BOOT_S, _MR_BOOT_S + _MR_LENGTH_S
     on, off = boot + _MR_ACRO[0], boot + _MR_ACRO[1]
@@ -410,12 +414,15 @@ def _fw_excitation_deg(t_rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out, busy
 
 
-def write_fixedwing_dataflash(path: str | Path, seed: int = 7) -> ExampleLog:
+def write_fixedwing_dataflash(
+    path: str | Path, seed: int = 7, *, overwrite: bool = False
+) -> ExampleLog:
     """Simulate the fixed-wing roll mode and write it as an ArduPilot DataFlash log.
 
     Returns the truth (``ExampleLog``): L_p = −4 1/s, L_δa = 30 1/s² (δa in rad); MANUAL
     with two 3-2-1-1 (±4 deg, 0.35 s unit) and two doublets (±5 deg, 2 × 0.5 s) between
-    FBWA; three ~30 ms drop-outs. About 40 s, ~0.65 MB.
+    FBWA; three ~30 ms drop-outs. About 40 s, ~0.65 MB. An existing file is replaced only
+    with ``overwrite``.
     """
     rng = np.random.default_rng(seed)
     start_us = round(_FW_BOOT_S * _US)
@@ -469,6 +476,7 @@ def write_fixedwing_dataflash(path: str | Path, seed: int = 7) -> ExampleLog:
             "MODE": {"Mode": "M", "ModeNum": "B", "Rsn": "B"},
         },
         parameters={"SERVO1_MIN": 1000.0, "SERVO1_TRIM": 1500.0, "SERVO1_MAX": 2000.0},
+        overwrite=overwrite,
     )
     boot, end = _FW_BOOT_S, _FW_BOOT_S + _FW_LENGTH_S
     on, off = boot + _FW_MANUAL[0], boot + _FW_MANUAL[1]
@@ -542,12 +550,13 @@ def _fw_modes(start_us: int) -> Stream:
     )
 
 
-def write_example_logs(folder: str | Path) -> dict[str, ExampleLog]:
+def write_example_logs(folder: str | Path, *, overwrite: bool = False) -> dict[str, ExampleLog]:
     """Write both example logs into ``folder`` (created if missing) with their default
-    seeds: ``multirotor_roll_rate.ulg`` and ``fixedwing_roll.bin``."""
+    seeds: ``multirotor_roll_rate.ulg`` and ``fixedwing_roll.bin``; existing files of these
+    names are replaced only with ``overwrite``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     return {
-        "multirotor": write_multirotor_ulog(folder / MULTIROTOR_FILE),
-        "fixedwing": write_fixedwing_dataflash(folder / FIXEDWING_FILE),
+        "multirotor": write_multirotor_ulog(folder / MULTIROTOR_FILE, overwrite=overwrite),
+        "fixedwing": write_fixedwing_dataflash(folder / FIXEDWING_FILE, overwrite=overwrite),
     }
