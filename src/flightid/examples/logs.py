@@ -302,12 +302,10 @@ def write_multirotor_ulog(
     # x = (p, ṗ, φ): p̈ = ω_n² (u(t − τ) − p) − 2ζω_n ṗ, φ̇ = p
     a = np.array([[0.0, 1.0, 0.0], [-(wn**2), -2.0 * zeta * wn, 0.0], [1.0, 0.0, 0.0]])
     b = np.array([0.0, wn**2, 0.0])
-    samples = np.concatenate([gyro_us, attitude_us])
-    states, commands = _simulate(
-        a, b, setpoint_us, roll_rate_command, round(tau * _US), np.unique(samples)
-    )
-    at = np.searchsorted(np.unique(samples), gyro_us)
-    p_true, roll_true = states[at, 0], states[np.searchsorted(np.unique(samples), attitude_us), 2]
+    samples = np.unique(np.concatenate([gyro_us, attitude_us]))
+    states, commands = _simulate(a, b, setpoint_us, roll_rate_command, round(tau * _US), samples)
+    p_true = states[np.searchsorted(samples, gyro_us), 0]
+    roll_true = states[np.searchsorted(samples, attitude_us), 2]
 
     dropouts = _dropouts(rng, _MR_BOOT_S, _MR_BOOT_S + _MR_LENGTH_S, 3)
     keep_sp, keep_gyro, keep_att = (_kept(s, dropouts) for s in (setpoint_us, gyro_us, attitude_us))
