@@ -7,14 +7,15 @@ channels (units, expressions) with ``to_flight_data`` exactly as for CSV files.
 from __future__ import annotations
 
 import math
-import struct
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from flightid.data.formats import Stream
 from flightid.data.loaders import DataFileError, read_table, to_flight_data
+from flightid.data.logwrite import write_dataflash, write_ulog
 from flightid.errors import FlightIdError
 from flightid.results import MissingDependencyError
 
@@ -231,38 +232,26 @@ def test_mat73_missing_extra_is_named_error(tmp_path, monkeypatch):
 # ---------------------------------------------------------------- PX4 ULog
 
 
-def _ulog_message(kind: str, payload: bytes) -> bytes:
-    # ULog message header: uint16 msg_size (payload bytes), uint8 msg_type (ULog spec, PX4 docs)
-    return struct.pack("<HB", len(payload), ord(kind)) + payload
-
-
 def _write_ulog(path: Path, topics: dict, parameters: dict[str, float]) -> Path:
-    """A ULog file written by hand from the format specification (docs.px4.io, "ULog File
-    Format"): 16-byte header (magic, version 1, start time µs), flag bits 'B', formats 'F',
-    parameters 'P', then subscriptions 'A' and data 'D' (timestamp µs first). A key
-    ``"name:k"`` subscribes multi-instance k of topic ``name``."""
-    out = bytearray(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", 0))
-    out += _ulog_message("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
-    formats = {key.split(":")[0]: fields for key, (fields, _, _) in topics.items()}
-    for name, fields in formats.items():
-        text = f"{name}:uint64_t timestamp;" + "".join(f"{t} {f};" for t, f in fields)
-        out += _ulog_message("F", text.encode())
-    for name, value in parameters.items():
-        key = f"float {name}".encode()
-        out += _ulog_message("P", bytes([len(key)]) + key + struct.pack("<f", value))
-    for msg_id, key in enumerate(topics):
-        name, _, multi_id = key.partition(":")
-        out += _ulog_message("A", struct.pack("<BH", int(multi_id or 0), msg_id) + name.encode())
-    for msg_id, (fields, time_us, rows) in enumerate(topics.values()):
-        codes = "".join(
-            "f" * int(t[6:-1]) if t.startswith("float[") else {"float": "f", "double": "d"}[t]
-            for t, _ in fields
+    """A ULog file written by the package's writer (``flightid.data.logwrite.write_ulog``,
+    through pyulog) from ``{topic: ([(type, field)], time µs, rows)}``; ``float[n] x``
+    becomes the stream fields ``x_0 … x_{n−1}``. A key ``"name:k"`` is multi-instance k."""
+    streams, field_types = [], {}
+    for key, (fields, time_us, rows) in topics.items():
+        names, kinds = [], {}
+        for kind, name in fields:
+            if kind.startswith("float["):
+                size = int(kind[6:-1])
+                names += [f"{name}_{i}" for i in range(size)]
+            else:
+                names.append(name)
+                kinds[name] = kind
+        columns = np.asarray(rows, dtype=float).T
+        streams.append(
+            Stream(key, np.asarray(time_us) * 1e-6, dict(zip(names, columns, strict=True)))
         )
-        for stamp, row in zip(time_us, rows, strict=True):
-            payload = struct.pack("<HQ" + codes, msg_id, int(stamp), *row)
-            out += _ulog_message("D", payload)
-    path.write_bytes(bytes(out))
-    return path
+        field_types[key] = kinds
+    return write_ulog(path, streams, parameters, field_types=field_types)
 
 
 def _ulog_topics():
@@ -341,59 +330,34 @@ def test_ulog_missing_extra_is_named_error(tmp_path, monkeypatch):
 # ---------------------------------------------------------------- ArduPilot DataFlash
 
 
-def _df_message(msg_type: int, payload: bytes) -> bytes:
-    # DataFlash message: 0xA3 0x95, the type byte, the payload (ArduPilot LogStructure.h)
-    return bytes([0xA3, 0x95, msg_type]) + payload
-
-
-def _df_fmt(msg_type: int, name: str, fmt: str, columns: str) -> bytes:
-    # FMT (type 128, "BBnNZ"): type, full message length, name[4], format[16], columns[64];
-    # sizes per format character: Q 8, B/b 1, c 2, f 4, d 8, n 4, N 16, Z 64
-    sizes = {"Q": 8, "B": 1, "b": 1, "c": 2, "f": 4, "d": 8, "n": 4, "N": 16, "Z": 64}
-    length = 3 + sum(sizes[c] for c in fmt)
-    payload = struct.pack(
-        "<BB4s16s64s", msg_type, length, name.encode(), fmt.encode(), columns.encode()
-    )
-    return _df_message(0x80, payload)
-
-
 def _write_dataflash(path: Path):
-    out = bytearray()
-    out += _df_fmt(0x80, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
-    out += _df_fmt(0x81, "UNIT", "QbZ", "TimeUS,Id,Label")
-    out += _df_fmt(0x82, "MULT", "Qbd", "TimeUS,Id,Mult")
-    out += _df_fmt(0x83, "FMTU", "QBNN", "TimeUS,FmtType,UnitIds,MultIds")
-    out += _df_fmt(10, "ATT", "Qccf", "TimeUS,Roll,Pitch,Yaw")
-    out += _df_fmt(11, "IMU", "QBff", "TimeUS,I,GyrX,AccZ")
-    for ident, label in (
-        ("s", "s"),
-        ("d", "deg"),
-        ("E", "rad/s"),
-        ("o", "m/s/s"),
-        ("#", "instance"),
-    ):
-        out += _df_message(0x81, struct.pack("<Qb64s", 0, ord(ident), label.encode()))
-    for ident, mult in (("-", 0.0), ("F", 1e-6)):
-        out += _df_message(0x82, struct.pack("<Qbd", 0, ord(ident), mult))
-    # '#' marks IMU.I as the instance field
-    out += _df_message(0x83, struct.pack("<QB16s16s", 0, 10, b"sddd", b"F---"))
-    out += _df_message(0x83, struct.pack("<QB16s16s", 0, 11, b"s#Eo", b"F---"))
+    """A DataFlash log written by the package's writer (``flightid.data.logwrite.
+    write_dataflash``, through pymavlink's packer): ATT at 50 Hz with Roll/Pitch in
+    centidegrees ('c': int16 × 0.01), IMU instances 0 and 1 at 100 Hz; units in FMTU."""
     t_att = 1_000_000 + np.arange(25) * 20_000  # µs: 50 Hz from 1 s
     roll_cdeg = RNG.integers(-3000, 3000, size=25)  # centidegrees ('c': int16 × 0.01)
     yaw = RNG.normal(size=25)
     t_imu = 1_005_000 + np.arange(45) * 10_000  # µs: 100 Hz, 1.005 .. 1.445 s
-    records = [
-        (t, 10, ("<Qhhf", t, r, -r, y)) for t, r, y in zip(t_att, roll_cdeg, yaw, strict=True)
+    streams = [
+        Stream(
+            "ATT",
+            t_att * 1e-6,
+            {"Roll": roll_cdeg * 0.01, "Pitch": -roll_cdeg * 0.01, "Yaw": yaw},
+            {"Roll": "deg", "Pitch": "deg", "Yaw": "deg"},
+        )
     ]
     for instance in (0, 1):
-        for t in t_imu:
-            s = t * 1e-6
-            # linear in time, so linear interpolation reproduces the line exactly
-            values = (0.5 * s + instance, 9.0 - s)
-            records.append((t, 11, ("<QBff", t, instance, *values)))
-    for _, msg_type, (code, *values) in sorted(records, key=lambda r: r[0]):
-        out += _df_message(msg_type, struct.pack(code, *values))
-    path.write_bytes(bytes(out))
+        s = t_imu * 1e-6
+        # linear in time, so linear interpolation reproduces the line exactly
+        streams.append(
+            Stream(
+                f"IMU[{instance}]",
+                s,
+                {"GyrX": 0.5 * s + instance, "AccZ": 9.0 - s},
+                {"GyrX": "rad/s", "AccZ": "m/s/s"},
+            )
+        )
+    write_dataflash(path, streams, formats={"ATT": {"Roll": "c", "Pitch": "c"}})
     return t_att, roll_cdeg, yaw
 
 

@@ -33,7 +33,16 @@ from flightid import __version__
 from flightid.errors import error_line
 
 # Sub-command modules, in the order they appear in --help.
-SUBCOMMAND_MODULES = ("batch", "design", "inspect", "paper", "regress", "run", "validate")
+SUBCOMMAND_MODULES = (
+    "batch",
+    "design",
+    "example_logs",
+    "inspect",
+    "paper",
+    "regress",
+    "run",
+    "validate",
+)
 EXIT_ERROR = 1
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report it
 EXIT_TERMINATED = 143  # 128 + SIGTERM
