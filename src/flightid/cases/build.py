@@ -618,7 +618,14 @@ def _with_maneuver_channel(maneuver: FlightData, k: int) -> FlightData:
     inputs = {n: maneuver.input(n) for n in maneuver.input_names}
     inputs[MANEUVER_CHANNEL] = np.full(maneuver.n_samples, float(k))
     outputs = {n: maneuver.output(n) for n in maneuver.output_names}
-    return FlightData(maneuver.time, inputs, outputs, units=maneuver.units, name=maneuver.name)
+    return FlightData(
+        maneuver.time,
+        inputs,
+        outputs,
+        units=maneuver.units,
+        name=maneuver.name,
+        notes=maneuver.notes,
+    )
 
 
 def _check_channels(model: StateSpaceModel, maneuvers: Sequence[FlightData]) -> None:
