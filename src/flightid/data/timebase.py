@@ -165,7 +165,7 @@ def join_recordings(
             f"gaps = 'join': joined at their common interval {step:.6g} s, row {k + 1} of "
             f"{source} (stored t = {stored[k]:.6g} s) would move by {move:.4g} s "
             f"({move / step:.3g} intervals) within its recording; at most half an interval "
-            f"is allowed (the recordings are uneven or at different rates). {_PROPOSAL}"
+            f"is allowed (the recordings are uneven or at different rates); {_PROPOSAL}"
         )
     # t_k = t_0 + k·Δt
     joined = stored[0] + np.arange(stored.shape[0]) * step
