@@ -109,6 +109,9 @@ _DATA = {
     "time",
     "gaps",
     "dt",
+    "resample_hz",
+    "max_gap_s",
+    "allow_retime",
     "file",
     "files",
     "maneuvers",
@@ -120,7 +123,9 @@ _DATA = {
     "signals",
     "steps",
 }
-_MANEUVER = {"file", "name", "start", "stop", "variable", "format", "gaps", "dt"}
+# the time-base keys: a maneuver's own, else its section's ([prediction]), else [data]'s
+_TIME_BASE = ("gaps", "dt", "resample_hz", "max_gap_s", "allow_retime")
+_MANEUVER = {"file", "name", "start", "stop", "variable", "format", *_TIME_BASE}
 _MODEL = {
     "module",
     "type",
@@ -169,7 +174,7 @@ _ACCURACY = {
 ACCURACY_METHODS = ("cr", "profile", "search", "all")
 INTERVAL_KINDS = ("individual", "simultaneous")
 DISTRIBUTIONS = ("t", "normal")
-_PREDICTION = {"file", "files", "maneuvers", "initial_state"}
+_PREDICTION = {"file", "files", "maneuvers", "initial_state", *_TIME_BASE[2:]}
 _OUTPUT = {"figures", "report", "dir"}
 SOLVERS = ("mnres", "mnr", "fps")
 METHODS = ("rk4", "euler")
@@ -218,6 +223,10 @@ class ManeuverSpec:
     format: str = "auto"
     gaps: str = "error"
     dt: float | None = None  # s: regenerate time as t_0 + k·dt (None: the stored times)
+    # Hz: resample every channel onto t_k = k/R (anti-aliased; gaps split the maneuver)
+    resample_hz: float | None = None
+    max_gap_s: float | None = None  # s: the longest interval resampling bridges
+    allow_retime: bool = False  # accept dt / join moving rows by more than half an interval
 
 
 @dataclass(frozen=True)
@@ -302,6 +311,30 @@ def _initial_state_types(section: Mapping[str, Any], key: str) -> None:
             _number(start, where)
 
 
+def _resampling(item: Mapping[str, Any], defaults: Mapping[str, Any], where: str) -> dict:
+    """``resample_hz``, ``max_gap_s``, ``allow_retime`` of one maneuver (its own, else the
+    defaults), checked: positive numbers; ``max_gap_s`` only with ``resample_hz``, which
+    excludes ``dt`` and ``gaps = "join"``."""
+    given = {k: item.get(k, defaults.get(k)) for k in _TIME_BASE}
+    rate, gap = given["resample_hz"], given["max_gap_s"]
+    for name, value, unit in (("resample_hz", rate, "Hz"), ("max_gap_s", gap, "s")):
+        if value is not None and _number(value, f"{where}.{name}") <= 0:
+            raise CaseError(f"{where}.{name}: expected a positive number ({unit}), got {value!r}")
+    if gap is not None and rate is None:
+        raise CaseError(f"{where}.max_gap_s: only used with resample_hz (gaps split the record)")
+    if rate is not None and (given["dt"] is not None or given["gaps"] == "join"):
+        raise CaseError(
+            f"{where}.resample_hz: give either resample_hz or dt / gaps = 'join', not both "
+            f"(dt = {given['dt']!r}, gaps = {given['gaps']!r})"
+        )
+    retime = given["allow_retime"]
+    return {
+        "resample_hz": None if rate is None else float(rate),
+        "max_gap_s": None if gap is None else float(gap),
+        "allow_retime": False if retime is None else _bool(retime, f"{where}.allow_retime"),
+    }
+
+
 def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]) -> list:
     given = [k for k in ("file", "files", "maneuvers") if k in section]
     if len(given) != 1:
@@ -335,6 +368,7 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
         dt = item.get("dt", defaults.get("dt"))
         if dt is not None and _number(dt, f"{where}.dt") <= 0:
             raise CaseError(f"{where}.dt: expected a positive sampling interval (s), got {dt!r}")
+        resampling = _resampling(item, defaults, where)
         result.append(
             ManeuverSpec(
                 file=file,
@@ -355,6 +389,7 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
                     ("error", "join"),
                 ),
                 dt=None if dt is None else float(dt),
+                **resampling,
             )
         )
     names = [m.name for m in result]
@@ -751,8 +786,10 @@ def prediction_settings(
     """The maneuvers to predict and their initial states ([prediction] or a prediction
     stage): (maneuvers, initial_state)."""
     _known(section, _PREDICTION, key)
+    # the section's own resampling keys before [data]'s
+    defaults = {**data, **{k: section[k] for k in _TIME_BASE[2:] if k in section}}
     maneuvers = (
-        _maneuvers(section, key, data)
+        _maneuvers(section, key, defaults)
         if any(k in section for k in ("file", "files", "maneuvers"))
         else []
     )

@@ -1061,7 +1061,7 @@ def _rate_proposal(median_s: float) -> str:
     """A round rate at or below 1/median, 2 significant digits (Hz)."""
     rate = 1.0 / median_s
     scale = 10 ** (math.floor(math.log10(rate)) - 1)
-    return f"{math.floor(rate / scale) * scale:.6g}"
+    return f"{math.floor(rate / scale + 1e-9) * scale:.6g}"
 
 
 def _uneven(table: Table, t: np.ndarray) -> TimeBaseError:
