@@ -506,8 +506,9 @@ def test_ulog_multi_instance(tmp_path):
         outputs={"a": "sensor_gyro.x", "b": "sensor_gyro_1.x"},
         resample_hz=100,
     )
-    # instance 1 covers 5..195 ms: the grid is 10, 20, ..., 190 ms; instance 0 (at 100 Hz, not faster
-    # than the grid) is read at its own stamps, instance 1 halfway between its samples
+    # instance 1 covers 5..195 ms: the grid is 10, 20, ..., 190 ms; instance 0 (at 100 Hz,
+    # not faster than the grid) is read at its own stamps, instance 1 halfway between its
+    # samples
     assert np.allclose(fd.time, stamps[1:] * 1e-6, rtol=0, atol=1e-12)
     assert np.allclose(fd.output("a"), rows0[1:, 0].astype(np.float32))
     mid = (rows1[:-1, 0] + rows1[1:, 0]).astype(np.float32) / 2
