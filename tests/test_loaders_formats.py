@@ -16,6 +16,7 @@ import pytest
 from flightid.data.formats import Stream
 from flightid.data.loaders import DataFileError, read_table, to_flight_data
 from flightid.data.logwrite import write_dataflash, write_ulog
+from flightid.data.timebase import TimeBaseError
 from flightid.errors import FlightIdError
 from flightid.results import MissingDependencyError
 
@@ -267,7 +268,7 @@ def _ulog_topics():
     }, (t_att, att)
 
 
-def test_ulog_topics_time_base_interpolation_and_mapping(tmp_path):
+def test_ulog_topics_keep_their_own_time_and_resample_on_purpose(tmp_path):
     pytest.importorskip("pyulog")
     topics, (t_att, att) = _ulog_topics()
     path = _write_ulog(tmp_path / "flight.ulg", topics, {"TEST_P": 1.5})
@@ -282,22 +283,35 @@ def test_ulog_topics_time_base_interpolation_and_mapping(tmp_path):
         "sensor_combined.acc",
     )
     assert table.units[0] == "s" and table.constants == {"TEST_P": 1.5}
-    # the attitude rows inside the IMU span 0.03..0.52 s: t = 0.04, 0.06, ..., 0.52 s
-    keep = (t_att >= 30_000) & (t_att <= 520_000)
-    s = t_att[keep] * 1e-6
-    assert np.allclose(table.column("t"), s)
-    assert np.allclose(table.column("vehicle_attitude.roll"), att[keep, 0].astype(np.float32))
-    assert np.array_equal(table.column("vehicle_attitude.pitch"), att[keep, 1])
-    assert np.allclose(table.column("sensor_combined.gyro_rad_1"), -1 + 3 * s, atol=1e-6)
-    fd = to_flight_data(
-        table,
-        time="t",
-        inputs={"r": {"expr": "sensor_combined.gyro_rad_0 - 2", "unit": "rad/s"}},
-        outputs={"theta": {"column": "vehicle_attitude.pitch", "unit": "rad", "to": "deg"}},
-    )
-    # 1 rad = 180/π deg (definition)
-    assert np.allclose(fd.output("theta"), att[keep, 1] * 180 / math.pi)
-    assert np.allclose(fd.input("r"), 0.5 * s, atol=1e-6)
+    # nothing interpolated: the rows are the union of both topics' stamps, each topic's
+    # columns hold its own samples and NaN on the other topic's rows
+    t_imu = topics["sensor_combined"][1]
+    assert np.allclose(table.column("t"), np.union1d(t_att, t_imu) * 1e-6)
+    assert [s.name for s in table.streams] == ["vehicle_attitude", "sensor_combined"]
+    own = ~np.isnan(table.column("vehicle_attitude.pitch"))
+    assert np.allclose(table.column("t")[own], t_att * 1e-6)
+    assert np.array_equal(table.column("vehicle_attitude.pitch")[own], att[:, 1])
+    assert np.allclose(table.column("vehicle_attitude.roll")[own], att[:, 0].astype(np.float32))
+    spec = {
+        "time": "t",
+        "inputs": {"r": {"expr": "sensor_combined.gyro_rad_0 - 2", "unit": "rad/s"}},
+        "outputs": {"theta": {"column": "vehicle_attitude.pitch", "unit": "rad", "to": "deg"}},
+    }
+    # two time bases and no declared resampling: refused, naming the rates
+    with pytest.raises(
+        TimeBaseError,
+        match=r"time bases: vehicle_attitude \(50 Hz\), sensor_combined \(100 Hz\).*resample_hz",
+    ):
+        to_flight_data(table, **spec)
+    fd = to_flight_data(table, resample_hz=50, **spec)
+    # the grid k/50 s inside the span both topics cover (0.03..0.52 s): 0.04, 0.06, ..., 0.52
+    s = np.arange(2, 27) / 50
+    assert np.allclose(fd.time, s, rtol=0, atol=1e-12)
+    # 1 rad = 180/π deg (definition); the 50 Hz topic is read at its own stamps
+    assert np.allclose(fd.output("theta"), att[2:27, 1] * 180 / math.pi)
+    # the 100 Hz topic is low-passed (zero phase) before it is read: a line passes unchanged
+    assert np.allclose(fd.input("r"), 0.5 * s, atol=1e-5)
+    assert any("sensor_combined" in n and "low-pass 20 Hz" in n for n in fd.notes)
 
     # one topic: plain field names, its own time base
     single = read_table(path, "ulog", variable="sensor_combined")
@@ -369,23 +383,27 @@ def test_dataflash_types_instances_scales_units(tmp_path):
     assert table.names == ("t", "ATT.Roll", "ATT.Pitch", "ATT.Yaw", "IMU_1.GyrX", "IMU_1.AccZ")
     # units from the log's FMTU/UNIT messages
     assert table.units == ("s", "deg", "deg", "deg", "rad/s", "m/s/s")
-    # ATT rows inside the IMU span 1.005 .. 1.445 s: t = 1.02, 1.04, ..., 1.44 s
-    keep = (t_att >= 1_005_000) & (t_att <= 1_445_000)
-    s = t_att[keep] * 1e-6
-    assert np.allclose(table.column("t"), s)
+    # each type keeps its own stamps (rows: their union)
+    own = ~np.isnan(table.column("ATT.Roll"))
+    assert np.allclose(table.column("t")[own], t_att * 1e-6)
     # 'c' fields are int16 centidegrees: value = integer × 0.01 (ArduPilot format table)
-    assert np.allclose(table.column("ATT.Roll"), roll_cdeg[keep] * 0.01)
-    assert np.allclose(table.column("ATT.Pitch"), -roll_cdeg[keep] * 0.01)
-    assert np.allclose(table.column("IMU_1.GyrX"), 0.5 * s + 1, atol=1e-6)
-    fd = to_flight_data(
-        table,
-        time="t",
-        inputs={"p": {"expr": "IMU_1.GyrX - 1", "unit": "rad/s"}},
-        outputs={"phi": {"column": "ATT.Roll", "unit": "deg"}},
-    )
+    assert np.allclose(table.column("ATT.Roll")[own], roll_cdeg * 0.01)
+    assert np.allclose(table.column("ATT.Pitch")[own], -roll_cdeg * 0.01)
+    spec = {
+        "time": "t",
+        "inputs": {"p": {"expr": "IMU_1.GyrX - 1", "unit": "rad/s"}},
+        "outputs": {"phi": {"column": "ATT.Roll", "unit": "deg"}},
+    }
+    with pytest.raises(TimeBaseError, match=r"ATT \(50 Hz\), IMU\[1\] \(100 Hz\)"):
+        to_flight_data(table, **spec)
+    fd = to_flight_data(table, resample_hz=50, **spec)
+    # the grid k/50 s inside the span both types cover, 1.005..1.445 s: 1.02, ..., 1.44 s
+    s = np.arange(51, 73) / 50
+    assert np.allclose(fd.time, s, rtol=0, atol=1e-12)
+    keep = (t_att >= 1_005_000) & (t_att <= 1_445_000)
     # 1 deg = π/180 rad (definition)
     assert np.allclose(fd.output("phi"), roll_cdeg[keep] * 0.01 * math.pi / 180)
-    assert np.allclose(fd.input("p"), 0.5 * s, atol=1e-6)
+    assert np.allclose(fd.input("p"), 0.5 * s, atol=1e-5)
 
     imu0 = read_table(path, "dataflash", variable="IMU[0]")
     assert imu0.names == ("t", "GyrX", "AccZ") and imu0.n_rows == 45
@@ -436,8 +454,8 @@ def test_dataflash_text_log(tmp_path):
 
 def test_ulog_multi_instance(tmp_path):
     pytest.importorskip("pyulog")
-    stamps = np.arange(10) * 10_000
-    rows0, rows1 = RNG.normal(size=(10, 1)), RNG.normal(size=(10, 1))
+    stamps = np.arange(20) * 10_000
+    rows0, rows1 = RNG.normal(size=(20, 1)), RNG.normal(size=(20, 1))
     topics = {
         "sensor_gyro": ([("float", "x")], stamps, rows0),
         "sensor_gyro:1": ([("float", "x")], stamps + 5_000, rows1),
@@ -445,13 +463,21 @@ def test_ulog_multi_instance(tmp_path):
     path = _write_ulog(tmp_path / "multi.ulg", topics, {})
     table = read_table(path, variable="sensor_gyro,sensor_gyro:1")
     assert table.names == ("t", "sensor_gyro.x", "sensor_gyro_1.x")
-    # instance 1 at 5..95 ms: instance 0's rows inside that span are 10..90 ms, where
-    # instance 1 is interpolated halfway between its samples
-    assert np.allclose(table.column("t"), stamps[1:] * 1e-6)
-    assert np.allclose(table.column("sensor_gyro.x"), rows0[1:, 0].astype(np.float32))
+    assert table.n_rows == 40  # 0, 5, 10, ..., 195 ms: both instances' stamps
+    fd = to_flight_data(
+        table,
+        time="t",
+        outputs={"a": "sensor_gyro.x", "b": "sensor_gyro_1.x"},
+        resample_hz=100,
+    )
+    # instance 1 covers 5..195 ms: the grid is 10, 20, ..., 190 ms; instance 0 (at 100 Hz,
+    # not faster than the grid) is read at its own stamps, instance 1 halfway between its
+    # samples
+    assert np.allclose(fd.time, stamps[1:] * 1e-6, rtol=0, atol=1e-12)
+    assert np.allclose(fd.output("a"), rows0[1:, 0].astype(np.float32))
     mid = (rows1[:-1, 0] + rows1[1:, 0]).astype(np.float32) / 2
-    assert np.allclose(table.column("sensor_gyro_1.x"), mid, atol=1e-6)
-    assert read_table(path, variable="sensor_gyro:1").n_rows == 10
+    assert np.allclose(fd.output("b"), mid, atol=1e-6)
+    assert read_table(path, variable="sensor_gyro:1").n_rows == 20
 
 
 def test_mat73_plain_hdf5_without_user_block(tmp_path):

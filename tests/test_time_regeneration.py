@@ -1,5 +1,5 @@
-"""[data] dt: the stored time replaced by t_0 + k·dt (CASES.md §0) in to_flight_data,
-load_flight_data and case files (also per maneuver); named errors."""
+"""[data] dt: the stored time replaced by t_0 + k·dt in to_flight_data, load_flight_data and
+case files (also per maneuver), where no row moves by more than dt/2; named errors."""
 
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ N = 101
 
 
 def _jittery_csv(path, t0=3.0):
-    """Stamps alternating 0.01953/0.02148 s as in SIDPAC's dcmp_lon_example.mat (mean about
-    0.0205 s), x = sin(t), y = 2·row."""
-    steps = np.where(np.arange(N - 1) % 2 == 0, 0.01953, 0.02148)
-    t = t0 + np.concatenate([[0.0], np.cumsum(steps)])
+    """Stamps k·0.02 s truncated to multiples of 2⁻⁹ s, so that the intervals are 0.01953 or
+    0.02148 s as in SIDPAC's dcmp_lon_example.mat (float32 stamps), about a uniform 0.02 s
+    grid; x = sin(t), y = 2·row."""
+    t = t0 + np.floor(np.arange(N) * 0.02 * 512) / 512
     rows = np.column_stack([t, np.sin(t), 2.0 * np.arange(N)])
     with open(path, "w", encoding="utf-8") as stream:
         stream.write("t,x,y\n")
@@ -84,14 +84,15 @@ def test_dt_in_case_files_also_per_maneuver(tmp_path):
     raw = _case(
         {
             "dt": 0.02,
-            "maneuvers": [{"file": "a.csv"}, {"file": "b.csv", "dt": 0.021}],
+            "maneuvers": [{"file": "a.csv"}, {"file": "b.csv", "dt": 0.02005}],
         }
     )
     case = parse_case(raw, tmp_path / "case.toml")
-    assert [m.dt for m in case.maneuvers] == [0.02, 0.021]
+    assert [m.dt for m in case.maneuvers] == [0.02, 0.02005]
     first, second = load_maneuvers(case, tmp_path)
     np.testing.assert_allclose(first.time, 0.02 * np.arange(N), atol=1e-12)
-    np.testing.assert_allclose(second.time, 1.0 + 0.021 * np.arange(N), atol=1e-12)
+    # 0.02005 s moves the last row by 100 × 0.00005 = 0.005 s (plus the stamps' truncation)
+    np.testing.assert_allclose(second.time, 1.0 + 0.02005 * np.arange(N), atol=1e-12)
     # no dt: the stored times (here refused as uneven)
     plain = parse_case(_case({"file": "a.csv"}), tmp_path / "case.toml")
     assert plain.maneuvers[0].dt is None

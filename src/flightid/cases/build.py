@@ -24,7 +24,7 @@ import numpy as np
 from flightid.cases.spec import Case, CaseError, ManeuverSpec
 from flightid.cases.usermodel import load_user_model
 from flightid.data.flightdata import FlightData
-from flightid.data.loaders import read_table, to_flight_data
+from flightid.data.loaders import read_table, to_flight_segments
 from flightid.data.location import data_directory
 from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence
@@ -34,6 +34,7 @@ from flightid.model.statespace import StateSpaceModel, per_maneuver_name
 __all__ = [
     "resolve_data_dir",
     "load_maneuvers",
+    "maneuver_entry",
     "base_model",
     "build_model",
     "build_solver",
@@ -58,7 +59,8 @@ def resolve_data_dir(case: Case, override: str | Path | None = None) -> Path:
 def load_maneuvers(
     case: Case, data_dir: Path, specs: Sequence[ManeuverSpec] | None = None, key: str = "data"
 ) -> list[FlightData]:
-    """Read the case's data files into ``FlightData`` (one per maneuver)."""
+    """Read the case's data files into ``FlightData`` (one per maneuver; a resampled file
+    that gaps split gives one per segment, named ``name_1``, ``name_2``, ...)."""
     specs = case.maneuvers if specs is None else specs
     maneuvers = []
     for i, spec in enumerate(specs):
@@ -68,7 +70,7 @@ def load_maneuvers(
         try:
             start, stop = _maneuver_span(spec, path)
             table = read_table(path, spec.format, variable=spec.variable)
-            data = to_flight_data(
+            pieces = to_flight_segments(
                 table,
                 time=case.data.get("time", 1),
                 inputs=case.data.get("inputs"),
@@ -78,13 +80,23 @@ def load_maneuvers(
                 stop=stop,
                 gaps=spec.gaps,
                 dt=spec.dt,
+                resample_hz=spec.resample_hz,
+                max_gap_s=spec.max_gap_s,
+                allow_retime=spec.allow_retime,
                 constants=case.data.get("constants"),
                 signals=case.data.get("signals"),
                 steps=case.data.get("steps"),
             )
         except InputError as exc:
             raise CaseError(f"{where}: {exc}") from None
-        maneuvers.append(data)
+        maneuvers.extend(pieces)
+    names = [m.name for m in maneuvers]
+    clash = sorted({n for n in names if names.count(n) > 1})
+    if clash:
+        raise CaseError(
+            f"{key}: maneuver names must be unique; the segments of resampled files made "
+            f"{clash} twice (rename the maneuvers)"
+        )
     return maneuvers
 
 
@@ -99,6 +111,20 @@ def _maneuver_span(spec: ManeuverSpec, path: Path) -> tuple[float | None, float 
         log_mode_intervals(path), spec.mode, spec.mode_index, "mode", str(path.name)
     )
     return interval.start_s, None if math.isinf(interval.stop_s) else interval.stop_s
+
+
+def maneuver_entry(maneuver: FlightData) -> dict:
+    """A maneuver in the results: name, samples, dt (s) and, where its stored time base was
+    changed (re-gridded, joined, resampled), ``time_base``: what was done, in words
+    (``FlightData.notes``)."""
+    entry: dict[str, Any] = {
+        "name": maneuver.name,
+        "samples": int(maneuver.n_samples),
+        "dt": float(maneuver.dt),
+    }
+    if maneuver.notes:
+        entry["time_base"] = list(maneuver.notes)
+    return entry
 
 
 # ------------------------------------------------------------------------------ base model
@@ -632,7 +658,14 @@ def _with_maneuver_channel(maneuver: FlightData, k: int) -> FlightData:
     inputs = {n: maneuver.input(n) for n in maneuver.input_names}
     inputs[MANEUVER_CHANNEL] = np.full(maneuver.n_samples, float(k))
     outputs = {n: maneuver.output(n) for n in maneuver.output_names}
-    return FlightData(maneuver.time, inputs, outputs, units=maneuver.units, name=maneuver.name)
+    return FlightData(
+        maneuver.time,
+        inputs,
+        outputs,
+        units=maneuver.units,
+        name=maneuver.name,
+        notes=maneuver.notes,
+    )
 
 
 def _check_channels(model: StateSpaceModel, maneuvers: Sequence[FlightData]) -> None:

@@ -388,7 +388,13 @@ def run_frequency_case(
 ) -> FrequencyResult:
     """Run the case's frequency-domain estimation; ``CaseError`` for a malformed table or a
     model the frequency domain cannot take."""
-    from flightid.cases.build import base_model, build_model, load_maneuvers, resolve_data_dir
+    from flightid.cases.build import (
+        base_model,
+        build_model,
+        load_maneuvers,
+        maneuver_entry,
+        resolve_data_dir,
+    )
     from flightid.frequency.equation_error import equation_error
     from flightid.frequency.fourier import frequency_grid, maneuver_spectra
     from flightid.frequency.linear_system import bias_like_parameters, linear_system
@@ -552,7 +558,7 @@ def run_frequency_case(
         cost_history=cost_history,
         evaluation_history=evaluation_history,
         sample_interval_s=float(np.mean([m.dt for m in maneuvers])),
-        maneuvers=tuple({"name": m.name, "samples": m.n_samples, "dt": m.dt} for m in maneuvers),
+        maneuvers=tuple(maneuver_entry(m) for m in maneuvers),
     )
     if not np.all(np.isfinite(result.values[free])) or not np.all(np.isfinite(result.std[free])):
         raise CaseError(

@@ -34,7 +34,13 @@ from typing import Any
 
 import numpy as np
 
-from flightid.cases.build import base_model, build_model, load_maneuvers, resolve_data_dir
+from flightid.cases.build import (
+    base_model,
+    build_model,
+    load_maneuvers,
+    maneuver_entry,
+    resolve_data_dir,
+)
 from flightid.cases.checks import CaseError, _bool, _integer, _known, _names, _number, _string
 from flightid.cases.spec import Case
 from flightid.errors import InputError
@@ -209,9 +215,7 @@ def _meta(case: Case, maneuvers, description: str, outputs, r0) -> dict[str, Any
         "outputs": list(outputs),
         "output_units": [units.get(n, "") for n in outputs],
         "R0": list(r0),
-        "maneuvers": [
-            {"name": m.name, "samples": int(m.n_samples), "dt": float(m.dt)} for m in maneuvers
-        ],
+        "maneuvers": [maneuver_entry(m) for m in maneuvers],
     }
 
 

@@ -40,6 +40,7 @@ from flightid.cases.build import (
     build_model,
     build_solver,
     load_maneuvers,
+    maneuver_entry,
     resolve_data_dir,
     unbiased_model,
     with_process_noise,
@@ -167,9 +168,7 @@ class CaseRun:
             "sha256": self.case_sha256,
             "model": self.model_description,
         }
-        entry["maneuvers"] = [
-            {"name": m.name, "samples": m.n_samples, "dt": m.dt} for m in self.maneuvers
-        ]
+        entry["maneuvers"] = [maneuver_entry(m) for m in self.maneuvers]
         entry["prediction"] = [p.to_dict() for p in self.predictions]
         # residual autocorrelation and Ljung–Box test per output (flightid.accuracy.whiteness)
         entry["whiteness"] = _whiteness_entry(self.estimate)

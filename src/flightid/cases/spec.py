@@ -109,6 +109,9 @@ _DATA = {
     "time",
     "gaps",
     "dt",
+    "resample_hz",
+    "max_gap_s",
+    "allow_retime",
     "file",
     "files",
     "maneuvers",
@@ -120,6 +123,8 @@ _DATA = {
     "signals",
     "steps",
 }
+# the time-base keys: a maneuver's own, else its section's ([prediction]), else [data]'s
+_TIME_BASE = ("gaps", "dt", "resample_hz", "max_gap_s", "allow_retime")
 _MANEUVER = {
     "file",
     "name",
@@ -127,10 +132,9 @@ _MANEUVER = {
     "stop",
     "variable",
     "format",
-    "gaps",
-    "dt",
     "mode",
     "mode_index",
+    *_TIME_BASE,
 }
 _MODEL = {
     "module",
@@ -180,7 +184,7 @@ _ACCURACY = {
 ACCURACY_METHODS = ("cr", "profile", "search", "all")
 INTERVAL_KINDS = ("individual", "simultaneous")
 DISTRIBUTIONS = ("t", "normal")
-_PREDICTION = {"file", "files", "maneuvers", "initial_state"}
+_PREDICTION = {"file", "files", "maneuvers", "initial_state", *_TIME_BASE[2:]}
 _OUTPUT = {"figures", "report", "dir"}
 SOLVERS = ("mnres", "mnr", "fps")
 METHODS = ("rk4", "euler")
@@ -233,6 +237,10 @@ class ManeuverSpec:
     # of its occurrences (1-based; None: the mode must occur once)
     mode: str | None = None
     mode_index: int | None = None
+    # Hz: resample every channel onto t_k = k/R (anti-aliased; gaps split the maneuver)
+    resample_hz: float | None = None
+    max_gap_s: float | None = None  # s: the longest interval resampling bridges
+    allow_retime: bool = False  # accept dt / join moving rows by more than half an interval
 
 
 @dataclass(frozen=True)
@@ -338,6 +346,30 @@ def _maneuver_mode(
     return mode, None if index is None else _integer(index, f"{where}.mode_index", 1)
 
 
+def _resampling(item: Mapping[str, Any], defaults: Mapping[str, Any], where: str) -> dict:
+    """``resample_hz``, ``max_gap_s``, ``allow_retime`` of one maneuver (its own, else the
+    defaults), checked: positive numbers; ``max_gap_s`` only with ``resample_hz``, which
+    excludes ``dt`` and ``gaps = "join"``."""
+    given = {k: item.get(k, defaults.get(k)) for k in _TIME_BASE}
+    rate, gap = given["resample_hz"], given["max_gap_s"]
+    for name, value, unit in (("resample_hz", rate, "Hz"), ("max_gap_s", gap, "s")):
+        if value is not None and _number(value, f"{where}.{name}") <= 0:
+            raise CaseError(f"{where}.{name}: expected a positive number ({unit}), got {value!r}")
+    if gap is not None and rate is None:
+        raise CaseError(f"{where}.max_gap_s: only used with resample_hz (gaps split the record)")
+    if rate is not None and (given["dt"] is not None or given["gaps"] == "join"):
+        raise CaseError(
+            f"{where}.resample_hz: give either resample_hz or dt / gaps = 'join', not both "
+            f"(dt = {given['dt']!r}, gaps = {given['gaps']!r})"
+        )
+    retime = given["allow_retime"]
+    return {
+        "resample_hz": None if rate is None else float(rate),
+        "max_gap_s": None if gap is None else float(gap),
+        "allow_retime": False if retime is None else _bool(retime, f"{where}.allow_retime"),
+    }
+
+
 def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]) -> list:
     given = [k for k in ("file", "files", "maneuvers") if k in section]
     if len(given) != 1:
@@ -372,6 +404,7 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
         if dt is not None and _number(dt, f"{where}.dt") <= 0:
             raise CaseError(f"{where}.dt: expected a positive sampling interval (s), got {dt!r}")
         mode, mode_index = _maneuver_mode(item, where, start, stop)
+        resampling = _resampling(item, defaults, where)
         result.append(
             ManeuverSpec(
                 file=file,
@@ -394,6 +427,7 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
                 dt=None if dt is None else float(dt),
                 mode=mode,
                 mode_index=mode_index,
+                **resampling,
             )
         )
     names = [m.name for m in result]
@@ -790,8 +824,10 @@ def prediction_settings(
     """The maneuvers to predict and their initial states ([prediction] or a prediction
     stage): (maneuvers, initial_state)."""
     _known(section, _PREDICTION, key)
+    # the section's own resampling keys before [data]'s
+    defaults = {**data, **{k: section[k] for k in _TIME_BASE[2:] if k in section}}
     maneuvers = (
-        _maneuvers(section, key, data)
+        _maneuvers(section, key, defaults)
         if any(k in section for k in ("file", "files", "maneuvers"))
         else []
     )

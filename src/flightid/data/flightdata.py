@@ -104,6 +104,8 @@ class FlightData:
         units: optional ``{channel: unit}`` for reports.
         name: label of the maneuver.
         uniform_rtol: accepted relative spread of the sampling intervals.
+        notes: what was done to the stored time base to make it uniform (re-gridding,
+            joining recordings, resampling), one line each, for reports and results.
     """
 
     time: np.ndarray
@@ -113,6 +115,7 @@ class FlightData:
     output_names: tuple[str, ...]
     units: Mapping[str, str] = field(default_factory=dict)
     name: str = ""
+    notes: tuple[str, ...] = ()
 
     def __init__(
         self,
@@ -125,6 +128,7 @@ class FlightData:
         units: Mapping[str, str] | None = None,
         name: str = "",
         uniform_rtol: float = 1e-6,
+        notes: Sequence[str] = (),
     ) -> None:
         try:
             t = np.array(time, dtype=float)
@@ -166,6 +170,13 @@ class FlightData:
         object.__setattr__(self, "output_names", out_names)
         object.__setattr__(self, "units", dict(units or {}))
         object.__setattr__(self, "name", str(name))
+        try:
+            lines = tuple(notes)
+        except TypeError:
+            lines = None
+        if isinstance(notes, str) or lines is None or not all(isinstance(n, str) for n in lines):
+            raise InputTypeError(f"notes: expected a sequence of strings, got {describe(notes)}")
+        object.__setattr__(self, "notes", lines)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -216,6 +227,7 @@ class FlightData:
             {n: self.channel(n) for n in outputs},
             units=self.units,
             name=self.name,
+            notes=self.notes,
         )
 
     def slice_time(self, start: float | None = None, stop: float | None = None) -> FlightData:
@@ -237,6 +249,7 @@ class FlightData:
             output_names=self.output_names,
             units=self.units,
             name=self.name,
+            notes=self.notes,
         )
 
     def with_outputs(self, outputs: np.ndarray) -> FlightData:
@@ -249,6 +262,7 @@ class FlightData:
             output_names=self.output_names,
             units=self.units,
             name=self.name,
+            notes=self.notes,
         )
 
     def __repr__(self) -> str:

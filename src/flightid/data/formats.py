@@ -28,6 +28,7 @@ from flightid.data.loaders import (
     _CSV_UNIT,
     DataFileError,
     Table,
+    TableStream,
     _finish_table,
     _mat_table,
 )
@@ -191,7 +192,7 @@ def read_mat73(path: str | Path, variable: str | None = None) -> Table:
 
 
 # =====================================================================================
-# Flight logs: several message streams, each at its own rate → one time base
+# Flight logs: several message streams, each on its own time base
 # =====================================================================================
 
 
@@ -202,8 +203,8 @@ def _topics(variable: str | None, available: list[str], path: Path, kind: str) -
             return available
         raise DataFileError(
             f"{path}: a {kind} holds several message streams, each with its own time base; "
-            f'name the ones to read with variable = "first,second" (the first sets the time '
-            f"base); streams in the file: {sorted(available)}"
+            f'name the ones to read with variable = "first,second" (streams at different '
+            f"rates need resample_hz); streams in the file: {sorted(available)}"
         )
     wanted = [v.strip() for v in variable.split(",") if v.strip()]
     missing = [v for v in wanted if v not in available]
@@ -227,39 +228,46 @@ def _streams_table(
     streams: list[Stream],
     constants: dict[str, float] | None = None,
 ) -> Table:
-    """One ``Table`` from message streams.
+    """One ``Table`` from message streams, nothing interpolated.
 
-    The first stream sets the time base (column ``t``, s); each further stream is linearly
-    interpolated at those times,
-        x(t) = x_j + (x_{j+1} − x_j) · (t − t_j) / (t_{j+1} − t_j),   t_j ≤ t ≤ t_{j+1},
-    and only rows of the first stream inside the span all streams cover are kept (no
-    extrapolation). With one stream, columns are named by field; with several, ``stream.field``.
+    Streams that share their time stamps (one stream, or several logged together) give a
+    plain table on those stamps (column ``t``, s). Streams on different time bases give a
+    table whose rows are the union of their stamps, each column NaN where its stream has no
+    sample, and ``Table.streams`` naming each stream's rows and columns: ``to_flight_data``
+    refuses it unless a resampling rate is declared (``resample_hz``), which puts every
+    stream on one grid, anti-aliased (``flightid.data.resample``). With one stream, columns
+    are named by field; with several, ``stream.field``.
     """
-    base_time = streams[0].time_s
-    lo = max(float(s.time_s[0]) for s in streams)
-    hi = min(float(s.time_s[-1]) for s in streams)
-    keep = (base_time >= lo) & (base_time <= hi)
-    if keep.sum() < 2:
-        raise DataFileError(
-            f"{path}: the streams {[s.name for s in streams]} overlap in fewer than 2 samples "
-            f"of {streams[0].name!r} (common span {lo:.6g}..{hi:.6g} s)"
-        )
-    t = base_time[keep]
+    for one in streams:
+        if one.time_s.shape[0] < 1 or np.any(np.diff(one.time_s) <= 0):
+            k = int(np.argmax(np.diff(one.time_s) <= 0)) if one.time_s.shape[0] > 1 else 0
+            raise DataFileError(
+                f"{path}: stream {one.name!r}: time stamps must increase"
+                + (
+                    f" (t = {one.time_s[k]:.6g} s at sample {k + 1} is followed by "
+                    f"{one.time_s[k + 1]:.6g} s)"
+                    if one.time_s.shape[0] > 1
+                    else " (the stream is empty)"
+                )
+            )
+    shared = all(np.array_equal(s.time_s, streams[0].time_s) for s in streams)
+    t = streams[0].time_s if shared else np.unique(np.concatenate([s.time_s for s in streams]))
     prefix = len(streams) > 1
     columns, names, units = [t], ["t"], ["s"]
-    for k, one in enumerate(streams):
+    listed = []
+    for one in streams:
         stream = one.name.replace(":", "_").replace("[", "_").replace("]", "")
-        time, fields, field_units = one.time_s, one.fields, one.units
-        if k > 0 and np.any(np.diff(time) <= 0):
-            raise DataFileError(
-                f"{path}: stream {stream!r}: time stamps not increasing; cannot interpolate"
-            )
-        for field, values in fields.items():
-            values = np.asarray(values, dtype=float)
-            columns.append(values[keep] if k == 0 else np.interp(t, time, values))
+        rows = np.searchsorted(t, one.time_s)
+        first = len(columns)
+        for field, values in one.fields.items():
+            column = np.full(t.shape[0], np.nan)
+            column[rows] = np.asarray(values, dtype=float)
+            columns.append(column)
             names.append(_column_name(stream, field, prefix))
-            units.append(field_units.get(field, ""))
-    return _finish_table(np.column_stack(columns), names, units, str(path), constants)
+            units.append(one.units.get(field, ""))
+        listed.append(TableStream(one.name, rows, tuple(range(first, len(columns)))))
+    table = _finish_table(np.column_stack(columns), names, units, str(path), constants)
+    return table if shared else dataclasses.replace(table, streams=tuple(listed))
 
 
 def _open_ulog(path: Path) -> Any:
@@ -310,8 +318,9 @@ def read_ulog(path: str | Path, variable: str | None = None) -> Table:
     """PX4 ULog (``.ulg``; needs pyulog: the ``px4`` extra) → ``Table``.
 
     ``variable`` names the uORB topics to read, ``"vehicle_attitude,sensor_combined"``;
-    ``"topic:1"`` picks multi-instance 1 (default 0). Time ``t`` (s) is the first topic's
-    ``timestamp`` (µs since boot) × 10⁻⁶; see ``_streams_table`` for the time base.
+    ``"topic:1"`` picks multi-instance 1 (default 0). Time ``t`` (s) is ``timestamp``
+    (µs since boot) × 10⁻⁶; topics on different time bases keep their own stamps (see
+    ``_streams_table``) and need a declared ``resample_hz`` to become flight data.
     Columns: ``topic.field`` (one topic: ``field``), array fields ``q[0]`` → ``q_0``.
     ULog stores no units (PX4 topics are in SI, angles in rad); declare them in the mapping.
     Numeric parameters of the log are kept as ``Table.constants``.
@@ -385,11 +394,12 @@ def read_dataflash(path: str | Path, variable: str | None = None) -> Table:
 
     ``variable`` names the message types to read, ``"ATT,IMU"``; a type logged for several
     instances (an instance field such as ``IMU.I``) is named with the instance, ``"IMU[1]"``.
-    Time ``t`` (s) is the first type's ``TimeUS`` (µs since boot) × 10⁻⁶; see
-    ``_streams_table`` for the time base. Columns: ``TYPE.Field`` (one type: ``Field``);
-    text fields are left out. Values carry the scale of their format character (``c``:
-    int16 × 0.01, ``L``: int32 × 10⁻⁷, ...), and units come from the log's FMTU/UNIT
-    messages where it has them (informational; declare them in the mapping as for CSV).
+    Time ``t`` (s) is ``TimeUS`` (µs since boot) × 10⁻⁶; types on different time bases keep
+    their own stamps (see ``_streams_table``) and need a declared ``resample_hz``. Columns:
+    ``TYPE.Field`` (one type: ``Field``); text fields are left out. Values carry the scale
+    of their format character (``c``: int16 × 0.01, ``L``: int32 × 10⁻⁷, ...), and units
+    come from the log's FMTU/UNIT messages where it has them (informational; declare them
+    in the mapping as for CSV).
     """
     path = Path(path)
     streams = dataflash_streams(path, variable)

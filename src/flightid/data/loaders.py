@@ -50,7 +50,14 @@ from typing import Any
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.data.preprocess import apply_steps, parse_derivative, parse_smooth, segment_slices
+from flightid.data.preprocess import apply_steps, parse_derivative, parse_smooth
+from flightid.data.timebase import (
+    HALF_INTERVAL,
+    TimeBaseError,
+    join_recordings,
+    largest_move,
+    regrid,
+)
 from flightid.data.units import channel_conversion, parse_unit
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.logs.signals import (
@@ -66,10 +73,14 @@ __all__ = [
     "ChannelError",
     "ChannelSpec",
     "Table",
+    "TableStream",
     "read_table",
     "table_from_dataframe",
     "to_flight_data",
+    "to_flight_segments",
     "load_flight_data",
+    "load_flight_segments",
+    "TimeBaseError",
     "parse_expression",
 ]
 
@@ -87,6 +98,17 @@ class ChannelError(InputError):
 # =====================================================================================
 
 
+@dataclass(frozen=True)
+class TableStream:
+    """Columns of a ``Table`` sampled together, on their own time base (a flight-log
+    message stream): ``rows`` (0-based row numbers where the stream has a sample) and
+    ``columns`` (0-based column numbers it fills; NaN on the other rows)."""
+
+    name: str
+    rows: np.ndarray
+    columns: tuple[int, ...]
+
+
 @dataclass(frozen=True, eq=False)
 class Table:
     """A numeric table read from a file.
@@ -97,6 +119,9 @@ class Table:
         units: column units as written in the file (``""`` where unknown).
         source: where it came from (path or description), for messages.
         constants: scalar values stored beside the table (e.g. ``sarea`` in SIDPAC files).
+        streams: for a log whose streams have different time bases: the streams (the rows
+            are the union of their time stamps; a column is NaN where its stream has no
+            sample). Empty: every column is sampled at every row.
     """
 
     data: np.ndarray
@@ -104,6 +129,7 @@ class Table:
     units: tuple[str, ...]
     source: str = ""
     constants: Mapping[str, float] = field(default_factory=dict)
+    streams: tuple[TableStream, ...] = ()
 
     @property
     def n_rows(self) -> int:
@@ -936,21 +962,30 @@ def to_flight_data(
     steps: Sequence[Any] | None = None,
     pipeline: Any = None,
     dt: float | None = None,
+    resample_hz: float | None = None,
+    max_gap_s: float | None = None,
+    allow_retime: bool = False,
 ) -> FlightData:
     """Build ``FlightData`` from a table and channel specifications.
 
+    Time is never warped: the stored stamps are replaced by a uniform grid only where that
+    moves no row by more than half an interval (``flightid.data.timebase``), else a
+    ``TimeBaseError`` says by how much. What was done is kept in ``FlightData.notes``.
+
     Args:
         table: the loaded table.
-        time: spec of the time column (default column 1), in s after conversion. Time is
-            re-gridded as t_0 + k·Δt when the file's stored times are uniform only to
-            within ``1e-3`` relative (rounded stored stamps), else ``FlightData`` refuses it.
+        time: spec of the time column (default column 1), in s after conversion. Stored
+            times uniform to within ``1e-3`` relative (rounded stamps) are re-gridded as
+            t_0 + k·Δt (Δt the mean interval); other uneven times are refused, with the ways
+            to make them uniform (``dt``, ``gaps``, ``resample_hz``, start/stop).
         inputs: ``{channel: spec}`` (see ``ChannelSpec``).
         outputs: ``{channel: spec}`` (see ``ChannelSpec``).
         name: maneuver label.
         start: keep ``start ≤ t ≤ stop`` (s, in the time column's values).
         stop: see ``start``.
-        gaps: ``"error"`` (default) refuses non-uniform time; ``"join"`` treats the rows as
-            consecutive samples at the median interval (files holding several segments).
+        gaps: ``"error"`` (default) refuses non-uniform time; ``"join"`` joins a file holding
+            several recordings one after another (the time steps back, or jumps, between
+            them) at the recordings' common interval; each recording keeps its own time.
         constants: ``[data.constants]`` (``flightid.data.pipeline``): named numbers the
             signals, steps and channels can use.
         signals: ``[data.signals]``: named intermediate signals.
@@ -958,22 +993,50 @@ def to_flight_data(
         pipeline: an already checked ``flightid.data.pipeline.Pipeline`` instead of
             ``constants``/``signals``/``steps``.
         dt: the sampling interval (s): replaces the stored times of the kept rows by
-            t_k = t_0 + k·dt (t_0 the first kept stored time; CASES.md §0) — for files whose
-            stamps jitter. Must lie within 10 % of the median stored interval. The time
-            variable of expressions sees the regenerated times. Default: the stored times.
+            t_k = t_0 + k·dt (t_0 the first kept stored time) — for files whose stamps
+            jitter about a uniform grid. Must lie within 10 % of the median stored interval,
+            and no row may move by more than dt/2. The time variable of expressions sees
+            the regenerated times. Default: the stored times.
+        resample_hz: R (Hz): resample every column onto t_k = k/R, anti-aliased where the
+            data are faster than R, split at gaps (``flightid.data.resample``). A record that
+            splits into several segments is refused here: use ``to_flight_segments``.
+        max_gap_s: with ``resample_hz``: the longest interval bridged by interpolation (s).
+        allow_retime: accept re-gridding (``dt``, ``gaps = "join"``) that moves rows by more
+            than half an interval (to reproduce tools that integrate at a fixed Δt); the
+            largest move is named in the notes.
     """
-    from flightid.data.pipeline import parse_pipeline
-
-    if pipeline is None:
-        pipeline = parse_pipeline(constants, signals, steps)
-    time_spec = ChannelSpec.from_value(time, "time")
-    if time_spec.unit and parse_unit(time_spec.target_unit) != parse_unit("s"):
-        raise ChannelError(
-            f"time: expected the time in s (leave out 'to', or to = 's'), got to = {time_spec.to!r}"
+    if resample_hz is not None:
+        pieces = to_flight_segments(
+            table,
+            time=time,
+            inputs=inputs,
+            outputs=outputs,
+            name=name,
+            start=start,
+            stop=stop,
+            gaps=gaps,
+            uniform_rtol=uniform_rtol,
+            constants=constants,
+            signals=signals,
+            steps=steps,
+            pipeline=pipeline,
+            dt=dt,
+            resample_hz=resample_hz,
+            max_gap_s=max_gap_s,
+            allow_retime=allow_retime,
         )
+        if len(pieces) > 1:
+            raise TimeBaseError(
+                f"resample_hz: {table.source or 'the table'} splits into {len(pieces)} "
+                f"segments at its gaps ({', '.join(_span(p) for p in pieces)}); use "
+                "to_flight_segments (a case makes each a maneuver), start/stop to pick one, "
+                "or max_gap_s to bridge the gaps"
+            )
+        return pieces[0]
+    pipeline, time_spec, in_specs, out_specs = _prepare(
+        time, inputs, outputs, pipeline, constants, signals, steps
+    )
     t_all = time_spec.evaluate(table, "time")
-    in_specs = _specs(inputs, "inputs")
-    out_specs = _specs(outputs, "outputs")
     keep = np.ones(t_all.shape[0], dtype=bool)
     if start is not None:
         keep &= t_all >= start - 1e-9
@@ -984,51 +1047,147 @@ def to_flight_data(
             f"start/stop: [{start}, {stop}] keeps fewer than 2 samples of "
             f"{table.source} (time runs {t_all[0]:g}..{t_all[-1]:g} s)"
         )
-    t = t_all[keep]
-    stored = t
-    given_dt = dt
-    dt = np.diff(t)
+    if max_gap_s is not None:
+        raise TimeBaseError("max_gap_s: only used with resample_hz (where gaps split the record)")
+    t, t_all, segments, notes = _stored_time_base(table, t_all, keep, gaps, dt, allow_retime)
+    return _build(
+        table, t, t_all, keep, segments, pipeline, in_specs, out_specs, name, uniform_rtol, notes
+    )
+
+
+def _prepare(time, inputs, outputs, pipeline, constants, signals, steps):
+    """(pipeline, time spec, input specs, output specs), each checked."""
+    from flightid.data.pipeline import parse_pipeline
+
+    if pipeline is None:
+        pipeline = parse_pipeline(constants, signals, steps)
+    time_spec = ChannelSpec.from_value(time, "time")
+    if time_spec.unit and parse_unit(time_spec.target_unit) != parse_unit("s"):
+        raise ChannelError(
+            f"time: expected the time in s (leave out 'to', or to = 's'), got to = {time_spec.to!r}"
+        )
+    return pipeline, time_spec, _specs(inputs, "inputs"), _specs(outputs, "outputs")
+
+
+def _span(data: FlightData) -> str:
+    return f"{data.time[0]:.6g}..{data.time[-1]:.6g} s"
+
+
+def _streams_refused(table: Table) -> TimeBaseError:
+    rates = []
+    for stream in table.streams:
+        steps = np.diff(table.data[stream.rows, 0]) if stream.rows.size > 1 else np.ones(1)
+        rates.append(f"{stream.name} ({1 / np.median(steps):.4g} Hz)")
+    return TimeBaseError(
+        f"time: the streams of {table.source} have their own time bases: {', '.join(rates)}; "
+        "declare resample_hz = R to put them on one grid at R Hz (anti-aliased, split at "
+        "gaps), or read one stream"
+    )
+
+
+def _rate_proposal(median_s: float) -> str:
+    """A round rate at or below 1/median, 2 significant digits (Hz)."""
+    rate = 1.0 / median_s
+    scale = 10 ** (math.floor(math.log10(rate)) - 1)
+    return f"{math.floor(rate / scale + 1e-9) * scale:.6g}"
+
+
+def _uneven(table: Table, t: np.ndarray) -> TimeBaseError:
+    steps = np.diff(t)
+    k = int(np.argmax(np.abs(steps - np.median(steps))))
+    median = float(np.median(steps))
+    message = (
+        f"time: {table.source} has a gap or uneven sampling (interval {steps[k]:.6g} s after "
+        f"t = {t[k]:.6g} s, median {median:.6g} s); declare resample_hz = R to resample it "
+        f"onto a uniform grid at R Hz (anti-aliased, split at gaps; e.g. resample_hz = "
+        f"{_rate_proposal(median)}), or use start/stop to pick one uniform segment"
+    )
+    if np.all(steps > 0):
+        mean = float((t[-1] - t[0]) / (t.shape[0] - 1))
+        move, _ = largest_move(t, t[0] + np.arange(t.shape[0]) * mean)
+        if move <= HALF_INTERVAL * mean:
+            message += (
+                f"; the stamps lie within {move:.3g} s of a uniform grid at {mean:.6g} s, so "
+                f"dt = {mean:.6g} would re-grid them"
+            )
+    return TimeBaseError(message + "; gaps = 'join' for a file of several recordings")
+
+
+def _checked_dt(given: Any, table: Table, t: np.ndarray) -> float:
+    if (
+        isinstance(given, bool)
+        or not isinstance(given, (int, float))
+        or not (math.isfinite(given) and given > 0)
+    ):
+        raise InputError(f"dt: expected a positive number of seconds, got {given!r}")
+    median = float(np.median(np.diff(t)))
+    if not abs(median - given) <= 0.1 * given:
+        raise InputError(
+            f"dt: {given:g} s is not within 10 % of the median stored interval of "
+            f"{table.source}, {median:.6g} s"
+        )
+    return float(given)
+
+
+def _stored_time_base(
+    table: Table,
+    t_all: np.ndarray,
+    keep: np.ndarray,
+    gaps: str,
+    dt: Any,
+    allow_retime: bool,
+) -> tuple[np.ndarray, np.ndarray, list[slice], tuple[str, ...]]:
+    """The uniform time of the kept rows from their stored stamps: (time, the expression
+    variable t on all rows, segments where smoothing restarts, notes)."""
     if gaps not in ("error", "join"):
         raise InputError(f"gaps: expected 'error' or 'join', got {gaps!r}")
-    if given_dt is not None:
-        if (
-            isinstance(given_dt, bool)
-            or not isinstance(given_dt, (int, float))
-            or not (math.isfinite(given_dt) and given_dt > 0)
-        ):
-            raise InputError(f"dt: expected a positive number of seconds, got {given_dt!r}")
-        median = float(np.median(dt))
-        if not abs(median - given_dt) <= 0.1 * given_dt:
-            raise InputError(
-                f"dt: {given_dt:g} s is not within 10 % of the median stored interval of "
-                f"{table.source}, {median:.6g} s"
-            )
-        # t_k = t_0 + k·dt (CASES.md §0): the rows are consecutive samples at the given dt;
+    if not isinstance(allow_retime, bool):
+        raise InputTypeError(f"allow_retime: expected true or false, got {describe(allow_retime)}")
+    if table.streams:
+        raise _streams_refused(table)
+    t = t_all[keep]
+    source = table.source or "the table"
+    whole = [slice(0, t.shape[0])]
+    if dt is not None:
+        step = _checked_dt(dt, table, t)
+        grid, note = regrid(t, step, what="dt", source=source, allow_retime=allow_retime)
         # expressions' time variable sees the same regenerated times (row i: t_0 + (i − i_0)·dt)
         i0 = int(np.argmax(keep))
-        t = t[0] + np.arange(t.shape[0]) * float(given_dt)
-        t_all = t[0] + (np.arange(t_all.shape[0]) - i0) * float(given_dt)
-        dt = np.diff(t)
-    elif gaps == "join" and np.all(dt > 0):
-        # Rows are taken as consecutive samples: t_k = t_0 + k·Δt with Δt the median interval
-        # (how the reference tools treat files that hold several recording segments).
-        t = t[0] + np.arange(t.shape[0]) * float(np.median(dt))
-        dt = np.diff(t)
-    if np.all(dt > 0):
-        spread = (dt.max() - dt.min()) / dt.mean()
-        if 0 < spread <= 1e-3:
-            # t_k = t_0 + k·Δt with Δt the mean interval (rounded stored stamps)
-            t = t[0] + np.arange(t.shape[0]) * float(np.round(dt.mean(), 12))
-        elif spread > 1e-3 and gaps == "error":
-            k = int(np.argmax(dt))
-            raise InputError(
-                f"time: {table.source} has a gap or uneven sampling (interval {dt[k]:.6g} s after "
-                f"t = {t[k]:.6g} s, median {np.median(dt):.6g} s); use start/stop to pick one "
-                "segment, or gaps = 'join' to treat the rows as consecutive samples"
-            )
-    # smoothing and differentiation restart at every segment (gaps in the stored time of
-    # joined rows) and, as each maneuver is built here on its own, at every maneuver
-    segments = segment_slices(stored, gaps == "join")
+        t_all = grid[0] + (np.arange(t_all.shape[0]) - i0) * step
+        return grid, t_all, whole, (note,)
+    if gaps == "join":
+        joined, recordings, note = join_recordings(t, source=source, allow_retime=allow_retime)
+        return joined, t_all, recordings, (note,)
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        return t, t_all, whole, ()  # FlightData names the first row out of order
+    # relative spread of the intervals (max − min)/mean
+    spread = (steps.max() - steps.min()) / steps.mean()
+    if spread > 1e-3:
+        raise _uneven(table, t)
+    if spread > 0:
+        # t_k = t_0 + k·Δt with Δt the mean interval (rounded stored stamps)
+        grid, note = regrid(t, float(np.round(steps.mean(), 12)), what="time", source=source)
+        return grid, t_all, whole, (note,)
+    return t, t_all, whole, ()
+
+
+def _build(
+    table: Table,
+    t: np.ndarray,
+    t_all: np.ndarray,
+    keep: np.ndarray,
+    segments: Sequence[slice],
+    pipeline: Any,
+    in_specs: Mapping[str, ChannelSpec],
+    out_specs: Mapping[str, ChannelSpec],
+    name: str,
+    uniform_rtol: float,
+    notes: Sequence[str],
+) -> FlightData:
+    """The channels of the kept rows on the uniform time ``t`` (smoothing and
+    differentiation restart at every segment and, as each maneuver is built on its own, at
+    every maneuver)."""
     step = float((t[-1] - t[0]) / (t.shape[0] - 1))  # s, the uniform interval
     names = None if pipeline.empty else pipeline.evaluate(table, keep, t_all, step, segments)
     units = {k: pipeline.unit_of(s) for k, s in {**in_specs, **out_specs}.items()}
@@ -1054,7 +1213,135 @@ def to_flight_data(
         units=units,
         name=name,
         uniform_rtol=uniform_rtol,
+        notes=notes,
     )
+
+
+def _table_streams(table: Table, time_spec: ChannelSpec, t_all: np.ndarray):
+    """The table's streams as ``StreamSamples`` (a table without streams: one stream of
+    every column but the time column) and the columns no stream fills (set to the grid)."""
+    from flightid.data.resample import StreamSamples
+
+    if table.streams:
+        listed = [(s.name, s.rows, s.columns) for s in table.streams]
+    else:
+        own = None
+        if time_spec.expr is None:
+            own = table.column_index(time_spec.column, "time")
+        columns = tuple(c for c in range(table.n_columns) if c != own)
+        label = Path(table.source).name if table.source else "table"
+        listed = [(f"the rows of {label}", np.arange(table.n_rows), columns)]
+    samples = [
+        StreamSamples(name, t_all[rows], table.data[np.ix_(rows, list(columns))])
+        for name, rows, columns in listed
+    ]
+    filled = {c for _, _, columns in listed for c in columns}
+    return (
+        samples,
+        [columns for _, _, columns in listed],
+        [c for c in range(table.n_columns) if c not in filled],
+    )
+
+
+def to_flight_segments(
+    table: Table,
+    *,
+    time: Any = 1,
+    inputs: Mapping[str, Any] | None = None,
+    outputs: Mapping[str, Any] | None = None,
+    name: str = "",
+    start: float | None = None,
+    stop: float | None = None,
+    gaps: str = "error",
+    uniform_rtol: float = 1e-6,
+    constants: Mapping[str, Any] | None = None,
+    signals: Mapping[str, Any] | None = None,
+    steps: Sequence[Any] | None = None,
+    pipeline: Any = None,
+    dt: float | None = None,
+    resample_hz: float | None = None,
+    max_gap_s: float | None = None,
+    allow_retime: bool = False,
+) -> list[FlightData]:
+    """``to_flight_data`` for records that gaps split: one ``FlightData`` per segment.
+
+    Without ``resample_hz``: ``[to_flight_data(...)]``. With it, every stream of the table
+    (a flight log's message streams, or all the columns of any other table, on the time
+    column) is resampled onto t_k = k/R (``flightid.data.resample.resample_streams``:
+    anti-alias low-pass where faster than R, linear interpolation where slower, split where
+    a stream has a gap longer than ``max_gap_s``), within start/stop; the channels are then
+    computed on each segment. Segments are named ``name_1``, ``name_2``, ... when there are
+    several; each one's ``notes`` say what was done.
+    """
+    if resample_hz is None:
+        return [
+            to_flight_data(
+                table,
+                time=time,
+                inputs=inputs,
+                outputs=outputs,
+                name=name,
+                start=start,
+                stop=stop,
+                gaps=gaps,
+                uniform_rtol=uniform_rtol,
+                constants=constants,
+                signals=signals,
+                steps=steps,
+                pipeline=pipeline,
+                dt=dt,
+                max_gap_s=max_gap_s,
+                allow_retime=allow_retime,
+            )
+        ]
+    from flightid.data.resample import check_max_gap, check_rate, resample_streams
+
+    rate = check_rate(resample_hz)
+    max_gap = check_max_gap(max_gap_s)
+    if dt is not None or gaps != "error":
+        raise TimeBaseError(
+            "resample_hz: give either resample_hz or dt / gaps = 'join', not both "
+            f"(got dt = {dt!r}, gaps = {gaps!r})"
+        )
+    pipeline, time_spec, in_specs, out_specs = _prepare(
+        time, inputs, outputs, pipeline, constants, signals, steps
+    )
+    t_all = time_spec.evaluate(table, "time")
+    samples, columns_of, grid_columns = _table_streams(table, time_spec, t_all)
+    resampling = resample_streams(samples, rate, max_gap, start=start, stop=stop)
+    source = f"{table.source or 'the table'} resampled at {rate:g} Hz"
+    pieces = []
+    count = len(resampling.segments)
+    for number, segment in enumerate(resampling.segments, start=1):
+        grid = segment.time_s
+        data = np.full((grid.shape[0], table.n_columns), np.nan)
+        for columns, values in zip(columns_of, segment.values, strict=True):
+            data[:, list(columns)] = values
+        data[:, grid_columns] = grid[:, None]
+        resampled = _finish_table(data, table.names, table.units, source, table.constants)
+        label = f"{name}_{number}" if count > 1 else name
+        notes = resampling.notes
+        if count > 1:
+            notes = (
+                *notes,
+                f"this maneuver: segment {number} of {count}, {grid[0]:.6g}..{grid[-1]:.6g} s",
+            )
+        pieces.append(
+            _build(
+                resampled,
+                grid,
+                grid,
+                np.ones(grid.shape[0], dtype=bool),
+                [slice(0, grid.shape[0])],
+                pipeline,
+                in_specs,
+                out_specs,
+                label,
+                uniform_rtol,
+                notes,
+            )
+        )
+    return pieces
 
 
 def load_flight_data(
@@ -1073,6 +1360,9 @@ def load_flight_data(
     signals: Mapping[str, Any] | None = None,
     steps: Sequence[Any] | None = None,
     dt: float | None = None,
+    resample_hz: float | None = None,
+    max_gap_s: float | None = None,
+    allow_retime: bool = False,
 ) -> FlightData:
     """``read_table`` then ``to_flight_data``; the maneuver name defaults to the file stem."""
     table = read_table(path, format, variable=variable)
@@ -1089,4 +1379,21 @@ def load_flight_data(
         stop=stop,
         gaps=gaps,
         dt=dt,
+        resample_hz=resample_hz,
+        max_gap_s=max_gap_s,
+        allow_retime=allow_retime,
     )
+
+
+def load_flight_segments(
+    path: str | Path,
+    *,
+    format: str = "auto",
+    variable: str | None = None,
+    name: str | None = None,
+    **settings: Any,
+) -> list[FlightData]:
+    """``read_table`` then ``to_flight_segments`` (the keyword arguments of
+    ``load_flight_data``); the maneuver name defaults to the file stem."""
+    table = read_table(path, format, variable=variable)
+    return to_flight_segments(table, name=Path(path).stem if name is None else name, **settings)

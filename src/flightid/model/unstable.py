@@ -259,6 +259,7 @@ def exponentially_weighted(
                 output_names=m.output_names,
                 units=m.units,
                 name=m.name,
+                notes=m.notes,
             )
         )
     return out
