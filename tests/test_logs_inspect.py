@@ -368,8 +368,9 @@ def test_case_maneuver_by_mode(tmp_path):
 
     _flight_ulog(tmp_path / "flight.ulg")
     data = {
-        # the attitude (uniform 100 Hz stamps) sets the time base
+        # two streams at their own rates: resampled onto one 100 Hz grid
         "variable": "vehicle_attitude,vehicle_rates_setpoint",
+        "resample_hz": 100.0,
         "time": "t",
         "inputs": {"p_cmd": "vehicle_rates_setpoint.roll"},
         "outputs": {"phi": "px4.roll"},
@@ -380,8 +381,8 @@ def test_case_maneuver_by_mode(tmp_path):
     (maneuver,) = load_maneuvers(SimpleNamespace(maneuvers=specs, data=data), tmp_path)
     # Stabilized from the first status message with nav_state 15 (10 s) to the first with
     # another (30 s); the data run inside it
-    assert maneuver.time[0] >= 10.0 and maneuver.time[0] < 10.01
-    assert maneuver.time[-1] <= 30.0 and maneuver.time[-1] > 29.99
+    assert maneuver.time[0] >= 10.0 and maneuver.time[0] < 10.011
+    assert maneuver.time[-1] <= 30.0 and maneuver.time[-1] > 29.989
 
     section = {**data, "maneuvers": [{"file": "flight.ulg", "mode": "Position"}]}
     with pytest.raises(CaseError, match=r"mode 'Position' occurs 2 times.*mode_index"):
