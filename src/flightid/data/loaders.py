@@ -39,9 +39,12 @@ channels, and they are looked up before the file's columns (``$N`` is always col
 
 from __future__ import annotations
 
+import codecs
 import csv
 import math
+import os
 import re
+import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,6 +60,8 @@ from flightid.errors import InputError, InputTypeError, describe
 __all__ = [
     "DataFileError",
     "ChannelError",
+    "FileUnitError",
+    "FileTooLargeError",
     "ChannelSpec",
     "Table",
     "read_table",
@@ -75,6 +80,16 @@ class ChannelError(InputError):
     """A channel specification naming an unknown column or malformed expression."""
 
 
+class FileUnitError(ChannelError):
+    """A channel's declared unit contradicts the unit its file states for the column, or the
+    file states a unit flightid cannot read for a channel that declares none. The message
+    names both units and the key that settles it (``ignore_file_unit = true``)."""
+
+
+class FileTooLargeError(DataFileError):
+    """A data file that would not fit in the memory available to read it."""
+
+
 # =====================================================================================
 # Table
 # =====================================================================================
@@ -90,6 +105,8 @@ class Table:
         units: column units as written in the file (``""`` where unknown).
         source: where it came from (path or description), for messages.
         constants: scalar values stored beside the table (e.g. ``sarea`` in SIDPAC files).
+        left_out: names in the file that are not columns, with the reason (a MATLAB struct
+            field of another length), for the message when a channel names one.
     """
 
     data: np.ndarray
@@ -97,6 +114,7 @@ class Table:
     units: tuple[str, ...]
     source: str = ""
     constants: Mapping[str, float] = field(default_factory=dict)
+    left_out: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -119,11 +137,23 @@ class Table:
                     f"columns 1..{self.n_columns}"
                 )
             return key - 1
-        if key in self.names:
-            return self.names.index(key)
+        exact = [i for i, n in enumerate(self.names) if n == key]
         folded = [i for i, n in enumerate(self.names) if n.lower() == key.lower()]
-        if len(folded) == 1:
-            return folded[0]
+        matches = exact or folded
+        if len(matches) == 1:
+            return matches[0]
+        if len(matches) > 1:
+            raise ChannelError(
+                f"{where}: {self.source or 'the table'} has {len(matches)} columns named "
+                f"{key!r}{'' if exact else ' (case ignored)'}: columns "
+                f"{[i + 1 for i in matches]} ({[self.names[i] for i in matches]}); "
+                "name one by its number (column = N, or $N in an expression)"
+            )
+        if key in self.left_out:
+            raise ChannelError(
+                f"{where}: {key!r} in {self.source or 'the table'} is not a column: "
+                f"{self.left_out[key]}"
+            )
         known = [n for n in self.names if n]
         raise ChannelError(
             f"{where}: no column named {key!r} in {self.source or 'the table'}; "
@@ -134,7 +164,9 @@ class Table:
         return self.data[:, self.column_index(key, where)]
 
 
-def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -> Table:
+def _finish_table(
+    data: np.ndarray, names, units, source: str, constants=None, left_out=None
+) -> Table:
     data = np.asarray(data, dtype=float)
     if data.ndim == 1:
         data = data[:, None]
@@ -149,7 +181,7 @@ def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -
         )
     data = np.ascontiguousarray(data)
     data.flags.writeable = False
-    return Table(data, names, units, source, dict(constants or {}))
+    return Table(data, names, units, source, dict(constants or {}), dict(left_out or {}))
 
 
 # =====================================================================================
@@ -157,18 +189,131 @@ def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -
 # =====================================================================================
 
 
-def _numbers(tokens: Sequence[str]) -> list[float] | None:
+def _number(token: str) -> float | None:
+    """A number as data files write it (ASCII digits, decimal point, exponent ``e``/``E`` or
+    Fortran's ``d``/``D``, ``nan``/``inf``), else None. Python's ``float`` also takes ``1_000``
+    and non-ASCII digits; a data file with those has a typing or export error, so they are
+    refused."""
+    if "_" in token or not token.isascii():
+        return None
     try:
-        return [float(t.replace("D", "E").replace("d", "e")) for t in tokens]
+        return float(token.replace("D", "E").replace("d", "e"))
     except ValueError:
         return None
 
 
+def _numbers(tokens: Sequence[str]) -> list[float] | None:
+    values = []
+    for token in tokens:
+        value = _number(token)
+        if value is None:
+            return None
+        values.append(value)
+    return values
+
+
+def _first_non_number(tokens: Sequence[str]) -> int:
+    """0-based position of the first token that is not a number (``_number``)."""
+    return next(k for k, token in enumerate(tokens) if _number(token) is None)
+
+
+# byte-order marks at the start of a text file → the encoding they announce
+_BOMS = (
+    (codecs.BOM_UTF8, "utf-8-sig"),
+    (codecs.BOM_UTF16_LE, "utf-16"),
+    (codecs.BOM_UTF16_BE, "utf-16"),
+)
+
+
 def _read_text(path: Path) -> list[str]:
+    """The lines of a text file: UTF-8, or the encoding its byte-order mark announces (the
+    mark itself is dropped: Excel writes one before the first column name)."""
+    check_data_file(path, "csv")
     try:
-        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+        raw = path.read_bytes()
     except OSError as exc:
         raise DataFileError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    encoding = next((name for bom, name in _BOMS if raw.startswith(bom)), "utf-8")
+    return raw.decode(encoding, errors="replace").splitlines()
+
+
+# memory needed to read a file, as a multiple of its size (measured for the text readers,
+# which hold every line, cell and number as Python objects; a lower bound for the others)
+_MEMORY_PER_FILE_BYTE = {
+    "csv": 12.0,
+    "ascii": 12.0,
+    "mat": 2.0,
+    "parquet": 3.0,
+    "ulog": 2.0,
+    "dataflash": 1.0,
+}
+
+
+def available_memory_bytes() -> int | None:
+    """Memory available to this process now (bytes): Linux ``MemAvailable`` (with the
+    cgroup limit where one is set), else the free physical pages; None where unknown."""
+    available = None
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                available = int(line.split()[1]) * 1024  # kB → bytes
+    except (OSError, ValueError, IndexError):
+        available = None
+    if available is None:
+        try:
+            available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (OSError, ValueError, AttributeError):
+            return None
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = Path("/sys/fs/cgroup/memory.current").read_text().strip()
+        if limit.isdigit() and used.isdigit():
+            available = min(available, int(limit) - int(used))
+    except OSError:
+        pass
+    return max(int(available), 0)
+
+
+def check_data_file(path: Path, format: str) -> None:
+    """Refuse, before reading, a path that is not a regular file (a directory, a fifo, a
+    device such as ``/dev/zero``: reading those hangs or never ends) and a file that would
+    not fit in the available memory (``FileTooLargeError``)."""
+    try:
+        status = path.stat()
+    except FileNotFoundError:
+        raise DataFileError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(status.st_mode):
+        kind = (
+            "a directory"
+            if stat.S_ISDIR(status.st_mode)
+            else "a fifo (named pipe)"
+            if stat.S_ISFIFO(status.st_mode)
+            else "a device"
+            if stat.S_ISCHR(status.st_mode) or stat.S_ISBLK(status.st_mode)
+            else "a socket"
+            if stat.S_ISSOCK(status.st_mode)
+            else "not a regular file"
+        )
+        raise DataFileError(f"{path}: is {kind}, expected a regular data file")
+    available = available_memory_bytes()
+    # memory needed ≈ file size × bytes held per file byte (format-dependent)
+    needed = status.st_size * _MEMORY_PER_FILE_BYTE.get(format, 1.0)
+    if available is not None and needed > available:
+        raise FileTooLargeError(
+            f"{path}: {_size(status.st_size)} of {format} data needs about {_size(needed)} of "
+            f"memory to read, {_size(available)} is available; cut the file to the part you "
+            "need, or read it on a machine with more memory"
+        )
+
+
+def _size(n_bytes: float) -> str:
+    """A byte count for messages: ``"1.5 GB"``."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n_bytes >= scale:
+            return f"{n_bytes / scale:.3g} {unit}"
+    return f"{int(n_bytes)} bytes"
 
 
 def read_ascii(path: str | Path) -> Table:
@@ -189,9 +334,10 @@ def read_ascii(path: str | Path) -> Table:
         values = _numbers(tokens)
         if values is None:
             if rows:
+                k = _first_non_number(tokens)
                 raise DataFileError(
                     f"{path}: line {number + 1} is not numeric inside the data block: "
-                    f"{line.strip()[:60]!r}"
+                    f"column {k + 1}, {tokens[k][:30]!r} is not a number ({line.strip()[:60]!r})"
                 )
             continue
         if rows and len(values) != len(rows[0]):
@@ -243,9 +389,14 @@ def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
             raise DataFileError(
                 f"{path}: row {number} has {len(row)} fields, the header has {len(header)}"
             )
-        values = _numbers([c.strip() or "nan" for c in row])
+        cells = [c.strip() or "nan" for c in row]
+        values = _numbers(cells)
         if values is None:
-            raise DataFileError(f"{path}: row {number} is not numeric: {row[:6]}")
+            k = _first_non_number(cells)
+            raise DataFileError(
+                f"{path}: row {number} is not numeric: column {k + 1} "
+                f"({names[k] or 'unnamed'!r}), {cells[k][:30]!r} is not a number ({row[:6]})"
+            )
         rows.append(values)
     return _finish_table(np.array(rows), names, units, str(path))
 
@@ -270,8 +421,7 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
     from scipy.io import loadmat
 
     path = Path(path)
-    if not path.is_file():
-        raise DataFileError(f"{path}: no such file")
+    check_data_file(path, "mat")
     from flightid.data.formats import is_mat73, read_mat73
 
     if is_mat73(path):
@@ -398,17 +548,27 @@ def read_table(
     (.csv → csv, .mat → mat (v5, or v7.3 with the ``hdf5`` extra), .parquet/.pq → parquet
     (the ``parquet`` extra), .ulg → ulog (PX4; the ``px4`` extra), .bin → dataflash
     (ArduPilot; the ``ardupilot`` extra), anything else → whitespace ASCII). ``variable``
-    picks a MATLAB variable, or the message streams of a flight log."""
+    picks a MATLAB variable or struct, or the message streams of a flight log.
+
+    Before reading, a path that is not a regular file (directory, fifo, device) is refused,
+    and so is a file that would not fit in the available memory (``FileTooLargeError``)."""
     if format not in FORMATS:
         raise InputError(f"format: expected one of {list(FORMATS)}, got {format!r}")
     path = Path(path)
-    if not path.exists():
-        raise DataFileError(f"{path}: no such file")
-    if path.is_dir():
-        raise DataFileError(f"{path}: is a directory, expected a data file")
     if format == "auto":
         suffix = path.suffix.lower()
         format = _SUFFIX_FORMATS.get(suffix, "ascii")
+    check_data_file(path, format)
+    try:
+        return _read_format(path, format, variable, delimiter)
+    except MemoryError:
+        raise FileTooLargeError(
+            f"{path}: ran out of memory while reading it ({_size(path.stat().st_size)} of "
+            f"{format} data); cut the file to the part you need"
+        ) from None
+
+
+def _read_format(path: Path, format: str, variable: str | None, delimiter: str | None) -> Table:
     if format == "parquet":
         from flightid.data.formats import read_parquet
 
