@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import dataclasses
 import math
 import os
 import re
@@ -54,7 +55,7 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.data.preprocess import apply_steps, parse_derivative, parse_smooth, segment_slices
-from flightid.data.units import channel_conversion, parse_unit
+from flightid.data.units import channel_conversion, parse_unit, same_unit
 from flightid.errors import InputError, InputTypeError, describe
 
 __all__ = [
@@ -878,10 +879,56 @@ _SPEC_KEYS = {
     "offset",
     "unit",
     "to",
+    "ignore_file_unit",
     "subtract",
     "smooth",
     "derivative",
 }
+
+# unit labels with which files say "no unit" (dimensionless counts, unknown): not a unit
+_NO_UNIT_LABELS = {"", "-", "--", "none", "n/a", "unknown", "instance", "satellites"}
+
+
+def stated_unit(label: str) -> str:
+    """The unit a file's label states ("" where the label says there is none: ``-``,
+    ``UNKNOWN``, ArduPilot's ``instance`` and ``satellites``)."""
+    label = label.strip()
+    return "" if label.lower() in _NO_UNIT_LABELS else label
+
+
+def _linear_in_columns(tree: tuple, names: Mapping[str, Any]) -> bool:
+    """True when an expression is a sum of column terms, each times or divided by numbers
+    or scalar constants (``($29 - $28) / 2``, ``-q``, ``2 * p``): its result then has the
+    unit of its columns. Functions, ``t``, signals and products of columns are not."""
+    kind = tree[0]
+    if kind == "col":
+        return not (isinstance(tree[1], str) and tree[1] in names)
+    if kind == "neg":
+        return _linear_in_columns(tree[1], names)
+    if kind in ("+", "-"):
+        return _linear_in_columns(tree[1], names) and _linear_in_columns(tree[2], names)
+    if kind == "*":
+        left, right = tree[1], tree[2]
+        return (_is_number(left, names) and _linear_in_columns(right, names)) or (
+            _is_number(right, names) and _linear_in_columns(left, names)
+        )
+    if kind == "/":
+        return _linear_in_columns(tree[1], names) and _is_number(tree[2], names)
+    return False
+
+
+def _is_number(tree: tuple, names: Mapping[str, Any]) -> bool:
+    """True for a number, a scalar constant or arithmetic over them."""
+    kind = tree[0]
+    if kind == "num":
+        return True
+    if kind == "col":
+        return isinstance(tree[1], str) and tree[1] in names and np.ndim(names[tree[1]]) == 0
+    if kind == "neg":
+        return _is_number(tree[1], names)
+    if kind in ("+", "-", "*", "/"):
+        return _is_number(tree[1], names) and _is_number(tree[2], names)
+    return False
 
 
 @dataclass(frozen=True)
@@ -898,7 +945,13 @@ class ChannelSpec:
             SI with angles in rad (``flightid.data.units.channel_conversion``); an unknown
             unit is refused.
         to: the delivered unit (e.g. ``"deg"`` to keep degrees, ``"g"`` to keep g); the
-            channel's unit in reports.
+            channel's unit in reports. ``to`` alone is allowed where the file states the
+            column's unit.
+        ignore_file_unit: use the case's ``unit`` (or none) whatever unit the file states
+            for the column(s); by default a unit the file states (CSV header ``q [deg/s]``,
+            MATLAB ``varlab``, DataFlash FMTU, Parquet/HDF5 metadata) is the source unit
+            when the case declares none, and a declared unit that contradicts it is a
+            ``FileUnitError`` (``with_file_unit``).
         subtract: ``"first"`` or ``"mean"``: remove that reference value (perturbations).
         smooth: ``"smoothMulTS"``, ``{"savgol": [window, order]}`` or
             ``{"butter": [order, cutoff_hz]}`` (``flightid.data.preprocess``), stored as a
@@ -915,6 +968,7 @@ class ChannelSpec:
     offset: float = 0.0
     unit: str = ""
     to: str = ""
+    ignore_file_unit: bool = False
     subtract: str | None = None
     smooth: tuple | None = None
     derivative: tuple | None = None
@@ -955,30 +1009,113 @@ class ChannelSpec:
             raise ChannelError(
                 f"{where}.subtract: expected 'first' or 'mean', got {value['subtract']!r}"
             )
-        if "to" in value and "unit" not in value:
-            raise ChannelError(f"{where}.to: give the source unit too ('unit')")
+        if not isinstance(value.get("ignore_file_unit", False), bool):
+            raise ChannelError(
+                f"{where}.ignore_file_unit: expected true or false, got "
+                f"{describe(value['ignore_file_unit'])}"
+            )
         fields = {k: value[k] for k in value}
         fields["smooth"] = parse_smooth(value.get("smooth"), f"{where}.smooth")
         fields["derivative"] = parse_derivative(value.get("derivative"), f"{where}.derivative")
         spec = cls(**fields)
         if spec.expr is not None:
             parse_expression(spec.expr)  # fail early
-        if spec.unit or spec.to:
+        if spec.unit:
             spec.conversion(where)  # unknown units and dimension mismatches fail early
+        elif spec.to:
+            try:  # the source unit may come from the file; ``to`` must be a unit
+                parse_unit(spec.to)
+            except InputError as exc:
+                raise ChannelError(f"{where}.to: {exc}") from None
         return spec
 
     def conversion(self, where: str = "channel") -> tuple[float, str]:
         """(factor, delivered unit) by the channel rule of ``channel_conversion``."""
+        if self.to and not self.unit:
+            raise ChannelError(
+                f"{where}: to = {self.to!r} needs the unit the values are recorded in; "
+                "neither the channel (unit = ...) nor the file states one"
+            )
         try:
             return channel_conversion(self.unit, self.to)
         except InputError as exc:
             raise ChannelError(f"{where}: {exc}") from None
 
+    def with_file_unit(
+        self, table: Table, where: str, names: Mapping[str, Any] | None = None
+    ) -> ChannelSpec:
+        """This channel with the unit its file states for it (``Table.units``).
+
+        A column's stated unit, or for an expression that is a sum of columns times numbers
+        (``_linear_in_columns``) the one unit all its columns state, is the source unit when
+        the channel declares none; a declared unit must mean the same unit, else
+        ``FileUnitError`` naming both. An expression that reads columns with stated units
+        and is not such a sum needs a declared unit (of its result). ``ignore_file_unit``
+        skips all of this. ``names``: signals and constants (not columns)."""
+        if self.ignore_file_unit:
+            return self
+        names = names or {}
+        tree = parse_expression(self.expr) if self.expr is not None else ("col", self.column)
+        stated: dict[str, str] = {}
+        unstated = False
+        for ref in expression_columns(tree):
+            if isinstance(ref, str) and ref in names:
+                unstated = True
+                continue
+            try:
+                index = table.column_index(ref, where)
+            except ChannelError:
+                return self  # evaluate names the missing column
+            label = stated_unit(table.units[index])
+            name = table.names[index] or f"${index + 1}"
+            if label:
+                stated[name] = label
+            else:
+                unstated = True
+        if not stated:
+            return self
+        labels = set(stated.values())
+        if len(labels) == 1 and not unstated and _linear_in_columns(tree, names):
+            return self._apply_stated(labels.pop(), stated, table, where)
+        if self.unit:
+            return self  # the declared unit of a result the file's units do not determine
+        raise FileUnitError(
+            f"{where}: the expression {self.expr!r} reads columns whose file states their "
+            f"units ({_unit_list(stated)}); declare the unit of its result (unit = ...), or "
+            "ignore_file_unit = true to use the recorded numbers as they are"
+        )
+
+    def _apply_stated(
+        self, label: str, stated: Mapping[str, str], table: Table, where: str
+    ) -> ChannelSpec:
+        """The spec with the file's unit ``label`` as its source unit (see
+        ``with_file_unit``)."""
+        source = table.source or "the file"
+        try:
+            parse_unit(label)
+        except InputError:
+            if self.unit:
+                return self  # a label flightid cannot read: the declared unit applies
+            raise FileUnitError(
+                f"{where}: {source} states the unit {label!r} for {_unit_list(stated)}, which "
+                "flightid cannot read; declare the unit the values are in (unit = ...), or "
+                "use them as recorded (ignore_file_unit = true)"
+            ) from None
+        if not self.unit:
+            return dataclasses.replace(self, unit=label)
+        if same_unit(self.unit, label):
+            return self
+        raise FileUnitError(
+            f"{where}: the channel declares unit = {self.unit!r}, but {source} states "
+            f"{label!r} for {_unit_list(stated)}; remove 'unit' to use the file's, correct it, "
+            "or set ignore_file_unit = true if the file's label is wrong"
+        )
+
     @property
     def target_unit(self) -> str:
         """The unit the values are delivered in ("" where no unit is declared; with a
         ``derivative``, that unit per s)."""
-        unit = self.conversion()[1]
+        unit = self.to or self.conversion()[1]
         if self.derivative is not None:
             return f"{unit}/s" if unit else "1/s"
         return unit
@@ -995,7 +1132,10 @@ class ChannelSpec:
         ``time``: the values of the expression variable ``t`` on all rows (s); None inside the
         time channel itself, where ``t`` is the column named t. ``names``: signals (arrays
         over all rows) and constants (numbers) that names refer to before columns
-        (``flightid.data.pipeline``)."""
+        (``flightid.data.pipeline``). The file's units apply as ``with_file_unit`` says."""
+        spec = self.with_file_unit(table, where, names)
+        if spec is not self:
+            return spec.evaluate(table, where, keep, time, names)
         if self.expr is not None:
             try:
                 tree = parse_expression(self.expr)
@@ -1035,6 +1175,12 @@ class ChannelSpec:
                 f"the first at row {int(np.argmax(bad)) + 1}"
             )
         return values
+
+
+def _unit_list(stated: Mapping[str, str]) -> str:
+    """``column 'q' [deg/s]`` or ``columns 'p' [deg/s], 'q' [rad/s]`` for messages."""
+    words = ", ".join(f"{name!r} [{unit}]" for name, unit in stated.items())
+    return f"column{'s' if len(stated) > 1 else ''} {words}"
 
 
 def _specs(mapping: Mapping[str, Any] | None, where: str) -> dict[str, ChannelSpec]:
@@ -1098,7 +1244,7 @@ def to_flight_data(
 
     if pipeline is None:
         pipeline = parse_pipeline(constants, signals, steps)
-    time_spec = ChannelSpec.from_value(time, "time")
+    time_spec = ChannelSpec.from_value(time, "time").with_file_unit(table, "time")
     if time_spec.unit and parse_unit(time_spec.target_unit) != parse_unit("s"):
         raise ChannelError(
             f"time: expected the time in s (leave out 'to', or to = 's'), got to = {time_spec.to!r}"
@@ -1163,6 +1309,11 @@ def to_flight_data(
     segments = segment_slices(stored, gaps == "join")
     step = float((t[-1] - t[0]) / (t.shape[0] - 1))  # s, the uniform interval
     names = None if pipeline.empty else pipeline.evaluate(table, keep, t_all, step, segments)
+    # the units the file states for the columns (Table.units) where the case gives none
+    in_specs = {k: s.with_file_unit(table, f"inputs.{k}", names) for k, s in in_specs.items()}
+    out_specs = {k: s.with_file_unit(table, f"outputs.{k}", names) for k, s in out_specs.items()}
+    if not pipeline.empty:
+        pipeline = pipeline.with_file_units(table, names)
     units = {k: pipeline.unit_of(s) for k, s in {**in_specs, **out_specs}.items()}
     channels_in = {
         k: s.evaluate(table, f"inputs.{k}", keep, t_all, names) for k, s in in_specs.items()
