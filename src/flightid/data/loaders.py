@@ -238,11 +238,12 @@ def _read_text(path: Path) -> list[str]:
     return raw.decode(encoding, errors="replace").splitlines()
 
 
-# memory needed to read a file, as a multiple of its size (measured for the text readers,
-# which hold every line, cell and number as Python objects; a lower bound for the others)
+# memory needed to read a file, as a multiple of its size: measured peaks for the text
+# readers, which hold every line, cell and number as Python objects (15× for a CSV, 7× for
+# whitespace ASCII of 8 columns of "%.6f" numbers); a lower bound for the others
 _MEMORY_PER_FILE_BYTE = {
-    "csv": 12.0,
-    "ascii": 12.0,
+    "csv": 16.0,
+    "ascii": 8.0,
     "mat": 2.0,
     "parquet": 3.0,
     "ulog": 2.0,
@@ -413,7 +414,10 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
     """MATLAB .mat (v5 via ``scipy.io.loadmat``; v7.3, an HDF5 file, via
     ``flightid.data.formats.read_mat73``, which needs the ``hdf5`` extra).
 
-    * ``variable`` given: that matrix (or vector).
+    * ``variable`` given: that matrix (or vector); or a struct (``"ail_1"``, a nested one
+      ``"flight.ail_1"``), whose numeric fields are the columns by name — nested structs
+      flattened with dots (``IMU.GyrX``), an N × k field as ``name_1`` … ``name_k``, scalar
+      fields as ``Table.constants`` (``struct_table``).
     * SIDPAC layout: ``fdata`` (N × k) with ``varlab`` labels like ``"* alpha (deg)"``.
     * one 2-D matrix in the file: that matrix (columns unnamed).
     * otherwise: all column vectors of the most common length, as named columns.
@@ -431,25 +435,142 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
         contents = loadmat(str(path))
     except Exception as exc:  # scipy raises several types for bad files
         raise DataFileError(f"{path}: not a readable MATLAB file ({exc})") from None
+    structs = {
+        k: v
+        for k, v in contents.items()
+        if not k.startswith("__") and isinstance(v, np.ndarray) and v.dtype.names
+    }
+    if variable is not None and variable.split(".")[0] in structs:
+        return struct_table(path, variable, _v5_struct(path, structs, variable))
     arrays = {
         k: v
         for k, v in contents.items()
         if not k.startswith("__") and isinstance(v, np.ndarray) and v.dtype.kind in "fiub"
     }
-    return _mat_table(path, arrays, contents.get("varlab"), variable)
+    return _mat_table(path, arrays, contents.get("varlab"), variable, sorted(structs))
+
+
+def _v5_struct(path: Path, structs: Mapping[str, np.ndarray], variable: str) -> dict:
+    """The fields of the struct ``variable`` ("a" or "a.b.c") of a v5 file, flattened
+    (``_v5_fields``); a numeric leaf ("a.x") as the one field ``x``."""
+    parts = variable.split(".")
+    value = structs[parts[0]]
+    for depth, part in enumerate(parts[1:], start=1):
+        here = ".".join(parts[:depth])
+        if value.size != 1:
+            raise DataFileError(f"{path}: {here!r} is a {_shape(value)} struct array; {_ONE}")
+        if part not in value.dtype.names:
+            raise DataFileError(
+                f"{path}: the struct {here!r} has no field {part!r}; fields: "
+                f"{list(value.dtype.names)}"
+            )
+        value = value.ravel()[0][part]
+    if isinstance(value, np.ndarray) and value.dtype.names:
+        return _v5_fields(path, value, variable)
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiub":
+        return {parts[-1]: value}
+    raise DataFileError(f"{path}: {variable!r} is neither a struct nor numeric")
+
+
+# the rule for struct arrays, in messages
+_ONE = "flightid reads one struct (1 × 1) at a time: save each maneuver as its own struct"
+
+
+def _shape(value: np.ndarray) -> str:
+    return " × ".join(str(n) for n in value.shape)
+
+
+def _v5_fields(path: Path, value: np.ndarray, where: str) -> dict[str, np.ndarray | str]:
+    """The fields of a v5 struct (scipy's record array): numeric arrays by name, nested
+    structs flattened with dots; a field that cannot be a column maps to the reason."""
+    if value.size != 1:
+        raise DataFileError(f"{path}: {where!r} is a {_shape(value)} struct array; {_ONE}")
+    record = value.ravel()[0]
+    fields: dict[str, np.ndarray | str] = {}
+    for name in value.dtype.names:
+        item = record[name]
+        if isinstance(item, np.ndarray) and item.dtype.names:
+            if item.size != 1:
+                fields[name] = f"a {_shape(item)} struct array; {_ONE}"
+                continue
+            for key, sub in _v5_fields(path, item, f"{where}.{name}").items():
+                fields[f"{name}.{key}"] = sub
+        elif isinstance(item, np.ndarray) and item.dtype.kind in "fiub" and item.size:
+            fields[name] = item
+        else:
+            fields[name] = "not numeric (text, cell or empty)"
+    return fields
+
+
+def struct_table(
+    path: Path,
+    variable: str,
+    fields: Mapping[str, np.ndarray | str],
+    units: Mapping[str, str] | None = None,
+) -> Table:
+    """The ``Table`` of a MATLAB struct's flattened ``fields`` (name → array in MATLAB's
+    shape, or the reason it is no column).
+
+    The rows are the most common sample count N of the non-scalar fields (a vector's
+    length, a matrix's rows); a vector of N values is a column by its name, an N × k matrix
+    the columns ``name_1`` … ``name_k``; scalars are constants; fields of another length
+    are left out, and a channel naming one is told why (``Table.left_out``)."""
+    units = units or {}
+    left_out = {k: v for k, v in fields.items() if isinstance(v, str)}
+    arrays = {k: np.atleast_2d(v) for k, v in fields.items() if not isinstance(v, str)}
+    constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
+    lengths = [v.size if min(v.shape) == 1 else v.shape[0] for v in arrays.values() if v.size > 1]
+    if not lengths:
+        raise DataFileError(
+            f"{path}: the struct {variable!r} has no numeric vector fields; fields: "
+            f"{sorted(fields)}"
+        )
+    n = max(set(lengths), key=lambda length: (lengths.count(length), length))
+    columns, names, column_units = [], [], []
+    for name, value in arrays.items():
+        if value.size == 1:
+            continue
+        if min(value.shape) == 1 and value.size == n:
+            columns.append(value.ravel())
+            names.append(name)
+            column_units.append(units.get(name, ""))
+            continue
+        matrix = value if value.shape[0] == n else value.T if value.shape[1] == n else None
+        if min(value.shape) == 1 or matrix is None:
+            left_out[name] = f"a {_shape(value)} field; the struct's columns have {n} rows"
+            continue
+        for j in range(matrix.shape[1]):
+            columns.append(matrix[:, j])
+            names.append(f"{name}_{j + 1}")
+            column_units.append(units.get(name, ""))
+    return _finish_table(
+        np.column_stack(columns),
+        names,
+        column_units,
+        f"{path}:{variable}",
+        constants,
+        left_out,
+    )
 
 
 def _mat_table(
-    path: Path, arrays: Mapping[str, np.ndarray], varlab: Any, variable: str | None
+    path: Path,
+    arrays: Mapping[str, np.ndarray],
+    varlab: Any,
+    variable: str | None,
+    structs: Sequence[str] = (),
 ) -> Table:
     """The ``Table`` of ``read_mat`` from the file's numeric arrays (MATLAB shapes, at least
-    2-D) and its ``varlab`` labels (array of strings, or None)."""
+    2-D), its ``varlab`` labels (array of strings, or None) and the names of its structs
+    (for messages)."""
     constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
     source = str(path)
+    structs_words = f"; structs: {list(structs)}" if structs else ""
     if variable is not None:
         if variable not in arrays:
             raise DataFileError(
-                f"{path}: no numeric variable {variable!r}; variables: {sorted(arrays)}"
+                f"{path}: no numeric variable or struct {variable!r}; variables: "
+                f"{sorted(arrays)}{structs_words}"
             )
         names = None
         if variable == "fdata" and varlab is not None:
@@ -472,6 +593,12 @@ def _mat_table(
         )
     vectors = {k: v.ravel() for k, v in arrays.items() if v.ndim == 2 and min(v.shape) == 1}
     vectors = {k: v for k, v in vectors.items() if v.size > 1}
+    if not vectors and structs:
+        raise DataFileError(
+            f"{path}: no numeric matrix or vectors at the top level; the file holds the "
+            f"structs {list(structs)}: name the one to read, variable = {structs[0]!r} (its "
+            "fields are the columns)"
+        )
     if not vectors:
         raise DataFileError(f"{path}: no numeric matrix or vectors found")
     lengths = [v.size for v in vectors.values()]
