@@ -23,6 +23,15 @@ Two steps, each checked:
    ``flightid.data.units.channel_conversion``: with ``unit`` and ``to`` the values are
    converted to ``to``; with ``unit`` alone they are delivered in SI with angles in radians
    (deg → rad, deg/s → rad/s, ft/s → m/s, g → m/s², ...); an unknown unit is refused.
+   A unit the file states for a column (``Table.units``: CSV header brackets, ``varlab``,
+   DataFlash FMTU, Parquet/HDF5 metadata) is the source unit of a channel that declares
+   none, and a declared unit that contradicts it is a ``FileUnitError``
+   (``ChannelSpec.with_file_unit``; ``ignore_file_unit`` overrides).
+
+Before reading, ``read_table`` refuses paths that are not regular files and files larger
+than the available memory; text files may start with a byte-order mark; numbers are ASCII
+(``1_000`` is refused, naming row and column); two columns of one name are refused when a
+channel names them.
 
 Expressions are arithmetic (+ − × ÷, parentheses, numbers) over column references ``$N``
 (1-based column number) and column names, with the functions sin, cos, tan, asin, acos, atan,

@@ -27,6 +27,10 @@ it is delivered in (``to``). ``channel_conversion(unit, to)`` is the only place 
 * neither: the values are used as recorded (no unit declared, none shown in reports).
 * ``to`` without ``unit``: refused (``UnitError``).
 
+Where the data file states a column's unit, ``flightid.data.loaders.ChannelSpec`` puts it in
+``unit`` before this rule is applied (a declared unit must then mean the same unit,
+``same_unit``).
+
 An unknown unit label is always refused with ``UnitError``, whose message lists the known
 names. The order of operations on a channel is fixed: value = (source · scale + offset),
 then multiplied by the conversion factor of this rule (scale and offset act in the source
