@@ -235,10 +235,11 @@ _BOMS = (
 )
 
 
-def _read_text(path: Path) -> list[str]:
+def _read_text(path: Path, format: str) -> list[str]:
     """The lines of a text file: UTF-8, or the encoding its byte-order mark announces (the
-    mark itself is dropped: Excel writes one before the first column name)."""
-    check_data_file(path, "csv")
+    mark itself is dropped: Excel writes one before the first column name). ``format``
+    ("csv" or "ascii") sizes the memory check (``check_data_file``)."""
+    check_data_file(path, format)
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -335,7 +336,7 @@ def read_ascii(path: str | Path) -> Table:
     (a single such line: names only), as in the FVSysID ``_withHeader`` files.
     """
     path = Path(path)
-    lines = _read_text(path)
+    lines = _read_text(path, "ascii")
     rows: list[list[float]] = []
     first = None
     for number, line in enumerate(lines):
@@ -376,7 +377,7 @@ def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
     """CSV with one header row of column names (units in brackets are split off:
     ``alpha [deg]`` or ``alpha (deg)``). The delimiter is sniffed unless given."""
     path = Path(path)
-    lines = _read_text(path)
+    lines = _read_text(path, "csv")
     lines = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if len(lines) < 3:
         raise DataFileError(f"{path}: expected a header row and at least 2 data rows")
