@@ -127,8 +127,9 @@ def test_csv_header_units_and_offsets(tmp_path):
     )
     assert fd.n_samples == 21
     assert fd.input("V")[0] == 0.0
-    assert np.allclose(fd.output("alpha"), 2 * A[10:31] + 1)
-    assert fd.units == {"V": "m/s", "alpha": ""}
+    # the header states deg: (2·α + 1) deg delivered in rad (the file's unit applies)
+    assert np.allclose(fd.output("alpha"), np.deg2rad(2 * A[10:31] + 1))
+    assert fd.units == {"V": "m/s", "alpha": "rad"}
 
 
 def test_mat_sidpac_layout_and_plain_matrix(tmp_path):

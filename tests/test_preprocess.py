@@ -210,7 +210,7 @@ def _two_segment_table() -> Table:
     t = np.concatenate([np.arange(60) * DT, 13.0 + np.arange(50) * DT])
     rng = np.random.default_rng(11)
     x = np.concatenate([np.sin(t[:60]), 5 + np.cos(t[60:])]) + 0.01 * rng.normal(size=110)
-    return Table(np.column_stack([t, x]), ("t", "x"), ("s", "deg"), "two segments")
+    return Table(np.column_stack([t, x]), ("t", "x"), ("s", ""), "two segments")
 
 
 @pytest.mark.parametrize(

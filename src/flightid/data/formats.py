@@ -31,6 +31,7 @@ from flightid.data.loaders import (
     TableStream,
     _finish_table,
     _mat_table,
+    struct_table,
 )
 from flightid.results import MissingDependencyError
 
@@ -180,6 +181,12 @@ def read_mat73(path: str | Path, variable: str | None = None) -> Table:
     except OSError as exc:
         raise DataFileError(f"{path}: not a readable HDF5/MATLAB v7.3 file ({exc})") from None
     with handle:
+        structs = sorted(
+            name for name in handle if not name.startswith("#") and _is_struct(h5py, handle[name])
+        )
+        if variable is not None and variable.split(".")[0] in structs:
+            fields, units = _mat73_struct(h5py, handle, path, variable)
+            return struct_table(path, variable, fields, units)
         values = {
             name: _mat73_value(h5py, handle, handle[name])
             for name in handle
@@ -188,7 +195,66 @@ def read_mat73(path: str | Path, variable: str | None = None) -> Table:
     arrays = {k: v for k, v in values.items() if isinstance(v, np.ndarray)}
     varlab = values.get("varlab")
     labels = np.array(varlab, dtype=object) if isinstance(varlab, list) else None
-    return _mat_table(path, arrays, labels, variable)
+    return _mat_table(path, arrays, labels, variable, structs)
+
+
+def _is_struct(h5py: Any, item: Any) -> bool:
+    """True for a MATLAB v7.3 struct: an HDF5 group (MATLAB_class ``struct``, or none)."""
+    if not isinstance(item, h5py.Group):
+        return False
+    kind = item.attrs.get("MATLAB_class", b"struct")
+    return (kind.decode() if isinstance(kind, bytes) else str(kind)) == "struct"
+
+
+def _hdf5_unit(item: Any) -> str:
+    """The unit an HDF5 dataset states in an attribute ``unit`` or ``units`` ("" if none)."""
+    for key in ("unit", "units"):
+        value = item.attrs.get(key)
+        if value is not None:
+            value = value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+            value = np.asarray(value).ravel()
+            if value.size == 1 and isinstance(value[0], (str, bytes)):
+                text = value[0]
+                return text.decode("utf-8", "replace") if isinstance(text, bytes) else text
+    return ""
+
+
+def _mat73_struct(
+    h5py: Any, handle: Any, path: Path, variable: str
+) -> tuple[dict[str, np.ndarray | str], dict[str, str]]:
+    """The fields of the v7.3 struct ``variable`` ("a" or "a.b"), nested structs flattened
+    with dots (field → array in MATLAB's shape, or the reason it is no column), and the
+    units the datasets state (``_hdf5_unit``)."""
+    node = handle
+    for depth, part in enumerate(variable.split(".")):
+        if part not in node:
+            here = ".".join(variable.split(".")[:depth]) or "the file"
+            raise DataFileError(f"{path}: {here!r} has no field {part!r}; fields: {sorted(node)}")
+        node = node[part]
+    fields: dict[str, np.ndarray | str] = {}
+    units: dict[str, str] = {}
+
+    def collect(group: Any, prefix: str) -> None:
+        for name in group:
+            item = group[name]
+            key = f"{prefix}{name}"
+            if _is_struct(h5py, item):
+                collect(item, f"{key}.")
+                continue
+            value = _mat73_value(h5py, handle, item)
+            if isinstance(value, np.ndarray) and value.size:
+                fields[key] = value
+                units[key] = _hdf5_unit(item)
+            else:
+                fields[key] = "not numeric (text, cell, struct array or empty)"
+
+    if not _is_struct(h5py, node):
+        value = _mat73_value(h5py, handle, node)
+        if not isinstance(value, np.ndarray):
+            raise DataFileError(f"{path}: {variable!r} is neither a struct nor numeric")
+        return {variable.split(".")[-1]: value}, {variable.split(".")[-1]: _hdf5_unit(node)}
+    collect(node, "")
+    return fields, units
 
 
 # =====================================================================================

@@ -23,6 +23,15 @@ Two steps, each checked:
    ``flightid.data.units.channel_conversion``: with ``unit`` and ``to`` the values are
    converted to ``to``; with ``unit`` alone they are delivered in SI with angles in radians
    (deg → rad, deg/s → rad/s, ft/s → m/s, g → m/s², ...); an unknown unit is refused.
+   A unit the file states for a column (``Table.units``: CSV header brackets, ``varlab``,
+   DataFlash FMTU, Parquet/HDF5 metadata) is the source unit of a channel that declares
+   none, and a declared unit that contradicts it is a ``FileUnitError``
+   (``ChannelSpec.with_file_unit``; ``ignore_file_unit`` overrides).
+
+Before reading, ``read_table`` refuses paths that are not regular files and files larger
+than the available memory; text files may start with a byte-order mark; numbers are ASCII
+(``1_000`` is refused, naming row and column); two columns of one name are refused when a
+channel names them.
 
 Expressions are arithmetic (+ − × ÷, parentheses, numbers) over column references ``$N``
 (1-based column number) and column names, with the functions sin, cos, tan, asin, acos, atan,
@@ -39,9 +48,13 @@ channels, and they are looked up before the file's columns (``$N`` is always col
 
 from __future__ import annotations
 
+import codecs
 import csv
+import dataclasses
 import math
+import os
 import re
+import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,7 +71,7 @@ from flightid.data.timebase import (
     largest_move,
     regrid,
 )
-from flightid.data.units import channel_conversion, parse_unit
+from flightid.data.units import channel_conversion, parse_unit, same_unit
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.logs.signals import (
     BUILTIN_SIGNALS,
@@ -71,6 +84,8 @@ from flightid.logs.signals import (
 __all__ = [
     "DataFileError",
     "ChannelError",
+    "FileUnitError",
+    "FileTooLargeError",
     "ChannelSpec",
     "Table",
     "TableStream",
@@ -91,6 +106,16 @@ class DataFileError(InputError):
 
 class ChannelError(InputError):
     """A channel specification naming an unknown column or malformed expression."""
+
+
+class FileUnitError(ChannelError):
+    """A channel's declared unit contradicts the unit its file states for the column, or the
+    file states a unit flightid cannot read for a channel that declares none. The message
+    names both units and the key that settles it (``ignore_file_unit = true``)."""
+
+
+class FileTooLargeError(DataFileError):
+    """A data file that would not fit in the memory available to read it."""
 
 
 # =====================================================================================
@@ -122,6 +147,8 @@ class Table:
         streams: for a log whose streams have different time bases: the streams (the rows
             are the union of their time stamps; a column is NaN where its stream has no
             sample). Empty: every column is sampled at every row.
+        left_out: names in the file that are not columns, with the reason (a MATLAB struct
+            field of another length), for the message when a channel names one.
     """
 
     data: np.ndarray
@@ -130,6 +157,7 @@ class Table:
     source: str = ""
     constants: Mapping[str, float] = field(default_factory=dict)
     streams: tuple[TableStream, ...] = ()
+    left_out: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def n_rows(self) -> int:
@@ -152,11 +180,23 @@ class Table:
                     f"columns 1..{self.n_columns}"
                 )
             return key - 1
-        if key in self.names:
-            return self.names.index(key)
+        exact = [i for i, n in enumerate(self.names) if n == key]
         folded = [i for i, n in enumerate(self.names) if n.lower() == key.lower()]
-        if len(folded) == 1:
-            return folded[0]
+        matches = exact or folded
+        if len(matches) == 1:
+            return matches[0]
+        if len(matches) > 1:
+            raise ChannelError(
+                f"{where}: {self.source or 'the table'} has {len(matches)} columns named "
+                f"{key!r}{'' if exact else ' (case ignored)'}: columns "
+                f"{[i + 1 for i in matches]} ({[self.names[i] for i in matches]}); "
+                "name one by its number (column = N, or $N in an expression)"
+            )
+        if key in self.left_out:
+            raise ChannelError(
+                f"{where}: {key!r} in {self.source or 'the table'} is not a column: "
+                f"{self.left_out[key]}"
+            )
         known = [n for n in self.names if n]
         raise ChannelError(
             f"{where}: no column named {key!r} in {self.source or 'the table'}; "
@@ -167,7 +207,9 @@ class Table:
         return self.data[:, self.column_index(key, where)]
 
 
-def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -> Table:
+def _finish_table(
+    data: np.ndarray, names, units, source: str, constants=None, left_out=None
+) -> Table:
     data = np.asarray(data, dtype=float)
     if data.ndim == 1:
         data = data[:, None]
@@ -182,7 +224,7 @@ def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -
         )
     data = np.ascontiguousarray(data)
     data.flags.writeable = False
-    return Table(data, names, units, source, dict(constants or {}))
+    return Table(data, names, units, source, dict(constants or {}), dict(left_out or {}))
 
 
 # =====================================================================================
@@ -190,18 +232,133 @@ def _finish_table(data: np.ndarray, names, units, source: str, constants=None) -
 # =====================================================================================
 
 
-def _numbers(tokens: Sequence[str]) -> list[float] | None:
+def _number(token: str) -> float | None:
+    """A number as data files write it (ASCII digits, decimal point, exponent ``e``/``E`` or
+    Fortran's ``d``/``D``, ``nan``/``inf``), else None. Python's ``float`` also takes ``1_000``
+    and non-ASCII digits; a data file with those has a typing or export error, so they are
+    refused."""
+    if "_" in token or not token.isascii():
+        return None
     try:
-        return [float(t.replace("D", "E").replace("d", "e")) for t in tokens]
+        return float(token.replace("D", "E").replace("d", "e"))
     except ValueError:
         return None
 
 
-def _read_text(path: Path) -> list[str]:
+def _numbers(tokens: Sequence[str]) -> list[float] | None:
+    values = []
+    for token in tokens:
+        value = _number(token)
+        if value is None:
+            return None
+        values.append(value)
+    return values
+
+
+def _first_non_number(tokens: Sequence[str]) -> int:
+    """0-based position of the first token that is not a number (``_number``)."""
+    return next(k for k, token in enumerate(tokens) if _number(token) is None)
+
+
+# byte-order marks at the start of a text file → the encoding they announce
+_BOMS = (
+    (codecs.BOM_UTF8, "utf-8-sig"),
+    (codecs.BOM_UTF16_LE, "utf-16"),
+    (codecs.BOM_UTF16_BE, "utf-16"),
+)
+
+
+def _read_text(path: Path, format: str) -> list[str]:
+    """The lines of a text file: UTF-8, or the encoding its byte-order mark announces (the
+    mark itself is dropped: Excel writes one before the first column name). ``format``
+    ("csv" or "ascii") sizes the memory check (``check_data_file``)."""
+    check_data_file(path, format)
     try:
-        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+        raw = path.read_bytes()
     except OSError as exc:
         raise DataFileError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    encoding = next((name for bom, name in _BOMS if raw.startswith(bom)), "utf-8")
+    return raw.decode(encoding, errors="replace").splitlines()
+
+
+# memory needed to read a file, as a multiple of its size: measured peaks for the text
+# readers, which hold every line, cell and number as Python objects (15× for a CSV, 7× for
+# whitespace ASCII of 8 columns of "%.6f" numbers); a lower bound for the others
+_MEMORY_PER_FILE_BYTE = {
+    "csv": 16.0,
+    "ascii": 8.0,
+    "mat": 2.0,
+    "parquet": 3.0,
+    "ulog": 2.0,
+    "dataflash": 1.0,
+}
+
+
+def available_memory_bytes() -> int | None:
+    """Memory available to this process now (bytes): Linux ``MemAvailable`` (with the
+    cgroup limit where one is set), else the free physical pages; None where unknown."""
+    available = None
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                available = int(line.split()[1]) * 1024  # kB → bytes
+    except (OSError, ValueError, IndexError):
+        available = None
+    if available is None:
+        try:
+            available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (OSError, ValueError, AttributeError):
+            return None
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = Path("/sys/fs/cgroup/memory.current").read_text().strip()
+        if limit.isdigit() and used.isdigit():
+            available = min(available, int(limit) - int(used))
+    except OSError:
+        pass
+    return max(int(available), 0)
+
+
+def check_data_file(path: Path, format: str) -> None:
+    """Refuse, before reading, a path that is not a regular file (a directory, a fifo, a
+    device such as ``/dev/zero``: reading those hangs or never ends) and a file that would
+    not fit in the available memory (``FileTooLargeError``)."""
+    try:
+        status = path.stat()
+    except FileNotFoundError:
+        raise DataFileError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(status.st_mode):
+        kind = (
+            "a directory"
+            if stat.S_ISDIR(status.st_mode)
+            else "a fifo (named pipe)"
+            if stat.S_ISFIFO(status.st_mode)
+            else "a device"
+            if stat.S_ISCHR(status.st_mode) or stat.S_ISBLK(status.st_mode)
+            else "a socket"
+            if stat.S_ISSOCK(status.st_mode)
+            else "not a regular file"
+        )
+        raise DataFileError(f"{path}: is {kind}, expected a regular data file")
+    available = available_memory_bytes()
+    # memory needed ≈ file size × bytes held per file byte (format-dependent)
+    needed = status.st_size * _MEMORY_PER_FILE_BYTE.get(format, 1.0)
+    if available is not None and needed > available:
+        raise FileTooLargeError(
+            f"{path}: {_size(status.st_size)} of {format} data needs about {_size(needed)} of "
+            f"memory to read, {_size(available)} is available; cut the file to the part you "
+            "need, or read it on a machine with more memory"
+        )
+
+
+def _size(n_bytes: float) -> str:
+    """A byte count for messages: ``"1.5 GB"``."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n_bytes >= scale:
+            return f"{n_bytes / scale:.3g} {unit}"
+    return f"{int(n_bytes)} bytes"
 
 
 def read_ascii(path: str | Path) -> Table:
@@ -212,7 +369,7 @@ def read_ascii(path: str | Path) -> Table:
     (a single such line: names only), as in the FVSysID ``_withHeader`` files.
     """
     path = Path(path)
-    lines = _read_text(path)
+    lines = _read_text(path, "ascii")
     rows: list[list[float]] = []
     first = None
     for number, line in enumerate(lines):
@@ -222,9 +379,10 @@ def read_ascii(path: str | Path) -> Table:
         values = _numbers(tokens)
         if values is None:
             if rows:
+                k = _first_non_number(tokens)
                 raise DataFileError(
                     f"{path}: line {number + 1} is not numeric inside the data block: "
-                    f"{line.strip()[:60]!r}"
+                    f"column {k + 1}, {tokens[k][:30]!r} is not a number ({line.strip()[:60]!r})"
                 )
             continue
         if rows and len(values) != len(rows[0]):
@@ -252,7 +410,7 @@ def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
     """CSV with one header row of column names (units in brackets are split off:
     ``alpha [deg]`` or ``alpha (deg)``). The delimiter is sniffed unless given."""
     path = Path(path)
-    lines = _read_text(path)
+    lines = _read_text(path, "csv")
     lines = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if len(lines) < 3:
         raise DataFileError(f"{path}: expected a header row and at least 2 data rows")
@@ -276,9 +434,14 @@ def read_csv(path: str | Path, delimiter: str | None = None) -> Table:
             raise DataFileError(
                 f"{path}: row {number} has {len(row)} fields, the header has {len(header)}"
             )
-        values = _numbers([c.strip() or "nan" for c in row])
+        cells = [c.strip() or "nan" for c in row]
+        values = _numbers(cells)
         if values is None:
-            raise DataFileError(f"{path}: row {number} is not numeric: {row[:6]}")
+            k = _first_non_number(cells)
+            raise DataFileError(
+                f"{path}: row {number} is not numeric: column {k + 1} "
+                f"({names[k] or 'unnamed'!r}), {cells[k][:30]!r} is not a number ({row[:6]})"
+            )
         rows.append(values)
     return _finish_table(np.array(rows), names, units, str(path))
 
@@ -294,7 +457,10 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
     """MATLAB .mat (v5 via ``scipy.io.loadmat``; v7.3, an HDF5 file, via
     ``flightid.data.formats.read_mat73``, which needs the ``hdf5`` extra).
 
-    * ``variable`` given: that matrix (or vector).
+    * ``variable`` given: that matrix (or vector); or a struct (``"ail_1"``, a nested one
+      ``"flight.ail_1"``), whose numeric fields are the columns by name — nested structs
+      flattened with dots (``IMU.GyrX``), an N × k field as ``name_1`` … ``name_k``, scalar
+      fields as ``Table.constants`` (``struct_table``).
     * SIDPAC layout: ``fdata`` (N × k) with ``varlab`` labels like ``"* alpha (deg)"``.
     * one 2-D matrix in the file: that matrix (columns unnamed).
     * otherwise: all column vectors of the most common length, as named columns.
@@ -303,8 +469,7 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
     from scipy.io import loadmat
 
     path = Path(path)
-    if not path.is_file():
-        raise DataFileError(f"{path}: no such file")
+    check_data_file(path, "mat")
     from flightid.data.formats import is_mat73, read_mat73
 
     if is_mat73(path):
@@ -313,25 +478,142 @@ def read_mat(path: str | Path, variable: str | None = None) -> Table:
         contents = loadmat(str(path))
     except Exception as exc:  # scipy raises several types for bad files
         raise DataFileError(f"{path}: not a readable MATLAB file ({exc})") from None
+    structs = {
+        k: v
+        for k, v in contents.items()
+        if not k.startswith("__") and isinstance(v, np.ndarray) and v.dtype.names
+    }
+    if variable is not None and variable.split(".")[0] in structs:
+        return struct_table(path, variable, _v5_struct(path, structs, variable))
     arrays = {
         k: v
         for k, v in contents.items()
         if not k.startswith("__") and isinstance(v, np.ndarray) and v.dtype.kind in "fiub"
     }
-    return _mat_table(path, arrays, contents.get("varlab"), variable)
+    return _mat_table(path, arrays, contents.get("varlab"), variable, sorted(structs))
+
+
+def _v5_struct(path: Path, structs: Mapping[str, np.ndarray], variable: str) -> dict:
+    """The fields of the struct ``variable`` ("a" or "a.b.c") of a v5 file, flattened
+    (``_v5_fields``); a numeric leaf ("a.x") as the one field ``x``."""
+    parts = variable.split(".")
+    value = structs[parts[0]]
+    for depth, part in enumerate(parts[1:], start=1):
+        here = ".".join(parts[:depth])
+        if value.size != 1:
+            raise DataFileError(f"{path}: {here!r} is a {_shape(value)} struct array; {_ONE}")
+        if part not in value.dtype.names:
+            raise DataFileError(
+                f"{path}: the struct {here!r} has no field {part!r}; fields: "
+                f"{list(value.dtype.names)}"
+            )
+        value = value.ravel()[0][part]
+    if isinstance(value, np.ndarray) and value.dtype.names:
+        return _v5_fields(path, value, variable)
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiub":
+        return {parts[-1]: value}
+    raise DataFileError(f"{path}: {variable!r} is neither a struct nor numeric")
+
+
+# the rule for struct arrays, in messages
+_ONE = "flightid reads one struct (1 × 1) at a time: save each maneuver as its own struct"
+
+
+def _shape(value: np.ndarray) -> str:
+    return " × ".join(str(n) for n in value.shape)
+
+
+def _v5_fields(path: Path, value: np.ndarray, where: str) -> dict[str, np.ndarray | str]:
+    """The fields of a v5 struct (scipy's record array): numeric arrays by name, nested
+    structs flattened with dots; a field that cannot be a column maps to the reason."""
+    if value.size != 1:
+        raise DataFileError(f"{path}: {where!r} is a {_shape(value)} struct array; {_ONE}")
+    record = value.ravel()[0]
+    fields: dict[str, np.ndarray | str] = {}
+    for name in value.dtype.names:
+        item = record[name]
+        if isinstance(item, np.ndarray) and item.dtype.names:
+            if item.size != 1:
+                fields[name] = f"a {_shape(item)} struct array; {_ONE}"
+                continue
+            for key, sub in _v5_fields(path, item, f"{where}.{name}").items():
+                fields[f"{name}.{key}"] = sub
+        elif isinstance(item, np.ndarray) and item.dtype.kind in "fiub" and item.size:
+            fields[name] = item
+        else:
+            fields[name] = "not numeric (text, cell or empty)"
+    return fields
+
+
+def struct_table(
+    path: Path,
+    variable: str,
+    fields: Mapping[str, np.ndarray | str],
+    units: Mapping[str, str] | None = None,
+) -> Table:
+    """The ``Table`` of a MATLAB struct's flattened ``fields`` (name → array in MATLAB's
+    shape, or the reason it is no column).
+
+    The rows are the most common sample count N of the non-scalar fields (a vector's
+    length, a matrix's rows); a vector of N values is a column by its name, an N × k matrix
+    the columns ``name_1`` … ``name_k``; scalars are constants; fields of another length
+    are left out, and a channel naming one is told why (``Table.left_out``)."""
+    units = units or {}
+    left_out = {k: v for k, v in fields.items() if isinstance(v, str)}
+    arrays = {k: np.atleast_2d(v) for k, v in fields.items() if not isinstance(v, str)}
+    constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
+    lengths = [v.size if min(v.shape) == 1 else v.shape[0] for v in arrays.values() if v.size > 1]
+    if not lengths:
+        raise DataFileError(
+            f"{path}: the struct {variable!r} has no numeric vector fields; fields: "
+            f"{sorted(fields)}"
+        )
+    n = max(set(lengths), key=lambda length: (lengths.count(length), length))
+    columns, names, column_units = [], [], []
+    for name, value in arrays.items():
+        if value.size == 1:
+            continue
+        if min(value.shape) == 1 and value.size == n:
+            columns.append(value.ravel())
+            names.append(name)
+            column_units.append(units.get(name, ""))
+            continue
+        matrix = value if value.shape[0] == n else value.T if value.shape[1] == n else None
+        if min(value.shape) == 1 or matrix is None:
+            left_out[name] = f"a {_shape(value)} field; the struct's columns have {n} rows"
+            continue
+        for j in range(matrix.shape[1]):
+            columns.append(matrix[:, j])
+            names.append(f"{name}_{j + 1}")
+            column_units.append(units.get(name, ""))
+    return _finish_table(
+        np.column_stack(columns),
+        names,
+        column_units,
+        f"{path}:{variable}",
+        constants,
+        left_out,
+    )
 
 
 def _mat_table(
-    path: Path, arrays: Mapping[str, np.ndarray], varlab: Any, variable: str | None
+    path: Path,
+    arrays: Mapping[str, np.ndarray],
+    varlab: Any,
+    variable: str | None,
+    structs: Sequence[str] = (),
 ) -> Table:
     """The ``Table`` of ``read_mat`` from the file's numeric arrays (MATLAB shapes, at least
-    2-D) and its ``varlab`` labels (array of strings, or None)."""
+    2-D), its ``varlab`` labels (array of strings, or None) and the names of its structs
+    (for messages)."""
     constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
     source = str(path)
+    structs_words = f"; structs: {list(structs)}" if structs else ""
     if variable is not None:
         if variable not in arrays:
             raise DataFileError(
-                f"{path}: no numeric variable {variable!r}; variables: {sorted(arrays)}"
+                f"{path}: no numeric variable or struct {variable!r}; variables: "
+                f"{sorted(arrays)}{structs_words}"
             )
         names = None
         if variable == "fdata" and varlab is not None:
@@ -354,6 +636,12 @@ def _mat_table(
         )
     vectors = {k: v.ravel() for k, v in arrays.items() if v.ndim == 2 and min(v.shape) == 1}
     vectors = {k: v for k, v in vectors.items() if v.size > 1}
+    if not vectors and structs:
+        raise DataFileError(
+            f"{path}: no numeric matrix or vectors at the top level; the file holds the "
+            f"structs {list(structs)}: name the one to read, variable = {structs[0]!r} (its "
+            "fields are the columns)"
+        )
     if not vectors:
         raise DataFileError(f"{path}: no numeric matrix or vectors found")
     lengths = [v.size for v in vectors.values()]
@@ -431,17 +719,27 @@ def read_table(
     (.csv → csv, .mat → mat (v5, or v7.3 with the ``hdf5`` extra), .parquet/.pq → parquet
     (the ``parquet`` extra), .ulg → ulog (PX4; the ``px4`` extra), .bin → dataflash
     (ArduPilot; the ``ardupilot`` extra), anything else → whitespace ASCII). ``variable``
-    picks a MATLAB variable, or the message streams of a flight log."""
+    picks a MATLAB variable or struct, or the message streams of a flight log.
+
+    Before reading, a path that is not a regular file (directory, fifo, device) is refused,
+    and so is a file that would not fit in the available memory (``FileTooLargeError``)."""
     if format not in FORMATS:
         raise InputError(f"format: expected one of {list(FORMATS)}, got {format!r}")
     path = Path(path)
-    if not path.exists():
-        raise DataFileError(f"{path}: no such file")
-    if path.is_dir():
-        raise DataFileError(f"{path}: is a directory, expected a data file")
     if format == "auto":
         suffix = path.suffix.lower()
         format = _SUFFIX_FORMATS.get(suffix, "ascii")
+    check_data_file(path, format)
+    try:
+        return _read_format(path, format, variable, delimiter)
+    except MemoryError:
+        raise FileTooLargeError(
+            f"{path}: ran out of memory while reading it ({_size(path.stat().st_size)} of "
+            f"{format} data); cut the file to the part you need"
+        ) from None
+
+
+def _read_format(path: Path, format: str, variable: str | None, delimiter: str | None) -> Table:
     if format == "parquet":
         from flightid.data.formats import read_parquet
 
@@ -772,10 +1070,56 @@ _SPEC_KEYS = {
     "offset",
     "unit",
     "to",
+    "ignore_file_unit",
     "subtract",
     "smooth",
     "derivative",
 }
+
+# unit labels with which files say "no unit" (dimensionless counts, unknown): not a unit
+_NO_UNIT_LABELS = {"", "-", "--", "none", "n/a", "unknown", "instance", "satellites"}
+
+
+def stated_unit(label: str) -> str:
+    """The unit a file's label states ("" where the label says there is none: ``-``,
+    ``UNKNOWN``, ArduPilot's ``instance`` and ``satellites``)."""
+    label = label.strip()
+    return "" if label.lower() in _NO_UNIT_LABELS else label
+
+
+def _linear_in_columns(tree: tuple, names: Mapping[str, Any]) -> bool:
+    """True when an expression is a sum of column terms, each times or divided by numbers
+    or scalar constants (``($29 - $28) / 2``, ``-q``, ``2 * p``): its result then has the
+    unit of its columns. Functions, ``t``, signals and products of columns are not."""
+    kind = tree[0]
+    if kind == "col":
+        return not (isinstance(tree[1], str) and tree[1] in names)
+    if kind == "neg":
+        return _linear_in_columns(tree[1], names)
+    if kind in ("+", "-"):
+        return _linear_in_columns(tree[1], names) and _linear_in_columns(tree[2], names)
+    if kind == "*":
+        left, right = tree[1], tree[2]
+        return (_is_number(left, names) and _linear_in_columns(right, names)) or (
+            _is_number(right, names) and _linear_in_columns(left, names)
+        )
+    if kind == "/":
+        return _linear_in_columns(tree[1], names) and _is_number(tree[2], names)
+    return False
+
+
+def _is_number(tree: tuple, names: Mapping[str, Any]) -> bool:
+    """True for a number, a scalar constant or arithmetic over them."""
+    kind = tree[0]
+    if kind == "num":
+        return True
+    if kind == "col":
+        return isinstance(tree[1], str) and tree[1] in names and np.ndim(names[tree[1]]) == 0
+    if kind == "neg":
+        return _is_number(tree[1], names)
+    if kind in ("+", "-", "*", "/"):
+        return _is_number(tree[1], names) and _is_number(tree[2], names)
+    return False
 
 
 @dataclass(frozen=True)
@@ -792,7 +1136,13 @@ class ChannelSpec:
             SI with angles in rad (``flightid.data.units.channel_conversion``); an unknown
             unit is refused.
         to: the delivered unit (e.g. ``"deg"`` to keep degrees, ``"g"`` to keep g); the
-            channel's unit in reports.
+            channel's unit in reports. ``to`` alone is allowed where the file states the
+            column's unit.
+        ignore_file_unit: use the case's ``unit`` (or none) whatever unit the file states
+            for the column(s); by default a unit the file states (CSV header ``q [deg/s]``,
+            MATLAB ``varlab``, DataFlash FMTU, Parquet/HDF5 metadata) is the source unit
+            when the case declares none, and a declared unit that contradicts it is a
+            ``FileUnitError`` (``with_file_unit``).
         subtract: ``"first"`` or ``"mean"``: remove that reference value (perturbations).
         smooth: ``"smoothMulTS"``, ``{"savgol": [window, order]}`` or
             ``{"butter": [order, cutoff_hz]}`` (``flightid.data.preprocess``), stored as a
@@ -809,6 +1159,7 @@ class ChannelSpec:
     offset: float = 0.0
     unit: str = ""
     to: str = ""
+    ignore_file_unit: bool = False
     subtract: str | None = None
     smooth: tuple | None = None
     derivative: tuple | None = None
@@ -849,30 +1200,113 @@ class ChannelSpec:
             raise ChannelError(
                 f"{where}.subtract: expected 'first' or 'mean', got {value['subtract']!r}"
             )
-        if "to" in value and "unit" not in value:
-            raise ChannelError(f"{where}.to: give the source unit too ('unit')")
+        if not isinstance(value.get("ignore_file_unit", False), bool):
+            raise ChannelError(
+                f"{where}.ignore_file_unit: expected true or false, got "
+                f"{describe(value['ignore_file_unit'])}"
+            )
         fields = {k: value[k] for k in value}
         fields["smooth"] = parse_smooth(value.get("smooth"), f"{where}.smooth")
         fields["derivative"] = parse_derivative(value.get("derivative"), f"{where}.derivative")
         spec = cls(**fields)
         if spec.expr is not None:
             parse_expression(spec.expr)  # fail early
-        if spec.unit or spec.to:
+        if spec.unit:
             spec.conversion(where)  # unknown units and dimension mismatches fail early
+        elif spec.to:
+            try:  # the source unit may come from the file; ``to`` must be a unit
+                parse_unit(spec.to)
+            except InputError as exc:
+                raise ChannelError(f"{where}.to: {exc}") from None
         return spec
 
     def conversion(self, where: str = "channel") -> tuple[float, str]:
         """(factor, delivered unit) by the channel rule of ``channel_conversion``."""
+        if self.to and not self.unit:
+            raise ChannelError(
+                f"{where}: to = {self.to!r} needs the unit the values are recorded in; "
+                "neither the channel (unit = ...) nor the file states one"
+            )
         try:
             return channel_conversion(self.unit, self.to)
         except InputError as exc:
             raise ChannelError(f"{where}: {exc}") from None
 
+    def with_file_unit(
+        self, table: Table, where: str, names: Mapping[str, Any] | None = None
+    ) -> ChannelSpec:
+        """This channel with the unit its file states for it (``Table.units``).
+
+        A column's stated unit, or for an expression that is a sum of columns times numbers
+        (``_linear_in_columns``) the one unit all its columns state, is the source unit when
+        the channel declares none; a declared unit must mean the same unit, else
+        ``FileUnitError`` naming both. An expression that reads columns with stated units
+        and is not such a sum needs a declared unit (of its result). ``ignore_file_unit``
+        skips all of this. ``names``: signals and constants (not columns)."""
+        if self.ignore_file_unit:
+            return self
+        names = names or {}
+        tree = parse_expression(self.expr) if self.expr is not None else ("col", self.column)
+        stated: dict[str, str] = {}
+        unstated = False
+        for ref in expression_columns(tree):
+            if isinstance(ref, str) and ref in names:
+                unstated = True
+                continue
+            try:
+                index = table.column_index(ref, where)
+            except ChannelError:
+                return self  # evaluate names the missing column
+            label = stated_unit(table.units[index])
+            name = table.names[index] or f"${index + 1}"
+            if label:
+                stated[name] = label
+            else:
+                unstated = True
+        if not stated:
+            return self
+        labels = set(stated.values())
+        if len(labels) == 1 and not unstated and _linear_in_columns(tree, names):
+            return self._apply_stated(labels.pop(), stated, table, where)
+        if self.unit:
+            return self  # the declared unit of a result the file's units do not determine
+        raise FileUnitError(
+            f"{where}: the expression {self.expr!r} reads columns whose file states their "
+            f"units ({_unit_list(stated)}); declare the unit of its result (unit = ...), or "
+            "ignore_file_unit = true to use the recorded numbers as they are"
+        )
+
+    def _apply_stated(
+        self, label: str, stated: Mapping[str, str], table: Table, where: str
+    ) -> ChannelSpec:
+        """The spec with the file's unit ``label`` as its source unit (see
+        ``with_file_unit``)."""
+        source = table.source or "the file"
+        try:
+            parse_unit(label)
+        except InputError:
+            if self.unit:
+                return self  # a label flightid cannot read: the declared unit applies
+            raise FileUnitError(
+                f"{where}: {source} states the unit {label!r} for {_unit_list(stated)}, which "
+                "flightid cannot read; declare the unit the values are in (unit = ...), or "
+                "use them as recorded (ignore_file_unit = true)"
+            ) from None
+        if not self.unit:
+            return dataclasses.replace(self, unit=label)
+        if same_unit(self.unit, label):
+            return self
+        raise FileUnitError(
+            f"{where}: the channel declares unit = {self.unit!r}, but {source} states "
+            f"{label!r} for {_unit_list(stated)}; remove 'unit' to use the file's, correct it, "
+            "or set ignore_file_unit = true if the file's label is wrong"
+        )
+
     @property
     def target_unit(self) -> str:
         """The unit the values are delivered in ("" where no unit is declared; with a
         ``derivative``, that unit per s)."""
-        unit = self.conversion()[1]
+        unit = self.to or self.conversion()[1]
         if self.derivative is not None:
             return f"{unit}/s" if unit else "1/s"
         return unit
@@ -889,7 +1323,10 @@ class ChannelSpec:
         ``time``: the values of the expression variable ``t`` on all rows (s); None inside the
         time channel itself, where ``t`` is the column named t. ``names``: signals (arrays
         over all rows) and constants (numbers) that names refer to before columns
-        (``flightid.data.pipeline``)."""
+        (``flightid.data.pipeline``). The file's units apply as ``with_file_unit`` says."""
+        spec = self.with_file_unit(table, where, names)
+        if spec is not self:
+            return spec.evaluate(table, where, keep, time, names)
         if self.expr is not None:
             try:
                 tree = parse_expression(self.expr)
@@ -929,6 +1366,12 @@ class ChannelSpec:
                 f"the first at row {int(np.argmax(bad)) + 1}"
             )
         return values
+
+
+def _unit_list(stated: Mapping[str, str]) -> str:
+    """``column 'q' [deg/s]`` or ``columns 'p' [deg/s], 'q' [rad/s]`` for messages."""
+    words = ", ".join(f"{name!r} [{unit}]" for name, unit in stated.items())
+    return f"column{'s' if len(stated) > 1 else ''} {words}"
 
 
 def _specs(mapping: Mapping[str, Any] | None, where: str) -> dict[str, ChannelSpec]:
@@ -1034,7 +1477,7 @@ def to_flight_data(
             )
         return pieces[0]
     pipeline, time_spec, in_specs, out_specs = _prepare(
-        time, inputs, outputs, pipeline, constants, signals, steps
+        table, time, inputs, outputs, pipeline, constants, signals, steps
     )
     t_all = time_spec.evaluate(table, "time")
     keep = np.ones(t_all.shape[0], dtype=bool)
@@ -1055,13 +1498,14 @@ def to_flight_data(
     )
 
 
-def _prepare(time, inputs, outputs, pipeline, constants, signals, steps):
-    """(pipeline, time spec, input specs, output specs), each checked."""
+def _prepare(table, time, inputs, outputs, pipeline, constants, signals, steps):
+    """(pipeline, time spec, input specs, output specs), each checked; the time column takes
+    the unit the file states for it where the case gives none."""
     from flightid.data.pipeline import parse_pipeline
 
     if pipeline is None:
         pipeline = parse_pipeline(constants, signals, steps)
-    time_spec = ChannelSpec.from_value(time, "time")
+    time_spec = ChannelSpec.from_value(time, "time").with_file_unit(table, "time")
     if time_spec.unit and parse_unit(time_spec.target_unit) != parse_unit("s"):
         raise ChannelError(
             f"time: expected the time in s (leave out 'to', or to = 's'), got to = {time_spec.to!r}"
@@ -1190,6 +1634,11 @@ def _build(
     every maneuver)."""
     step = float((t[-1] - t[0]) / (t.shape[0] - 1))  # s, the uniform interval
     names = None if pipeline.empty else pipeline.evaluate(table, keep, t_all, step, segments)
+    # the units the file states for the columns (Table.units) where the case gives none
+    in_specs = {k: s.with_file_unit(table, f"inputs.{k}", names) for k, s in in_specs.items()}
+    out_specs = {k: s.with_file_unit(table, f"outputs.{k}", names) for k, s in out_specs.items()}
+    if not pipeline.empty:
+        pipeline = pipeline.with_file_units(table, names)
     units = {k: pipeline.unit_of(s) for k, s in {**in_specs, **out_specs}.items()}
     channels_in = {
         k: s.evaluate(table, f"inputs.{k}", keep, t_all, names) for k, s in in_specs.items()
@@ -1304,7 +1753,7 @@ def to_flight_segments(
             f"(got dt = {dt!r}, gaps = {gaps!r})"
         )
     pipeline, time_spec, in_specs, out_specs = _prepare(
-        time, inputs, outputs, pipeline, constants, signals, steps
+        table, time, inputs, outputs, pipeline, constants, signals, steps
     )
     t_all = time_spec.evaluate(table, "time")
     samples, columns_of, grid_columns = _table_streams(table, time_spec, t_all)

@@ -38,6 +38,7 @@ sample by sample. The steps' physics is in ``flightid.data.transfer`` and
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -416,6 +417,24 @@ class Pipeline:
         if spec.derivative is not None:
             return f"{inherited}/s" if inherited else "1/s"
         return inherited
+
+    def with_file_units(self, table: Table, names: Mapping[str, Any]) -> Pipeline:
+        """The pipeline with the units ``table`` states for the columns its signals read
+        (``ChannelSpec.with_file_unit``) in ``units``: a signal that declares no unit and is
+        a file column with a stated unit carries that unit's delivered unit, and so do the
+        channels made of it. ``names``: the constants and signals (as ``evaluate`` gives)."""
+        units = dict(self.units)
+        for what, key in self.order:
+            if what != "signal":
+                continue
+            spec = self.signals[key].with_file_unit(
+                table, f"signals.{key}", {k: v for k, v in names.items() if k != key}
+            )
+            if spec.column == key:  # the file's column of the same name
+                units[key] = spec.target_unit
+            else:
+                units[key] = Pipeline({}, {}, (), (), units).unit_of(spec)
+        return dataclasses.replace(self, units=units)
 
     def evaluate(
         self,

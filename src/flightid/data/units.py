@@ -27,6 +27,10 @@ it is delivered in (``to``). ``channel_conversion(unit, to)`` is the only place 
 * neither: the values are used as recorded (no unit declared, none shown in reports).
 * ``to`` without ``unit``: refused (``UnitError``).
 
+Where the data file states a column's unit, ``flightid.data.loaders.ChannelSpec`` puts it in
+``unit`` before this rule is applied (a declared unit must then mean the same unit,
+``same_unit``).
+
 An unknown unit label is always refused with ``UnitError``, whose message lists the known
 names. The order of operations on a channel is fixed: value = (source · scale + offset),
 then multiplied by the conversion factor of this rule (scale and offset act in the source
@@ -47,6 +51,7 @@ __all__ = [
     "si_label",
     "channel_conversion",
     "known_units",
+    "same_unit",
     "G0",
 ]
 
@@ -57,44 +62,97 @@ _L, _M, _T, _A = (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)
 _ONE = (0, 0, 0, 0)
 _FORCE = (1, 1, -2, 0)
 
-# base unit → (factor to SI, dimension)
+# base unit → (factor to SI, dimension); the factors are the published definitions:
+# 1 ft = 0.3048 m, 1 in = 0.0254 m, 1 mi = 1609.344 m, 1 nmi = 1852 m (exact); 1 lbm =
+# 0.45359237 kg (exact); 1 lbf = 1 lbm · g0; 1 slug = 1 lbf·s²/ft; 1 mph = 0.44704 m/s (exact);
+# 1 bar = 10⁵ Pa; 1 inHg (conventional) = 3386.389 Pa; 1 psf = 1 lbf/ft²; 1 psi = 1 lbf/in²
+_SPEED = (1, 0, -1, 0)
+_PRESSURE = (-1, 1, -2, 0)
 _BASE: dict[str, tuple[float, tuple[int, ...]]] = {
     "1": (1.0, _ONE),
     "-": (1.0, _ONE),
     "rad": (1.0, _A),
+    "mrad": (1e-3, _A),
     "deg": (math.pi / 180.0, _A),
+    "cdeg": (math.pi / 18000.0, _A),  # centidegree (ArduPilot)
     "m": (1.0, _L),
     "km": (1000.0, _L),
+    "dm": (0.1, _L),
+    "cm": (0.01, _L),
+    "mm": (0.001, _L),
     "ft": (0.3048, _L),
     "in": (0.0254, _L),
+    "mi": (1609.344, _L),
     "nmi": (1852.0, _L),
     "s": (1.0, _T),
     "sec": (1.0, _T),
+    "ms": (1e-3, _T),
+    "us": (1e-6, _T),
     "min": (60.0, _T),
     "h": (3600.0, _T),
     "hr": (3600.0, _T),
+    "hz": (1.0, (0, 0, -1, 0)),
+    "rpm": (2.0 * math.pi / 60.0, (0, 0, -1, 1)),  # revolutions per minute: 2π rad / 60 s
     "kg": (1.0, _M),
-    "slug": (14.5939029372, _M),
+    "gram": (1e-3, _M),
+    "slug": (0.45359237 * 9.80665 / 0.3048, _M),  # lbf·s²/ft = 14.5939029372... kg
     "lbm": (0.45359237, _M),
     "n": (1.0, _FORCE),
     "kilonewton": (1000.0, _FORCE),
     "lbf": (4.4482216152605, _FORCE),
     "lb": (4.4482216152605, _FORCE),
-    "pa": (1.0, (-1, 1, -2, 0)),
-    "hpa": (100.0, (-1, 1, -2, 0)),
-    "psf": (47.880258980336, (-1, 1, -2, 0)),
-    "psi": (6894.7572931684, (-1, 1, -2, 0)),
+    "pa": (1.0, _PRESSURE),
+    "hpa": (100.0, _PRESSURE),
+    "kpa": (1000.0, _PRESSURE),
+    "mbar": (100.0, _PRESSURE),
+    "bar": (1e5, _PRESSURE),
+    "inhg": (3386.389, _PRESSURE),
+    "psf": (47.880258980336, _PRESSURE),
+    "psi": (6894.7572931684, _PRESSURE),
     "g": (G0, (1, 0, -2, 0)),
-    "kt": (1852.0 / 3600.0, (1, 0, -1, 0)),
-    "kts": (1852.0 / 3600.0, (1, 0, -1, 0)),
-    "knot": (1852.0 / 3600.0, (1, 0, -1, 0)),
-    "kmh": (1.0 / 3.6, (1, 0, -1, 0)),
+    "kt": (1852.0 / 3600.0, _SPEED),
+    "kts": (1852.0 / 3600.0, _SPEED),
+    "knot": (1852.0 / 3600.0, _SPEED),
+    "kmh": (1.0 / 3.6, _SPEED),
+    "kph": (1.0 / 3.6, _SPEED),
+    "mph": (0.44704, _SPEED),
     "percent": (0.01, _ONE),
     "%": (0.01, _ONE),
+    "ppm": (1e-6, _ONE),
 }
-_ALIASES = {"degree": "deg", "degrees": "deg", "radian": "rad", "radians": "rad", "meter": "m"}
+_ALIASES = {
+    "degree": "deg",
+    "degrees": "deg",
+    "radian": "rad",
+    "radians": "rad",
+    "meter": "m",
+    "metre": "m",
+    "feet": "ft",
+    "foot": "ft",
+    "inch": "in",
+    "knots": "knot",
+    "second": "s",
+    "seconds": "s",
+    "usec": "us",
+    "msec": "ms",
+    "gn": "g",
+    "prozent": "percent",
+    # ArduPilot's angle units: degrees of heading, latitude, longitude
+    "degheading": "deg",
+    "deglatitude": "deg",
+    "deglongitude": "deg",
+}
 # Labels with two common meanings once case is ignored: refused, with the unambiguous names.
 _AMBIGUOUS = {"kn": "knots ('kt') or kilonewtons ('kilonewton')"}
+
+# Written forms brought to the grammar before parsing: micro signs → "u", middle dots → "*",
+# superscript powers → "^n", standard gravity "g0" → "g".
+_MICRO = str.maketrans({"µ": "u", "μ": "u", "·": "*", "⋅": "*", "×": "*"})
+_SUPERSCRIPT = re.compile(r"[⁻]?[⁰¹²³⁴⁵⁶⁷⁸⁹]+")
+_SUPERSCRIPT_DIGITS = str.maketrans("⁻⁰¹²³⁴⁵⁶⁷⁸⁹", "-0123456789")
+_G0 = re.compile(r"(?<![a-z])g0(?![0-9])")
+# a leading multiplier written by some logs: "0.01 m", "1e-07 deg" (number, space, unit)
+_MULTIPLIER = re.compile(r"\s*([0-9]*\.?[0-9]+(?:e[-+]?[0-9]+)?)\s+(?=[a-z%])")
 
 _TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z%][A-Za-z]*|1|-)(?P<power>(?:\^|\*\*)?-?\d+)?)\s*")
 
@@ -115,10 +173,15 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
     """
     if not isinstance(text, str) or not text.strip():
         raise UnitError(f"unit: expected a unit such as 'deg' or 'm/s', got {text!r}")
-    source = text.strip().lower()
+    source = _normalised(text)
     factor, dimension = 1.0, [0, 0, 0, 0]
+    multiplier = _MULTIPLIER.match(source)
+    if multiplier:
+        factor = float(multiplier.group(1))
+        if not (math.isfinite(factor) and factor > 0):
+            raise UnitError(f"unit {text!r}: the multiplier must be a positive number")
     sign = 1
-    position = 0
+    position = multiplier.end() if multiplier else 0
     expect_part = True
     while position < len(source):
         if expect_part:
@@ -134,6 +197,8 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
                     f"{MAX_UNIT_POWER} either way"
                 )
             power = int(power_text)
+            if power == 0:
+                raise UnitError(f"unit {text!r}: a power of 0 ({match.group(0).strip()!r})")
             if name in _AMBIGUOUS:
                 raise UnitError(f"unit {text!r}: {name!r} is ambiguous; write {_AMBIGUOUS[name]}")
             if name not in _BASE:
@@ -157,12 +222,31 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
             elif char.isspace():
                 position += 1
                 continue
+            elif source[position - 1].isspace():
+                expect_part = True  # a space between two unit names multiplies: "slug ft2"
+                continue
             else:
                 raise UnitError(f"unit {text!r}: unexpected {char!r} at position {position}")
             expect_part = True
     if expect_part:
         raise UnitError(f"unit {text!r}: ends with an operator")
     return factor, tuple(dimension)
+
+
+def _normalised(text: str) -> str:
+    """``text`` in the grammar's form: lower case, micro signs as ``u``, middle dots as
+    ``*``, superscript powers as ``^n`` (``slug·ft²`` → ``slug*ft^2``), ``g0`` as ``g``."""
+    source = text.strip().translate(_MICRO)
+    source = _SUPERSCRIPT.sub(lambda m: "^" + m.group(0).translate(_SUPERSCRIPT_DIGITS), source)
+    return _G0.sub("g", source.lower())
+
+
+def same_unit(first: str, second: str) -> bool:
+    """True when two unit labels mean the same unit (same dimension, factors equal to
+    10⁻⁹ relative): ``"deg/sec"`` and ``"deg/s"``, ``"slug*ft^2"`` and ``"slug ft2"``."""
+    f_first, d_first = parse_unit(first)
+    f_second, d_second = parse_unit(second)
+    return d_first == d_second and abs(f_first - f_second) <= 1e-9 * max(f_first, f_second)
 
 
 def convert_factor(from_unit: str, to_unit: str) -> float:
