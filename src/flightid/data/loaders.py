@@ -224,7 +224,7 @@ def _finish_table(
         )
     data = np.ascontiguousarray(data)
     data.flags.writeable = False
-    return Table(data, names, units, source, dict(constants or {}), dict(left_out or {}))
+    return Table(data, names, units, source, dict(constants or {}), left_out=dict(left_out or {}))
 
 
 # =====================================================================================
