@@ -13,7 +13,7 @@
     #        frequencies_hz = {start = 0.2, stop = 1.5, step = 0.04}, update_every_s = 1.0,
     #        parameter_names = [[...], [...]] (per state equation: A row, then B row),
     #        offsets = {zq = 1.0} (reported = coefficient − offset), n_mean = 10,
-    #        report = "last_5" (updates)
+    #        report = "last_5" (updates), input_delays_s = {de = 0.05} (fixed delays, s)
 
 The filters (EKF, UKF, UKF_aug, EFRLS) estimate the free parameters of ``[model]`` (built
 with ``[parameters]``, ``[initial_state]`` and ``[biases]`` as for output error; x0 is that of
@@ -57,6 +57,7 @@ _KEYS = {
         "parameter_names",
         "offsets",
         "n_mean",
+        "input_delays_s",
     },
 }
 _REQUIRED = {
@@ -161,7 +162,32 @@ def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
         if not isinstance(offsets, Mapping):
             raise CaseError(f"recursive.offsets: expected a table name = number, got {offsets!r}")
         settings["offsets"] = {k: _number(v, f"recursive.offsets.{k}") for k, v in offsets.items()}
+        settings["input_delays_s"] = _ftr_delays(
+            table.get("input_delays_s", {}), settings["inputs"]
+        )
     return settings
+
+
+def _ftr_delays(table: Any, inputs: Sequence[str]) -> dict[str, float]:
+    """``input_delays_s = {channel = τ}``: a fixed delay ≥ 0 (s) per named input channel."""
+    if not isinstance(table, Mapping):
+        raise CaseError(
+            f"recursive.input_delays_s: expected a table input channel = delay (s), got {table!r}"
+        )
+    delays = {}
+    for channel, value in table.items():
+        if channel not in inputs:
+            raise CaseError(
+                f"recursive.input_delays_s.{channel}: not one of recursive.inputs {list(inputs)}"
+            )
+        tau = _number(value, f"recursive.input_delays_s.{channel}")
+        if tau < 0:
+            raise CaseError(
+                f"recursive.input_delays_s.{channel}: expected a delay >= 0 s (the FTR cannot "
+                f"read inputs not yet fed), got {tau}"
+            )
+        delays[channel] = tau
+    return delays
 
 
 def _record(case: Case, data_dir: Path) -> tuple[list, np.ndarray, float]:
@@ -294,6 +320,7 @@ def run_recursive_case(
                 settings.get("parameter_names"),
                 settings["offsets"],
                 settings["n_mean"],
+                [settings["input_delays_s"].get(name, 0.0) for name in inputs],
             )
         except InputError as exc:
             raise CaseError(f"recursive.{exc}") from None

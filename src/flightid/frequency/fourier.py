@@ -244,6 +244,9 @@ class ManeuverSpectra:
         duration_s: T, s.
         n_samples: N.
         name: the maneuver's name.
+        input_ends: (2, n_u) the detrended inputs at the first and the last sample (for the
+            ends of a delayed input, ``flightid.frequency.output_error.delayed_inputs``);
+            None: not known (a delay then enters as e^{−jωτ}U(ω) alone).
     """
 
     frequencies_hz: np.ndarray
@@ -254,6 +257,7 @@ class ManeuverSpectra:
     duration_s: float
     n_samples: int
     name: str = ""
+    input_ends: np.ndarray | None = None
 
     @property
     def end_phase_constant(self) -> bool:
@@ -305,4 +309,5 @@ def maneuver_spectra(
         duration_s=duration,
         n_samples=int(t.shape[0]),
         name=name,
+        input_ends=np.vstack([u[0], u[-1]]),
     )

@@ -66,6 +66,8 @@ from flightid.frequency.linear_system import LinearSystem
 
 __all__ = [
     "OutputErrorFit",
+    "check_equation_count",
+    "delayed_inputs",
     "model_response",
     "nuisance_names",
     "nuisance_sensitivities",
@@ -137,6 +139,30 @@ def _per_maneuver_count(
     return boundary_count + ((n_y if boundary else n_x + n_y) if constants else 0)
 
 
+def delayed_inputs(system: LinearSystem, spectra: ManeuverSpectra) -> np.ndarray:
+    """Transforms Ũ(ω) (K, n_u) of the inputs the model sees, ũ(t) = u(t − τ) on [0, T]
+    with u(t) = u(0) held before the record (the time-domain convention):
+
+        Ũ(ω) = e^{−jωτ} U(ω) + (1 − e^{−jωτ})/(jω) · [u(0) − u(T) e^{−jωT}]
+
+    The first term is the delay; the second adds the held start value over [0, τ] and
+    removes the last τ seconds of the record (taken as u(T) there), which the delayed input
+    never reaches. Exact for the head, first order in τ·u̇ for the tail. Undelayed inputs:
+    U(ω) unchanged. Without ``spectra.input_ends`` only the first term."""
+    omega = spectra.omega_rad_s
+    if not np.any(system.input_delays_s):
+        return spectra.inputs
+    phase = system.input_phase(omega)
+    # e^{−jωτ} U(ω)
+    delayed = spectra.inputs * phase
+    if spectra.input_ends is not None:
+        start, end = spectra.input_ends
+        # + (1 − e^{−jωτ})/(jω) · [u(0) − u(T) e^{−jωT}]
+        ends = start[None, :] - spectra.end_phase[:, None] * end[None, :]
+        delayed = delayed + (1.0 - phase) / (1j * omega[:, None]) * ends
+    return delayed
+
+
 def model_response(
     system: LinearSystem,
     spectra: ManeuverSpectra,
@@ -153,8 +179,9 @@ def model_response(
     if nuisance is None:
         nuisance = np.zeros(_per_maneuver_count(n_x, n_y, boundary, constants, merged))
     omega = spectra.omega_rad_s
+    inputs = delayed_inputs(system, spectra)
     # right-hand side B U(ω) (K, n_x)
-    rhs = spectra.inputs @ B.T
+    rhs = inputs @ B.T
     i = 0
     if boundary and merged:
         # + (x(0) − x(T) e^{−jωT}), one constant vector
@@ -175,8 +202,8 @@ def model_response(
     # X(ω) = (jωI − A)⁻¹ rhs(ω)
     resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
     states = np.linalg.solve(resolvent, rhs[:, :, None])[:, :, 0]
-    # Y(ω) = C X + D U (+ d E)
-    y = states @ C.T + spectra.inputs @ D.T
+    # Y(ω) = e^{−jωτ_y} (C X + D U) (+ d E): a delayed constant stays a constant
+    y = (states @ C.T + inputs @ D.T) * system.output_phase(omega)
     if constants:
         y = y + spectra.constant[:, None] * d[None, :]
     return y
@@ -191,15 +218,15 @@ def nuisance_sensitivities(
 ) -> np.ndarray:
     """∂Y/∂(nuisance) (K, n_y, count) of one maneuver, in ``nuisance_names`` order:
 
-    ∂Y/∂x(0) = C G,   ∂Y/∂x(T) = −e^{−jωT} C G,   ∂Y/∂c = E C G,   ∂Y/∂d = E I,
-    G(ω) = (jωI − A)⁻¹.
+    ∂Y/∂x(0) = Φ C G,   ∂Y/∂x(T) = −e^{−jωT} Φ C G,   ∂Y/∂c = E Φ C G,   ∂Y/∂d = E I,
+    G(ω) = (jωI − A)⁻¹,  Φ(ω) = diag(e^{−jωτ_y}) (the output delays).
     """
     A, C = system.A, system.C
     n_x, n_y = A.shape[0], C.shape[0]
     omega = spectra.omega_rad_s
     resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
-    # C G(ω) (K, n_y, n_x)
-    cg = C[None] @ np.linalg.inv(resolvent)
+    # Φ C G(ω) (K, n_y, n_x)
+    cg = system.output_phase(omega)[:, :, None] * (C[None] @ np.linalg.inv(resolvent))
     blocks = []
     if boundary and spectra.end_phase_constant:
         blocks.append(cg)
@@ -235,6 +262,33 @@ def checked_start(
     if not spectra:
         raise InputError("spectra: expected at least one maneuver")
     return theta_start, free
+
+
+def check_equation_count(
+    spectra: Sequence[ManeuverSpectra],
+    n_free: int,
+    n_states: int,
+    n_outputs: int,
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+) -> np.ndarray:
+    """Where each maneuver's nuisance parameters start in the nuisance vector (n_m + 1
+    offsets), after checking that the 2·n_y·K real equations outnumber the unknowns (free
+    parameters plus nuisance); else ``InputError`` saying how many of each."""
+    counts = [
+        _per_maneuver_count(n_states, n_outputs, boundary, constants, s.end_phase_constant)
+        for s in spectra
+    ]
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    n_total_freq = sum(s.frequencies_hz.size for s in spectra)
+    n_unknowns = n_free + int(starts[-1])
+    if 2 * n_outputs * n_total_freq <= n_unknowns:
+        raise InputError(
+            f"band_hz/step_hz: {n_total_freq} frequencies give {2 * n_outputs * n_total_freq} "
+            f"real equations for {n_unknowns} unknowns; widen the band or refine the step"
+        )
+    return starts
 
 
 def output_error(
@@ -273,20 +327,10 @@ def output_error(
             raise InputError(
                 f"spectra: maneuver {s.name!r} has {s.outputs.shape[1]} outputs, expected {n_y}"
             )
-    counts = [
-        _per_maneuver_count(n_x, n_y, boundary, constants, s.end_phase_constant) for s in spectra
-    ]
-    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    n_free = int(free.sum())
+    starts = check_equation_count(spectra, n_free, n_x, n_y, boundary=boundary, constants=constants)
     n_nuisance = int(starts[-1])
     nuis_names = nuisance_names(states, outputs, spectra, boundary=boundary, constants=constants)
-    n_free = int(free.sum())
-    n_total_freq = sum(s.frequencies_hz.size for s in spectra)
-    n_unknowns = n_free + n_nuisance
-    if 2 * n_y * n_total_freq <= n_unknowns:
-        raise InputError(
-            f"band_hz/step_hz: {n_total_freq} frequencies give {2 * n_y * n_total_freq} real "
-            f"equations for {n_unknowns} unknowns; widen the band or refine the step"
-        )
     scales = np.maximum(np.abs(theta_start), 0.01) if scales is None else np.asarray(scales, float)
 
     def unpack(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
