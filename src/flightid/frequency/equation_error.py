@@ -33,10 +33,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flightid.errors import InputError
+from flightid.errors import InputError, describe
+from flightid.frequency.arguments import boolean_mask, checked_callable, name_list, real_array
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
-from flightid.frequency.output_error import checked_start, delayed_inputs
+from flightid.frequency.output_error import (
+    checked_model_arguments,
+    checked_start,
+    delayed_inputs,
+)
 
 __all__ = [
     "ComplexRegression",
@@ -64,8 +69,16 @@ class ComplexRegression:
 
 def complex_least_squares(regressors: np.ndarray, response: np.ndarray) -> ComplexRegression:
     """Real θ minimising Σ|z − Xθ|² for complex X (K, p) and z (K,)."""
-    X = np.asarray(regressors, dtype=complex)
-    z = np.asarray(response, dtype=complex).reshape(-1)
+    try:
+        X = np.asarray(regressors, dtype=complex)
+        z = np.asarray(response, dtype=complex).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"regressors/response: expected complex numbers, got {describe(regressors)} and "
+            f"{describe(response)}"
+        ) from None
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(z))):
+        raise InputError("regressors/response: expected finite values")
     if X.ndim != 2 or X.shape[0] != z.shape[0]:
         raise InputError(
             f"regressors: expected a (K, p) array with K = {z.shape[0]} rows, got {X.shape}"
@@ -175,9 +188,10 @@ def equation_error_structure(
     of [C D] of an output that measures no state. Raises the ``InputError`` of
     ``equation_error`` for a model it cannot take (not affine in the free parameters, a
     state not measured, delayed outputs)."""
-    theta_start = np.asarray(theta_start, dtype=float)
-    free = np.asarray(free, dtype=bool)
-    ab0, cd0, g_ab, g_cd = _affine_rows(system_of, theta_start, free)
+    theta_start = real_array(theta_start, "theta_start", "start values (numbers)")
+    free = boolean_mask(free, "free", theta_start.size)
+    states, outputs = name_list(states, "states"), name_list(outputs, "outputs")
+    ab0, cd0, g_ab, g_cd = _affine_rows(checked_callable(system_of, "system_of"), theta_start, free)
     measured = _measured_outputs(system_of(theta_start), cd0, g_cd, states, outputs)
     determined = np.zeros(theta_start.size, dtype=bool)
     for q, j in enumerate(np.flatnonzero(free)):
@@ -206,6 +220,9 @@ def equation_error(
     free delay parameter is left undetermined (``estimated`` False); output delays are refused.
     """
     theta_start, free = checked_start(theta_start, free, spectra)
+    states, outputs = checked_model_arguments(
+        system_of, theta_start, spectra, states, outputs, boundary, constants
+    )
     n_x = len(states)
     ab0, cd0, g_ab, g_cd = _affine_rows(system_of, theta_start, free)
     delays = system_of(theta_start)

@@ -33,7 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flightid.errors import InputError
+from flightid.errors import InputError, describe
+from flightid.frequency.arguments import real_array
 from flightid.model.statespace import StateSpaceModel
 
 __all__ = ["LinearSystem", "linear_system", "bias_like_parameters"]
@@ -104,6 +105,8 @@ def linear_system(model: StateSpaceModel, theta: np.ndarray | None = None) -> Li
         InputError: the model has per-maneuver parameters, or f / h are not affine in
             (x, u) (checked at three seeded random points).
     """
+    if not isinstance(model, StateSpaceModel):
+        raise InputError(f"model: expected a StateSpaceModel, got {describe(model)}")
     if model.maneuver_parameters:
         raise InputError(
             "model: frequency-domain estimation takes one parameter set for all maneuvers; "
@@ -111,7 +114,12 @@ def linear_system(model: StateSpaceModel, theta: np.ndarray | None = None) -> Li
         )
     if model.f is None or not model.states:
         raise InputError("model: frequency-domain estimation needs a model with states (f)")
-    theta = model.parameters.values if theta is None else np.asarray(theta, dtype=float)
+    theta = model.parameters.values if theta is None else real_array(theta, "theta", "numbers")
+    if theta.shape != (len(model.parameters),) or not np.all(np.isfinite(theta)):
+        raise InputError(
+            f"theta: expected {len(model.parameters)} finite values (the full parameter vector "
+            f"{model.parameters.names}), got {describe(theta)}"
+        )
     theta_f = model.function_theta(theta)
     n_x, n_u, n_y = len(model.states), len(model.inputs), len(model.outputs)
     zx, zu = np.zeros(n_x), np.zeros(n_u)
@@ -162,8 +170,8 @@ def linear_system(model: StateSpaceModel, theta: np.ndarray | None = None) -> Li
 def bias_like_parameters(model: StateSpaceModel) -> list[str]:
     """Free parameters that move only f_0 or h_0 (not A, B, C, D nor a delay): biases,
     which a band excluding ω = 0 on mean-removed data cannot determine."""
+    base = linear_system(model)
     theta = model.parameters.values.astype(float)
-    base = linear_system(model, theta)
     names = []
     for j, name in enumerate(model.parameters.names):
         if not model.parameters.free_mask[j]:

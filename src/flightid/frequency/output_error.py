@@ -60,7 +60,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from flightid.errors import EstimationError, InputError
+from flightid.errors import EstimationError, InputError, describe
+from flightid.frequency.arguments import (
+    boolean_mask,
+    checked_callable,
+    finite_number,
+    flag,
+    name_list,
+    positive_integer,
+    real_array,
+    spectra_list,
+)
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
 
@@ -173,11 +183,26 @@ def model_response(
 ) -> np.ndarray:
     """Y(ω) (K, n_y) of one maneuver; ``nuisance`` holds this maneuver's x(0), x(T), c, d in
     the order of ``nuisance_names`` (zeros when None)."""
+    if not isinstance(system, LinearSystem):
+        raise InputError(f"system: expected a LinearSystem, got {describe(system)}")
+    if not isinstance(spectra, ManeuverSpectra):
+        raise InputError(
+            f"spectra: expected one maneuver's ManeuverSpectra, got {describe(spectra)}"
+        )
     A, B, C, D = system.A, system.B, system.C, system.D
     n_x, n_y = A.shape[0], C.shape[0]
     merged = spectra.end_phase_constant
+    count = _per_maneuver_count(
+        n_x, n_y, flag(boundary, "boundary"), flag(constants, "constants"), merged
+    )
     if nuisance is None:
-        nuisance = np.zeros(_per_maneuver_count(n_x, n_y, boundary, constants, merged))
+        nuisance = np.zeros(count)
+    nuisance = real_array(nuisance, "nuisance", "nuisance values")
+    if nuisance.shape != (count,):
+        raise InputError(
+            f"nuisance: expected {count} values (nuisance_names of this maneuver), got "
+            f"{describe(nuisance)}"
+        )
     omega = spectra.omega_rad_s
     inputs = delayed_inputs(system, spectra)
     # right-hand side B U(ω) (K, n_x)
@@ -249,19 +274,50 @@ def _real_stack(weighted: np.ndarray) -> np.ndarray:
 def checked_start(
     theta_start: np.ndarray, free: np.ndarray, spectra: Sequence[ManeuverSpectra]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """θ_start as floats and ``free`` as a boolean mask of its shape, with at least one
-    maneuver's spectra (the arguments of ``output_error`` and ``equation_error``); else
+    """θ_start as finite floats and ``free`` as a boolean mask of its shape, with at least
+    one maneuver's spectra (the arguments of ``output_error`` and ``equation_error``); else
     ``InputError`` saying what came."""
-    theta_start = np.asarray(theta_start, dtype=float)
-    free = np.asarray(free, dtype=bool)
-    if theta_start.shape != free.shape or theta_start.ndim != 1:
+    theta_start = real_array(theta_start, "theta_start", "start values (numbers)")
+    if theta_start.ndim != 1 or not np.all(np.isfinite(theta_start)):
         raise InputError(
-            f"free: expected a mask of the shape of theta_start {theta_start.shape}, "
-            f"got {free.shape}"
+            f"theta_start: expected a 1-D array of finite start values, got {describe(theta_start)}"
         )
-    if not spectra:
-        raise InputError("spectra: expected at least one maneuver")
+    free = boolean_mask(free, "free", theta_start.size)
+    spectra_list(spectra)
     return theta_start, free
+
+
+def checked_model_arguments(
+    system_of: SystemFunction,
+    theta_start: np.ndarray,
+    spectra: Sequence[ManeuverSpectra],
+    states: Sequence[str],
+    outputs: Sequence[str],
+    boundary: bool,
+    constants: bool,
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Check ``system_of`` (θ → ``LinearSystem`` of len(states) states, len(outputs) outputs
+    and the spectra's inputs), the names and the two flags; the names as tuples."""
+    checked_callable(system_of, "system_of")
+    states, outputs = name_list(states, "states"), name_list(outputs, "outputs")
+    flag(boundary, "boundary")
+    flag(constants, "constants")
+    system = system_of(theta_start)
+    if not isinstance(system, LinearSystem):
+        raise InputError(f"system_of: expected a LinearSystem for θ, got {describe(system)}")
+    n_u = system.B.shape[1]
+    if system.A.shape[0] != len(states) or system.C.shape[0] != len(outputs):
+        raise InputError(
+            f"states/outputs: the system has {system.A.shape[0]} states and "
+            f"{system.C.shape[0]} outputs, the names {len(states)} and {len(outputs)}"
+        )
+    for s in spectra:
+        if s.inputs.shape[1] != n_u or s.outputs.shape[1] != len(outputs):
+            raise InputError(
+                f"spectra: maneuver {s.name!r} has {s.inputs.shape[1]} inputs and "
+                f"{s.outputs.shape[1]} outputs, the system {n_u} and {len(outputs)}"
+            )
+    return states, outputs
 
 
 def check_equation_count(
@@ -321,17 +377,26 @@ def output_error(
         scales: typical magnitudes of θ (for the difference steps); default max(|θ|, 0.01).
     """
     theta_start, free = checked_start(theta_start, free, spectra)
-    n_x, n_y = len(states), len(outputs)
-    for s in spectra:
-        if s.outputs.shape[1] != n_y:
+    states, outputs = checked_model_arguments(
+        system_of, theta_start, spectra, states, outputs, boundary, constants
+    )
+    max_noise_cycles = positive_integer(max_noise_cycles, "max_noise_cycles")
+    tolerance = finite_number(tolerance, "tolerance", positive=True)
+    if tolerance >= 1.0:
+        raise InputError(f"tolerance: expected a relative change in (0, 1), got {tolerance!r}")
+    if scales is not None:
+        scales = real_array(scales, "scales", "typical magnitudes of θ")
+        if scales.shape != theta_start.shape or not np.all(np.isfinite(scales) & (scales > 0)):
             raise InputError(
-                f"spectra: maneuver {s.name!r} has {s.outputs.shape[1]} outputs, expected {n_y}"
+                f"scales: expected {theta_start.size} finite magnitudes > 0, one per "
+                f"parameter, got {describe(scales)}"
             )
+    n_x, n_y = len(states), len(outputs)
     n_free = int(free.sum())
     starts = check_equation_count(spectra, n_free, n_x, n_y, boundary=boundary, constants=constants)
     n_nuisance = int(starts[-1])
     nuis_names = nuisance_names(states, outputs, spectra, boundary=boundary, constants=constants)
-    scales = np.maximum(np.abs(theta_start), 0.01) if scales is None else np.asarray(scales, float)
+    scales = np.maximum(np.abs(theta_start), 0.01) if scales is None else scales
 
     def unpack(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         theta = theta_start.copy()

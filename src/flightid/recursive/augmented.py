@@ -199,7 +199,11 @@ class AugmentedModel:
                 "x_a = (x, θ)); this one has none"
             )
         _check_recursive_model(model)
-        x0 = np.asarray(x0, dtype=float)
+        from flightid.recursive.base import float_array
+
+        if not isinstance(compiled, (bool, np.bool_)):
+            raise InputError(f"compiled: expected True or False, got {describe(compiled)}")
+        x0 = float_array(x0, "x0", f"{len(model.states)} initial states")
         if x0.shape != (len(model.states),):
             raise InputError(
                 f"x0: expected {len(model.states)} initial states {list(model.states)}, "

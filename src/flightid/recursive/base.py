@@ -59,8 +59,11 @@ def float_array(value: object, argument: str, what: str = "numbers") -> np.ndarr
     return array
 
 
-def diagonal_matrix(value: float | Sequence[float], n: int, argument: str) -> np.ndarray:
-    """``value``·I (a number) or diag(value) (a list of n numbers), all ≥ 0 and finite."""
+def diagonal_matrix(
+    value: float | Sequence[float], n: int, argument: str, *, positive: bool = False
+) -> np.ndarray:
+    """``value``·I (a number) or diag(value) (a list of n numbers), all ≥ 0 (> 0 with
+    ``positive``) and finite."""
     array = float_array(value, argument, f"a number or a list of {n} numbers")
     if array.ndim > 1 or (array.ndim == 1 and array.size != n):
         raise InputError(
@@ -68,6 +71,11 @@ def diagonal_matrix(value: float | Sequence[float], n: int, argument: str) -> np
         )
     if not np.all(np.isfinite(array)) or np.any(array < 0):
         raise InputError(f"{argument}: expected finite values >= 0, got {np.ravel(array).tolist()}")
+    if positive and np.any(array == 0):
+        raise InputError(
+            f"{argument}: expected values > 0 (a zero variance makes the filter's gain "
+            f"singular), got {np.ravel(array).tolist()}"
+        )
     return np.diag(np.broadcast_to(array, (n,)).astype(float))
 
 
@@ -126,6 +134,8 @@ class RecursiveEstimatorBase:
         """Process one sample: time ``t`` (s), inputs ``u``, measured outputs ``z``."""
         u = _check_series(u, self.n_inputs, "u")
         z = _check_series(z, self.n_outputs, "z")
+        if isinstance(t, (bool, np.bool_)) or not isinstance(t, (int, float, np.number)):
+            raise InputError(f"t: expected a time in s (a number), got {describe(t)}")
         t = float(t)
         if not np.isfinite(t):
             raise InputError(f"t: expected a finite time, got {t}")
@@ -237,7 +247,7 @@ class AugmentedFilter(RecursiveEstimatorBase):
         n_x, n = self.augmented.n_x, self.augmented.n
         Q = np.zeros((n, n))
         Q[:n_x, :n_x] = diagonal_matrix(q_states, n_x, "q_states")
-        return Q, diagonal_matrix(r0, self.augmented.n_y, "r0")
+        return Q, diagonal_matrix(r0, self.augmented.n_y, "r0", positive=True)
 
     def reset(self) -> None:
         super().reset()

@@ -115,7 +115,9 @@ class FourierTransformRegression(RecursiveEstimatorBase):
                 or value < (name == "n_states")
             ):
                 raise InputError(f"{name}: expected a non-negative integer, got {value!r}")
-        freq = np.asarray(frequencies_hz, dtype=float)
+        from flightid.recursive.base import float_array
+
+        freq = float_array(frequencies_hz, "frequencies_hz", "frequencies (Hz)")
         n_p = n_states + n_inputs
         if freq.ndim != 1 or freq.size <= n_p or not np.all(np.isfinite(freq)) or np.any(freq <= 0):
             raise InputError(
@@ -132,6 +134,17 @@ class FourierTransformRegression(RecursiveEstimatorBase):
                 + [f"B{i + 1}{j + 1}" for j in range(n_inputs)]
                 for i in range(n_states)
             ]
+        if (
+            isinstance(parameter_names, str)
+            or not isinstance(parameter_names, Sequence)
+            or not all(
+                isinstance(row, Sequence) and not isinstance(row, str) for row in parameter_names
+            )
+        ):
+            raise InputError(
+                f"parameter_names: expected {n_states} rows of {n_p} names, got "
+                f"{describe(parameter_names)}"
+            )
         rows = [list(row) for row in parameter_names]
         if len(rows) != n_states or any(len(row) != n_p for row in rows):
             raise InputError(
@@ -140,10 +153,19 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         names = [name for row in rows for name in row]
         if len(set(names)) != len(names) or not all(isinstance(n, str) for n in names):
             raise InputError(f"parameter_names: expected unique names, got {names}")
+        if offsets is not None and not isinstance(offsets, Mapping):
+            raise InputError(f"offsets: expected a mapping name → number, got {describe(offsets)}")
         offsets = dict(offsets or {})
         unknown = [name for name in offsets if name not in names]
         if unknown:
             raise InputError(f"offsets: {unknown} are not parameter names {names}")
+        for name, value in offsets.items():
+            if (
+                isinstance(value, (bool, np.bool_))
+                or not isinstance(value, (int, float, np.number))
+                or not np.isfinite(value)
+            ):
+                raise InputError(f"offsets[{name!r}]: expected a finite number, got {value!r}")
         self.n_states, self.n_inputs, self.n_outputs = n_states, n_inputs, n_states
         self.frequencies_hz = freq
         # ω = 2πf (rad/s)
