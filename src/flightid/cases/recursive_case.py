@@ -137,6 +137,16 @@ def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
         settings["inputs"] = _names(table["inputs"], "recursive.inputs")
         if not settings["states"]:
             raise CaseError("recursive.states: expected at least one state channel, got []")
+        for key in ("states", "inputs"):
+            repeated = sorted({n for n in settings[key] if settings[key].count(n) > 1})
+            if repeated:
+                raise CaseError(f"recursive.{key}: {repeated} named more than once")
+        both = sorted(set(settings["states"]) & set(settings["inputs"]))
+        if both:
+            raise CaseError(
+                f"recursive.inputs: {both} also named in recursive.states (a channel is a "
+                "state or an input)"
+            )
         grid = table["frequencies_hz"]
         if not isinstance(grid, Mapping):
             raise CaseError(
