@@ -38,7 +38,14 @@ from flightid.cases.checks import CaseError, _bool, _integer, _known, _number, _
 from flightid.errors import InputError
 from flightid.results import ResultSurface, finite_or_none
 
-__all__ = ["FrequencyResult", "FrequencySettings", "frequency_settings", "run_frequency_case"]
+__all__ = [
+    "FrequencyPreparation",
+    "FrequencyResult",
+    "FrequencySettings",
+    "frequency_settings",
+    "prepare_frequency_case",
+    "run_frequency_case",
+]
 
 _KEYS = {
     "method",
@@ -163,11 +170,9 @@ class FrequencyResult(ResultSurface):
 
     # ---------------------------------------------------------------- model helpers
     def model_transfer(self, frequencies_hz: np.ndarray) -> np.ndarray:
-        """H(jω) = C (jωI − A)⁻¹ B + D at the estimate, (F, n_y, n_u)."""
-        s = 2j * np.pi * np.asarray(frequencies_hz, dtype=float)
-        A, B, C, D = self.system.A, self.system.B, self.system.C, self.system.D
-        eye = np.eye(A.shape[0])
-        return np.array([C @ np.linalg.solve(si * eye - A, B) + D for si in s])
+        """H(jω) = diag(e^{−jωτ_y}) [C (jωI − A)⁻¹ B + D] diag(e^{−jωτ_u}) at the estimate,
+        (F, n_y, n_u) (``LinearSystem.transfer``)."""
+        return self.system.transfer(frequencies_hz)
 
     def equivalent_variances(self) -> np.ndarray:
         """Time-domain equivalent of the residual spectral covariance, R_j = S_jj/(Δt T)
@@ -383,31 +388,34 @@ class FrequencyResult(ResultSurface):
 Progress = Callable[[str], None]
 
 
-def run_frequency_case(
-    case, data_dir: str | Path | None = None, progress: Progress | None = None
-) -> FrequencyResult:
-    """Run the case's frequency-domain estimation; ``CaseError`` for a malformed table or a
-    model the frequency domain cannot take."""
-    from flightid.cases.build import (
-        base_model,
-        build_model,
-        load_maneuvers,
-        maneuver_entry,
-        resolve_data_dir,
-    )
-    from flightid.frequency.equation_error import equation_error
+@dataclass(frozen=True)
+class FrequencyPreparation:
+    """Everything a frequency-domain run checks before it estimates (``validate`` stops
+    here): the settings, the model and its matrix form, the maneuvers and their spectra,
+    which parameters are estimated."""
+
+    settings: FrequencySettings
+    model: Any
+    description: str
+    maneuvers: tuple
+    names: tuple[str, ...]
+    free: np.ndarray
+    not_estimated: dict[str, str]
+    frequencies: np.ndarray
+    spectra: tuple
+
+
+def prepare_frequency_case(case, data_dir: str | Path | None = None) -> FrequencyPreparation:
+    """Read and check everything a frequency-domain run needs before estimating: the
+    ``[frequency_domain]`` table, the data, the model (linear in x and u), the band against
+    each maneuver's Nyquist frequency, the number of equations against the unknowns, and
+    for equation error the measured states and the parameters it can determine. Every
+    failure is a ``CaseError`` naming the key."""
+    from flightid.cases.build import base_model, build_model, load_maneuvers, resolve_data_dir
     from flightid.frequency.fourier import frequency_grid, maneuver_spectra
     from flightid.frequency.linear_system import bias_like_parameters, linear_system
-    from flightid.frequency.output_error import model_response, output_error
 
     settings = frequency_settings(case.frequency_domain)
-    started = _time.perf_counter()
-    case_file = Path(case.path) if case.path is not None else None
-    case_sha256 = (
-        hashlib.sha256(case_file.read_bytes()).hexdigest()
-        if case_file is not None and case_file.is_file()
-        else ""
-    )
     directory = resolve_data_dir(case, data_dir)
     maneuvers = load_maneuvers(case, directory)
     base, description = base_model(case, directory)
@@ -452,6 +460,81 @@ def run_frequency_case(
             )
     except InputError as exc:
         raise CaseError(f"frequency_domain: {exc}") from None
+    _check_estimator(settings, model, free, spectra)
+    return FrequencyPreparation(
+        settings=settings,
+        model=model,
+        description=description,
+        maneuvers=tuple(maneuvers),
+        names=names,
+        free=free,
+        not_estimated=not_estimated,
+        frequencies=frequencies,
+        spectra=tuple(spectra),
+    )
+
+
+def _check_estimator(settings: FrequencySettings, model, free: np.ndarray, spectra) -> None:
+    """The estimator's own checks that need no estimate: enough equations for the unknowns
+    (output error) and, for equation error, measured states and every free parameter in
+    some equation."""
+    from flightid.frequency.equation_error import equation_error_structure
+    from flightid.frequency.linear_system import linear_system
+    from flightid.frequency.output_error import check_equation_count
+
+    names = model.parameters.names
+    theta0 = model.parameters.values.astype(float)
+    try:
+        if settings.method == "output_error":
+            check_equation_count(
+                spectra,
+                int(free.sum()),
+                len(model.states),
+                len(model.outputs),
+                boundary=settings.boundary,
+                constants=settings.constants,
+            )
+        if settings.method == "equation_error" or settings.start == "equation_error":
+            determined = equation_error_structure(
+                lambda theta: linear_system(model, theta),
+                theta0,
+                free,
+                tuple(model.states),
+                tuple(model.outputs),
+            )
+    except InputError as exc:
+        raise CaseError(f"frequency_domain: {exc}") from None
+    if settings.method == "equation_error":
+        undetermined = [n for n, f, e in zip(names, free, determined, strict=True) if f and not e]
+        if undetermined:
+            raise CaseError(
+                f"frequency_domain.method: equation error determines no equation for "
+                f'{undetermined}; use method = "output_error"'
+            )
+
+
+def run_frequency_case(
+    case, data_dir: str | Path | None = None, progress: Progress | None = None
+) -> FrequencyResult:
+    """Run the case's frequency-domain estimation; ``CaseError`` for a malformed table or a
+    model the frequency domain cannot take (``prepare_frequency_case``)."""
+    from flightid.cases.build import maneuver_entry
+    from flightid.frequency.equation_error import equation_error
+    from flightid.frequency.linear_system import linear_system
+    from flightid.frequency.output_error import model_response, output_error
+
+    started = _time.perf_counter()
+    case_file = Path(case.path) if case.path is not None else None
+    case_sha256 = (
+        hashlib.sha256(case_file.read_bytes()).hexdigest()
+        if case_file is not None and case_file.is_file()
+        else ""
+    )
+    prepared = prepare_frequency_case(case, data_dir)
+    settings, model, description = prepared.settings, prepared.model, prepared.description
+    maneuvers, names, free = prepared.maneuvers, prepared.names, prepared.free
+    not_estimated, frequencies = prepared.not_estimated, prepared.frequencies
+    spectra = list(prepared.spectra)
     if progress is not None:
         progress(
             f"frequency domain: {frequencies.size} frequencies in {settings.band_hz} Hz × "
@@ -476,14 +559,7 @@ def run_frequency_case(
                 constants=settings.constants,
             )
         if settings.method == "equation_error":
-            undetermined = [
-                n for n, f, e in zip(names, free, ee.estimated, strict=True) if f and not e
-            ]
-            if undetermined:
-                raise CaseError(
-                    f"frequency_domain.method: equation error determines no equation for "
-                    f'{undetermined}; use method = "output_error"'
-                )
+            # (every free parameter is in some equation: prepare_frequency_case checked it)
             system = system_of(ee.theta)
             model_outputs = tuple(
                 model_response(system, s, None, boundary=False, constants=False) for s in spectra

@@ -13,7 +13,7 @@
     #        frequencies_hz = {start = 0.2, stop = 1.5, step = 0.04}, update_every_s = 1.0,
     #        parameter_names = [[...], [...]] (per state equation: A row, then B row),
     #        offsets = {zq = 1.0} (reported = coefficient − offset), n_mean = 10,
-    #        report = "last_5" (updates)
+    #        report = "last_5" (updates), input_delays_s = {de = 0.05} (fixed delays, s)
 
 The filters (EKF, UKF, UKF_aug, EFRLS) estimate the free parameters of ``[model]`` (built
 with ``[parameters]``, ``[initial_state]`` and ``[biases]`` as for output error; x0 is that of
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +46,13 @@ from flightid.cases.checks import CaseError, _bool, _integer, _known, _names, _n
 from flightid.cases.spec import Case
 from flightid.errors import InputError
 
-__all__ = ["run_recursive_case", "RECURSIVE_METHODS", "recursive_settings"]
+__all__ = [
+    "RECURSIVE_METHODS",
+    "RecursivePreparation",
+    "prepare_recursive_case",
+    "recursive_settings",
+    "run_recursive_case",
+]
 
 RECURSIVE_METHODS = ("ekf", "ukf", "ukf_aug", "efrls", "ftr")
 _COMMON = {"method", "report", "compiled"}
@@ -63,6 +70,7 @@ _KEYS = {
         "parameter_names",
         "offsets",
         "n_mean",
+        "input_delays_s",
     },
 }
 _REQUIRED = {
@@ -135,6 +143,16 @@ def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
         settings["inputs"] = _names(table["inputs"], "recursive.inputs")
         if not settings["states"]:
             raise CaseError("recursive.states: expected at least one state channel, got []")
+        for key in ("states", "inputs"):
+            repeated = sorted({n for n in settings[key] if settings[key].count(n) > 1})
+            if repeated:
+                raise CaseError(f"recursive.{key}: {repeated} named more than once")
+        both = sorted(set(settings["states"]) & set(settings["inputs"]))
+        if both:
+            raise CaseError(
+                f"recursive.inputs: {both} also named in recursive.states (a channel is a "
+                "state or an input)"
+            )
         grid = table["frequencies_hz"]
         if not isinstance(grid, Mapping):
             raise CaseError(
@@ -167,7 +185,32 @@ def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
         if not isinstance(offsets, Mapping):
             raise CaseError(f"recursive.offsets: expected a table name = number, got {offsets!r}")
         settings["offsets"] = {k: _number(v, f"recursive.offsets.{k}") for k, v in offsets.items()}
+        settings["input_delays_s"] = _ftr_delays(
+            table.get("input_delays_s", {}), settings["inputs"]
+        )
     return settings
+
+
+def _ftr_delays(table: Any, inputs: Sequence[str]) -> dict[str, float]:
+    """``input_delays_s = {channel = τ}``: a fixed delay ≥ 0 (s) per named input channel."""
+    if not isinstance(table, Mapping):
+        raise CaseError(
+            f"recursive.input_delays_s: expected a table input channel = delay (s), got {table!r}"
+        )
+    delays = {}
+    for channel, value in table.items():
+        if channel not in inputs:
+            raise CaseError(
+                f"recursive.input_delays_s.{channel}: not one of recursive.inputs {list(inputs)}"
+            )
+        tau = _number(value, f"recursive.input_delays_s.{channel}")
+        if tau < 0:
+            raise CaseError(
+                f"recursive.input_delays_s.{channel}: expected a delay >= 0 s (the FTR cannot "
+                f"read inputs not yet fed), got {tau}"
+            )
+        delays[channel] = tau
+    return delays
 
 
 def _record(case: Case, data_dir: Path) -> tuple[list, np.ndarray, float]:
@@ -253,20 +296,36 @@ def _filter(settings: Mapping[str, Any], augmented):
         raise CaseError(f"recursive.{exc}") from None
 
 
-def run_recursive_case(
-    case: Case,
-    data_dir: str | Path | None = None,
-    progress: Callable[[str], None] | None = None,
-):
-    """Run the case's recursive estimation; returns a ``RecursiveResult``.
+@dataclass(frozen=True)
+class RecursivePreparation:
+    """Everything a recursive run checks before it feeds the first sample (``validate``
+    stops here): the settings, the joined record, the estimator, the input and measured
+    channels."""
 
-    Raises ``CaseError`` for a wrong ``[recursive]`` key or data, ``RecursiveDivergenceError``
-    when the filter diverges.
-    """
-    from flightid.recursive import AugmentedModel, FourierTransformRegression, RecursiveEstimator
+    settings: dict[str, Any]
+    maneuvers: list
+    time: np.ndarray
+    dt: float
+    estimator: Any
+    inputs: np.ndarray
+    measured: np.ndarray
+    units: list[str] | None
+    initial: list[float] | None
+    description: str
+    outputs: list[str]
+    r0: list[float]
 
+
+def prepare_recursive_case(
+    case: Case, data_dir: str | Path | None = None, *, compile_model: bool | None = None
+) -> RecursivePreparation:
+    """Read and check everything a recursive run needs before feeding samples: the
+    ``[recursive]`` table, the record (one sample interval), the channels, the model and the
+    filter's settings against it, or for the FTR the frequencies against the Nyquist
+    frequency and the update interval against the record. ``compile_model`` False builds
+    the filter's model loops in plain Python (same checks, no numba compilation; None: the
+    table's ``compiled``). Every failure is a ``CaseError`` naming the key."""
     settings = recursive_settings(case.recursive)
-    method = settings["method"]
     directory = resolve_data_dir(case, data_dir)
     if not directory.is_dir():
         raise CaseError(
@@ -274,79 +333,139 @@ def run_recursive_case(
             "FLIGHTID_DATA or --data-dir)"
         )
     maneuvers, t, dt = _record(case, directory)
-    say = progress or (lambda message: None)
-    if method == "ftr":
-        states, inputs = settings["states"], settings["inputs"]
-        z = _columns(maneuvers, states, "recursive.states")
-        u = _columns(maneuvers, inputs, "recursive.inputs")
-        update_every = int(round(settings["update_every_s"] / dt))
-        if update_every < 1 or abs(update_every * dt - settings["update_every_s"]) > 1e-6:
-            raise CaseError(
-                f"recursive.update_every_s: expected a whole number of samples of "
-                f"{dt} s, got {settings['update_every_s']} s"
-            )
-        from flightid.recursive.ftr import frequency_grid_hz
+    if settings["method"] == "ftr":
+        return _prepare_ftr(settings, maneuvers, t, dt)
+    compiled = settings["compiled"] if compile_model is None else bool(compile_model)
+    return _prepare_filter(case, directory, settings, maneuvers, t, dt, compiled)
 
-        grid = settings["frequencies_hz"]
-        try:
-            freq = frequency_grid_hz(grid["start"], grid["stop"], grid["step"])
-            estimator = FourierTransformRegression(
-                len(states),
-                len(inputs),
-                freq,
-                update_every,
-                settings.get("parameter_names"),
-                settings["offsets"],
-                settings["n_mean"],
-            )
-        except InputError as exc:
-            raise CaseError(f"recursive.{exc}") from None
-        if t.size < update_every:
-            raise CaseError(
-                f"recursive.update_every_s: the record has {t.size} samples, fewer than one "
-                f"update interval ({update_every} samples)"
-            )
-        units, initial = None, None
-        description = f"FTR: states {states}, inputs {inputs} (measured)"
-        outputs, r0 = states, []
-    else:
-        if not case.model:
-            raise CaseError(f"model: missing; method {method!r} estimates a model's parameters")
-        base, description = base_model(case, directory)
-        model, maneuvers = build_model(case, maneuvers, base=base)
-        if any(isinstance(e, str) for e in model.x0_spec(0)):
-            raise CaseError(
-                "initial_state: estimated initial states are not available in recursive "
-                "estimation (give numbers or 'measured')"
-            )
-        x0 = model.initial_state(maneuver=0)
-        try:
-            augmented = AugmentedModel(model, x0, compiled=settings["compiled"])
-        except InputError as exc:
-            raise CaseError(f"model: {exc}") from None
-        if augmented.n_free == 0:
-            raise CaseError("parameters: no free parameter to estimate")
-        estimator = _filter(settings, augmented)
-        u = _columns(maneuvers, model.inputs, "data.inputs")
-        z = _columns(maneuvers, model.outputs, "data.outputs")
-        units = augmented.free_units
-        initial = augmented.x_a0[augmented.n_x :].tolist()
-        outputs = model.outputs
-        r0 = np.diag(estimator.R0).tolist() if hasattr(estimator, "R0") else []
+
+def _prepare_ftr(settings, maneuvers, t: np.ndarray, dt: float) -> RecursivePreparation:
+    from flightid.recursive import FourierTransformRegression
+    from flightid.recursive.ftr import frequency_grid_hz
+
+    states, inputs = settings["states"], settings["inputs"]
+    z = _columns(maneuvers, states, "recursive.states")
+    u = _columns(maneuvers, inputs, "recursive.inputs")
+    update_every = int(round(settings["update_every_s"] / dt))
+    if update_every < 1 or abs(update_every * dt - settings["update_every_s"]) > 1e-6:
+        raise CaseError(
+            f"recursive.update_every_s: expected a whole number of samples of "
+            f"{dt} s, got {settings['update_every_s']} s"
+        )
+    grid = settings["frequencies_hz"]
+    nyquist = 0.5 / dt
+    try:
+        freq = frequency_grid_hz(grid["start"], grid["stop"], grid["step"])
+    except InputError as exc:
+        raise CaseError(f"recursive.{exc}") from None
+    if freq.max() >= nyquist:
+        raise CaseError(
+            f"recursive.frequencies_hz.stop: the highest frequency {freq.max():.4g} Hz is at or "
+            f"above the Nyquist frequency {nyquist:.4g} Hz of the record (dt = {dt} s)"
+        )
+    try:
+        estimator = FourierTransformRegression(
+            len(states),
+            len(inputs),
+            freq,
+            update_every,
+            settings.get("parameter_names"),
+            settings["offsets"],
+            settings["n_mean"],
+            [settings["input_delays_s"].get(name, 0.0) for name in inputs],
+        )
+    except InputError as exc:
+        raise CaseError(f"recursive.{exc}") from None
+    if t.size < max(update_every, settings["n_mean"]):
+        raise CaseError(
+            f"recursive.update_every_s: the record has {t.size} samples, fewer than one "
+            f"update interval ({update_every} samples) or n_mean ({settings['n_mean']})"
+        )
+    return RecursivePreparation(
+        settings=settings,
+        maneuvers=maneuvers,
+        time=t,
+        dt=dt,
+        estimator=estimator,
+        inputs=u,
+        measured=z,
+        units=None,
+        initial=None,
+        description=f"FTR: states {states}, inputs {inputs} (measured)",
+        outputs=list(states),
+        r0=[],
+    )
+
+
+def _prepare_filter(
+    case: Case, directory: Path, settings, maneuvers, t: np.ndarray, dt: float, compiled: bool
+) -> RecursivePreparation:
+    from flightid.recursive import AugmentedModel
+
+    method = settings["method"]
+    if not case.model:
+        raise CaseError(f"model: missing; method {method!r} estimates a model's parameters")
+    base, description = base_model(case, directory)
+    model, maneuvers = build_model(case, maneuvers, base=base)
+    if any(isinstance(e, str) for e in model.x0_spec(0)):
+        raise CaseError(
+            "initial_state: estimated initial states are not available in recursive "
+            "estimation (give numbers or 'measured')"
+        )
+    x0 = model.initial_state(maneuver=0)
+    try:
+        augmented = AugmentedModel(model, x0, compiled=compiled)
+    except InputError as exc:
+        raise CaseError(f"model: {exc}") from None
+    if augmented.n_free == 0:
+        raise CaseError("parameters: no free parameter to estimate")
+    estimator = _filter(settings, augmented)
+    return RecursivePreparation(
+        settings=settings,
+        maneuvers=maneuvers,
+        time=t,
+        dt=dt,
+        estimator=estimator,
+        inputs=_columns(maneuvers, model.inputs, "data.inputs"),
+        measured=_columns(maneuvers, model.outputs, "data.outputs"),
+        units=augmented.free_units,
+        initial=augmented.x_a0[augmented.n_x :].tolist(),
+        description=description,
+        outputs=list(model.outputs),
+        r0=np.diag(estimator.R0).tolist() if hasattr(estimator, "R0") else [],
+    )
+
+
+def run_recursive_case(
+    case: Case,
+    data_dir: str | Path | None = None,
+    progress: Callable[[str], None] | None = None,
+):
+    """Run the case's recursive estimation; returns a ``RecursiveResult``.
+
+    Raises ``CaseError`` for a wrong ``[recursive]`` key or data
+    (``prepare_recursive_case``), ``RecursiveDivergenceError`` when the filter diverges.
+    """
+    from flightid.recursive import RecursiveEstimator
+
+    prepared = prepare_recursive_case(case, data_dir)
+    settings, estimator = prepared.settings, prepared.estimator
+    method, t, dt = settings["method"], prepared.time, prepared.dt
+    say = progress or (lambda message: None)
     say(f"{method}: {t.size} samples (dt = {dt} s), {len(estimator.parameter_names)} parameters")
     online = RecursiveEstimator(estimator)
     start = _time.perf_counter()
-    online.feed_block(t, u, z)
+    online.feed_block(t, prepared.inputs, prepared.measured)
     wall = _time.perf_counter() - start
-    meta = _meta(case, maneuvers, description, outputs, r0)
+    meta = _meta(case, prepared.maneuvers, prepared.description, prepared.outputs, prepared.r0)
     innovations = np.asarray(estimator.innovations)
     if innovations.size:
         # rms of the innovations ν_k = z_k − ỹ_k per output
         meta["innovation_rms"] = np.sqrt(np.mean(innovations**2, axis=0)).tolist()
     result = online.result(
         settings["report"],
-        units=units,
-        initial=initial,
+        units=prepared.units,
+        initial=prepared.initial,
         settings={k: v for k, v in settings.items() if k != "compiled"},
         meta=meta,
     )

@@ -74,17 +74,21 @@ def run(args: argparse.Namespace) -> int:
     from flightid.cases.build import build_model, unbiased_model
 
     case = load_case(args.case)
-    # an estimator's own table is checked by its module (a bad key: CaseError naming it)
+    # an estimator's table, and every check its run makes before estimating, by its module
+    # (a bad key or a band the data cannot give: CaseError naming it)
     if case.recursive:
-        from flightid.cases.recursive_case import recursive_settings
+        from flightid.cases.recursive_case import prepare_recursive_case
 
-        settings = recursive_settings(case.recursive)
-        print(f"[recursive]: method {settings['method']}, settings valid")
+        settings = prepare_recursive_case(case, args.data_dir, compile_model=False).settings
+        print(f"[recursive]: method {settings['method']}, settings valid for the data")
     if case.frequency_domain:
-        from flightid.cases.frequency_case import frequency_settings
+        from flightid.cases.frequency_case import prepare_frequency_case
 
-        frequency_settings(case.frequency_domain)
-        print("[frequency_domain]: settings valid")
+        prepared_fd = prepare_frequency_case(case, args.data_dir)
+        print(
+            f"[frequency_domain]: settings valid for the data ({prepared_fd.frequencies.size} "
+            f"frequencies × {len(prepared_fd.spectra)} maneuver(s))"
+        )
     if case.staged:
         prepared = _stages(case, args.data_dir)
         if prepared is None:

@@ -7,7 +7,9 @@ Modules, one job each:
 
 * ``fourier``: finite Fourier transform at arbitrary frequencies (direct sum or chirp z),
   quadrature rules, detrending, the per-maneuver transforms ``ManeuverSpectra``.
-* ``linear_system``: a linear ``StateSpaceModel`` as matrices A, B, C, D (+ constants).
+* ``linear_system``: a linear ``StateSpaceModel`` as matrices A, B, C, D (+ constants),
+  with its input and output delays (factors e^{−jωτ}).
+* ``arguments``: the argument checks of the public functions (``InputError`` naming them).
 * ``equation_error``: complex least squares on jωX = AX + BU (+ boundary terms).
 * ``output_error``: Y = (C(jωI − A)⁻¹B + D)U fitted with S estimated from the residuals,
   Cramér–Rao bounds and the coloured-residual correction.

@@ -33,12 +33,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flightid.errors import InputError
+from flightid.errors import InputError, describe
+from flightid.frequency.arguments import boolean_mask, checked_callable, name_list, real_array
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
-from flightid.frequency.output_error import checked_start
+from flightid.frequency.output_error import (
+    checked_model_arguments,
+    checked_start,
+    delayed_inputs,
+)
 
-__all__ = ["ComplexRegression", "complex_least_squares", "EquationErrorFit", "equation_error"]
+__all__ = [
+    "ComplexRegression",
+    "complex_least_squares",
+    "EquationErrorFit",
+    "equation_error",
+    "equation_error_structure",
+]
 
 
 @dataclass(frozen=True)
@@ -58,8 +69,16 @@ class ComplexRegression:
 
 def complex_least_squares(regressors: np.ndarray, response: np.ndarray) -> ComplexRegression:
     """Real θ minimising Σ|z − Xθ|² for complex X (K, p) and z (K,)."""
-    X = np.asarray(regressors, dtype=complex)
-    z = np.asarray(response, dtype=complex).reshape(-1)
+    try:
+        X = np.asarray(regressors, dtype=complex)
+        z = np.asarray(response, dtype=complex).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"regressors/response: expected complex numbers, got {describe(regressors)} and "
+            f"{describe(response)}"
+        ) from None
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(z))):
+        raise InputError("regressors/response: expected finite values")
     if X.ndim != 2 or X.shape[0] != z.shape[0]:
         raise InputError(
             f"regressors: expected a (K, p) array with K = {z.shape[0]} rows, got {X.shape}"
@@ -128,6 +147,60 @@ def _affine_rows(
     return ab0, cd0, np.array(slopes_ab), np.array(slopes_cd)
 
 
+def _measured_outputs(
+    system: LinearSystem, cd0: np.ndarray, g_cd: np.ndarray, states, outputs
+) -> list[int]:
+    """The output that measures each state (a row [C D] = e_i that no free parameter
+    moves), without output delay; else ``InputError``."""
+    if np.any(system.output_delays_s):
+        raise InputError(
+            "model: frequency-domain equation error needs the states measured without delay; "
+            f"the model delays outputs by {system.output_delays_s.tolist()} s "
+            '(use method = "output_error")'
+        )
+    measured = []
+    for i, state in enumerate(states):
+        unit = np.zeros(cd0.shape[1])
+        unit[i] = 1.0
+        rows = [
+            o
+            for o in range(cd0.shape[0])
+            if np.allclose(cd0[o], unit) and not (g_cd.size and np.any(g_cd[:, o]))
+        ]
+        if not rows:
+            raise InputError(
+                f"model: equation error needs every state measured; no output equals state "
+                f'{state!r} (outputs: {list(outputs)}); use method = "output_error"'
+            )
+        measured.append(rows[0])
+    return measured
+
+
+def equation_error_structure(
+    system_of: Callable[[np.ndarray], LinearSystem],
+    theta_start: np.ndarray,
+    free: np.ndarray,
+    states: Sequence[str],
+    outputs: Sequence[str],
+) -> np.ndarray:
+    """The free parameters equation error can determine (boolean mask over θ), found from
+    the model's structure alone: those in a state equation's row of [A B], or in the row
+    of [C D] of an output that measures no state. Raises the ``InputError`` of
+    ``equation_error`` for a model it cannot take (not affine in the free parameters, a
+    state not measured, delayed outputs)."""
+    theta_start = real_array(theta_start, "theta_start", "start values (numbers)")
+    free = boolean_mask(free, "free", theta_start.size)
+    states, outputs = name_list(states, "states"), name_list(outputs, "outputs")
+    ab0, cd0, g_ab, g_cd = _affine_rows(checked_callable(system_of, "system_of"), theta_start, free)
+    measured = _measured_outputs(system_of(theta_start), cd0, g_cd, states, outputs)
+    determined = np.zeros(theta_start.size, dtype=bool)
+    for q, j in enumerate(np.flatnonzero(free)):
+        in_states = bool(np.any(g_ab[q, : len(states)]))
+        in_outputs = any(np.any(g_cd[q, o]) for o in range(cd0.shape[0]) if o not in measured)
+        determined[j] = in_states or in_outputs
+    return determined
+
+
 def equation_error(
     system_of: Callable[[np.ndarray], LinearSystem],
     theta_start: np.ndarray,
@@ -142,26 +215,18 @@ def equation_error(
     """Estimate the free parameters by frequency-domain equation error.
 
     Every state must be measured: an output whose row of [C D] is the unit vector of that
-    state (the output named like the state, typically).
+    state (the output named like the state, typically). Input delays enter at their values
+    in ``theta_start`` (``delayed_inputs``); a delay is not linear in the regression, so a
+    free delay parameter is left undetermined (``estimated`` False); output delays are refused.
     """
     theta_start, free = checked_start(theta_start, free, spectra)
+    states, outputs = checked_model_arguments(
+        system_of, theta_start, spectra, states, outputs, boundary, constants
+    )
     n_x = len(states)
     ab0, cd0, g_ab, g_cd = _affine_rows(system_of, theta_start, free)
-    n_z = ab0.shape[1]
-    # which output measures state i: a row [C D] = e_i
-    measured = []
-    for i, state in enumerate(states):
-        unit = np.zeros(n_z)
-        unit[i] = 1.0
-        rows = [
-            o for o in range(cd0.shape[0]) if np.allclose(cd0[o], unit) and not np.any(g_cd[:, o])
-        ]
-        if not rows:
-            raise InputError(
-                f"model: equation error needs every state measured; no output equals state "
-                f'{state!r} (outputs: {list(outputs)}); use method = "output_error"'
-            )
-        measured.append(rows[0])
+    delays = system_of(theta_start)
+    measured = _measured_outputs(delays, cd0, g_cd, states, outputs)
     free_index = np.flatnonzero(free)
     n_m = len(spectra)
 
@@ -187,7 +252,11 @@ def equation_error(
     estimated = np.zeros(theta.size, dtype=bool)
     equations: dict[str, ComplexRegression] = {}
     # measured state and input transforms [X; U] per maneuver, stacked (total, n_z)
-    xu = np.concatenate([np.hstack([s.outputs[:, measured], s.inputs]) for s in spectra], axis=0)
+    # (inputs delayed by the model's input delays at θ_start: ``delayed_inputs``)
+    xu = np.concatenate(
+        [np.hstack([s.outputs[:, measured], delayed_inputs(delays, s)]) for s in spectra],
+        axis=0,
+    )
     jw = np.concatenate([1j * s.omega_rad_s for s in spectra])
     state_params: set[int] = set()
     for i, state in enumerate(states):

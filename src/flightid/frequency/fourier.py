@@ -45,7 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import czt
 
-from flightid.errors import InputError
+from flightid.errors import InputError, describe
+from flightid.frequency.arguments import real_array
 
 __all__ = [
     "TRENDS",
@@ -79,6 +80,8 @@ def frequency_grid(band_hz: tuple[float, float], step_hz: float) -> np.ndarray:
         ) from None
     if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 <= lo < hi):
         raise InputError(f"band_hz: expected finite 0 ≤ low < high (Hz), got [{lo}, {hi}]")
+    if isinstance(step_hz, (bool, np.bool_)) or not isinstance(step_hz, (int, float, np.number)):
+        raise InputError(f"step_hz: expected a positive frequency step (Hz), got {step_hz!r}")
     step = float(step_hz)
     if not (np.isfinite(step) and step > 0.0):
         raise InputError(f"step_hz: expected a positive frequency step (Hz), got {step_hz!r}")
@@ -91,7 +94,7 @@ def frequency_grid(band_hz: tuple[float, float], step_hz: float) -> np.ndarray:
 
 
 def _as_samples(signals: np.ndarray, argument: str) -> tuple[np.ndarray, bool]:
-    x = np.asarray(signals, dtype=float)
+    x = real_array(signals, argument, "real samples")
     vector = x.ndim == 1
     if vector:
         x = x[:, None]
@@ -109,7 +112,7 @@ def _as_samples(signals: np.ndarray, argument: str) -> tuple[np.ndarray, bool]:
 
 
 def _sampling_interval(time_s: np.ndarray, n: int) -> float:
-    t = np.asarray(time_s, dtype=float)
+    t = real_array(time_s, "time_s", "sample times (s)")
     if t.ndim != 1 or t.shape[0] != n:
         raise InputError(f"time_s: expected {n} sample times (one per row), got shape {t.shape}")
     dt = np.diff(t)
@@ -129,7 +132,7 @@ def remove_trend(signals: np.ndarray, time_s: np.ndarray, kind: str = "mean") ->
     if kind not in TRENDS:
         raise InputError(f"detrend: expected one of {list(TRENDS)}, got {kind!r}")
     x, vector = _as_samples(signals, "signals")
-    t = np.asarray(time_s, dtype=float)
+    t = real_array(time_s, "time_s", "sample times (s)")
     _sampling_interval(t, x.shape[0])
     if kind == "mean":
         x = x - x.mean(axis=0)
@@ -178,7 +181,7 @@ def finite_fourier_transform(
     x, vector = _as_samples(signals, "signals")
     n = x.shape[0]
     dt = _sampling_interval(time_s, n)
-    f = np.atleast_1d(np.asarray(frequencies_hz, dtype=float))
+    f = np.atleast_1d(real_array(frequencies_hz, "frequencies_hz", "frequencies (Hz)"))
     if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)):
         raise InputError(
             f"frequencies_hz: expected a non-empty 1-D array of finite frequencies (Hz), "
@@ -226,7 +229,7 @@ def constant_transform(
 ) -> np.ndarray:
     """The transform of the constant 1 with the same rule, ≈ (1 − e^{−jωT})/(jω) (K,):
     the regressor of a constant bias on the band."""
-    t = np.asarray(time_s, dtype=float)
+    t = real_array(time_s, "time_s", "sample times (s)")
     return finite_fourier_transform(np.ones_like(t), t, frequencies_hz, quadrature=quadrature)
 
 
@@ -244,6 +247,9 @@ class ManeuverSpectra:
         duration_s: T, s.
         n_samples: N.
         name: the maneuver's name.
+        input_ends: (2, n_u) the detrended inputs at the first and the last sample (for the
+            ends of a delayed input, ``flightid.frequency.output_error.delayed_inputs``);
+            None: not known (a delay then enters as e^{−jωτ}U(ω) alone).
     """
 
     frequencies_hz: np.ndarray
@@ -254,6 +260,7 @@ class ManeuverSpectra:
     duration_s: float
     n_samples: int
     name: str = ""
+    input_ends: np.ndarray | None = None
 
     @property
     def end_phase_constant(self) -> bool:
@@ -286,10 +293,27 @@ def maneuver_spectra(
     Inputs are taken as the straight lines between their samples (``"linear"``, what the
     time-domain simulator assumes); outputs as smooth responses, for which the trapezoid
     sum is the accurate rule (the piecewise-linear rule would damp them by W(ωΔt))."""
-    t = np.asarray(time_s, dtype=float)
-    u = remove_trend(np.asarray(inputs, dtype=float).reshape(t.shape[0], -1), t, detrend)
-    z = remove_trend(np.asarray(outputs, dtype=float).reshape(t.shape[0], -1), t, detrend)
-    f = np.asarray(frequencies_hz, dtype=float)
+    t = real_array(time_s, "time_s", "sample times (s)")
+    if t.ndim != 1 or t.size < 2:
+        raise InputError(f"time_s: expected N ≥ 2 sample times (s), got {describe(time_s)}")
+    columns = []
+    for argument, values in (("inputs", inputs), ("outputs", outputs)):
+        array = real_array(values, argument, "real samples")
+        if array.ndim not in (1, 2) or array.shape[0] != t.size:
+            raise InputError(
+                f"{argument}: expected ({t.size},) or ({t.size}, channels) samples, one row per "
+                f"sample time, got {describe(values)}"
+            )
+        columns.append(remove_trend(array.reshape(t.size, -1), t, detrend))
+    u, z = columns
+    f = real_array(frequencies_hz, "frequencies_hz", "frequencies (Hz)")
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise InputError(
+            f"frequencies_hz: expected a non-empty 1-D array of frequencies > 0 Hz (ω = 0 is "
+            f"excluded), got {describe(frequencies_hz)}"
+        )
+    if not isinstance(name, str):
+        raise InputError(f"name: expected the maneuver's name (a string), got {describe(name)}")
     duration = float(t[-1] - t[0])
     if f.max() >= 0.5 * (t.shape[0] - 1) / duration:
         raise InputError(
@@ -305,4 +329,5 @@ def maneuver_spectra(
         duration_s=duration,
         n_samples=int(t.shape[0]),
         name=name,
+        input_ends=np.vstack([u[0], u[-1]]),
     )

@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from flightid.errors import EstimationError, InputError
+from flightid.errors import EstimationError, InputError, describe
+from flightid.frequency.arguments import finite_number, flag, real_array
 
 __all__ = ["LoesFit", "fit_loes", "short_period_loes", "loes_response"]
 
@@ -59,9 +60,23 @@ def loes_response(
     numerator: Sequence[float], denominator: Sequence[float], delay_s: float, omega_rad_s
 ) -> np.ndarray:
     """G(jω) = b(jω)/(jω^n + a(jω)) e^{−jωτ}; ``denominator`` without the leading 1."""
-    s = 1j * np.asarray(omega_rad_s, dtype=float)
-    den = np.polyval(np.concatenate([[1.0], np.asarray(denominator, float)]), s)
-    return np.polyval(np.asarray(numerator, float), s) / den * np.exp(-s * delay_s)
+    s = 1j * real_array(omega_rad_s, "omega_rad_s", "frequencies (rad/s)")
+    numerator = _coefficients(numerator, "numerator")
+    denominator = _coefficients(denominator, "denominator", empty=True)
+    delay_s = finite_number(delay_s, "delay_s")
+    den = np.polyval(np.concatenate([[1.0], denominator]), s)
+    return np.polyval(numerator, s) / den * np.exp(-s * delay_s)
+
+
+def _coefficients(value, argument: str, empty: bool = False) -> np.ndarray:
+    """Polynomial coefficients as a finite 1-D float array (non-empty unless ``empty``)."""
+    array = real_array(value, argument, "polynomial coefficients")
+    if array.ndim != 1 or (array.size == 0 and not empty) or not np.all(np.isfinite(array)):
+        raise InputError(
+            f"{argument}: expected a list of finite coefficients, highest power first, got "
+            f"{describe(value)}"
+        )
+    return array
 
 
 def _wrap_deg(angle: np.ndarray) -> np.ndarray:
@@ -83,8 +98,11 @@ def fit_loes(
     The starts give the orders (numerator highest power first; the monic denominator's
     coefficients below s^n).
     """
-    w = np.asarray(omega_rad_s, dtype=float)
-    H = np.asarray(response, dtype=complex)
+    w = real_array(omega_rad_s, "omega_rad_s", "frequencies (rad/s)")
+    try:
+        H = np.asarray(response, dtype=complex)
+    except (TypeError, ValueError):
+        raise InputError(f"response: expected complex values, got {describe(response)}") from None
     if w.ndim != 1 or H.shape != w.shape or w.size < 3:
         raise InputError(
             f"response: expected one complex value per frequency (≥ 3), got {H.shape} for "
@@ -92,8 +110,10 @@ def fit_loes(
         )
     if not (np.all(np.isfinite(H)) and np.all(np.abs(H) > 0) and np.all(w > 0)):
         raise InputError("response: expected finite, non-zero responses at positive frequencies")
-    b0 = np.asarray(numerator_start, dtype=float)
-    a0 = np.asarray(denominator_start, dtype=float)
+    b0 = _coefficients(numerator_start, "numerator_start")
+    a0 = _coefficients(denominator_start, "denominator_start", empty=True)
+    delay_start_s = finite_number(delay_start_s, "delay_start_s")
+    fit_delay = flag(fit_delay, "fit_delay")
     n_b = b0.size
     if a0.size + n_b + int(fit_delay) >= 2 * w.size:
         raise InputError("response: too few frequencies for the number of LOES coefficients")
@@ -133,6 +153,13 @@ def short_period_loes(
 ) -> tuple[LoesFit, dict[str, float]]:
     """q/δe = K_q (s + 1/T_θ2) e^{−τs} / (s² + 2ζω s + ω²): the fit and its named values
     K_q (1/s), 1/T_θ2 (1/s), ζ_sp (−), ω_sp (rad/s), τ (s)."""
+    for name, value in (
+        ("gain_start", gain_start),
+        ("inverse_t_theta2_start", inverse_t_theta2_start),
+        ("damping_start", damping_start),
+        ("frequency_start_rad_s", frequency_start_rad_s),
+    ):
+        finite_number(value, name)
     fit = fit_loes(
         omega_rad_s,
         response,

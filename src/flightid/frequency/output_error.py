@@ -60,12 +60,24 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from flightid.errors import EstimationError, InputError
+from flightid.errors import EstimationError, InputError, describe
+from flightid.frequency.arguments import (
+    boolean_mask,
+    checked_callable,
+    finite_number,
+    flag,
+    name_list,
+    positive_integer,
+    real_array,
+    spectra_list,
+)
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
 
 __all__ = [
     "OutputErrorFit",
+    "check_equation_count",
+    "delayed_inputs",
     "model_response",
     "nuisance_names",
     "nuisance_sensitivities",
@@ -137,6 +149,30 @@ def _per_maneuver_count(
     return boundary_count + ((n_y if boundary else n_x + n_y) if constants else 0)
 
 
+def delayed_inputs(system: LinearSystem, spectra: ManeuverSpectra) -> np.ndarray:
+    """Transforms Ũ(ω) (K, n_u) of the inputs the model sees, ũ(t) = u(t − τ) on [0, T]
+    with u(t) = u(0) held before the record (the time-domain convention):
+
+        Ũ(ω) = e^{−jωτ} U(ω) + (1 − e^{−jωτ})/(jω) · [u(0) − u(T) e^{−jωT}]
+
+    The first term is the delay; the second adds the held start value over [0, τ] and
+    removes the last τ seconds of the record (taken as u(T) there), which the delayed input
+    never reaches. Exact for the head, first order in τ·u̇ for the tail. Undelayed inputs:
+    U(ω) unchanged. Without ``spectra.input_ends`` only the first term."""
+    omega = spectra.omega_rad_s
+    if not np.any(system.input_delays_s):
+        return spectra.inputs
+    phase = system.input_phase(omega)
+    # e^{−jωτ} U(ω)
+    delayed = spectra.inputs * phase
+    if spectra.input_ends is not None:
+        start, end = spectra.input_ends
+        # + (1 − e^{−jωτ})/(jω) · [u(0) − u(T) e^{−jωT}]
+        ends = start[None, :] - spectra.end_phase[:, None] * end[None, :]
+        delayed = delayed + (1.0 - phase) / (1j * omega[:, None]) * ends
+    return delayed
+
+
 def model_response(
     system: LinearSystem,
     spectra: ManeuverSpectra,
@@ -147,14 +183,30 @@ def model_response(
 ) -> np.ndarray:
     """Y(ω) (K, n_y) of one maneuver; ``nuisance`` holds this maneuver's x(0), x(T), c, d in
     the order of ``nuisance_names`` (zeros when None)."""
+    if not isinstance(system, LinearSystem):
+        raise InputError(f"system: expected a LinearSystem, got {describe(system)}")
+    if not isinstance(spectra, ManeuverSpectra):
+        raise InputError(
+            f"spectra: expected one maneuver's ManeuverSpectra, got {describe(spectra)}"
+        )
     A, B, C, D = system.A, system.B, system.C, system.D
     n_x, n_y = A.shape[0], C.shape[0]
     merged = spectra.end_phase_constant
+    count = _per_maneuver_count(
+        n_x, n_y, flag(boundary, "boundary"), flag(constants, "constants"), merged
+    )
     if nuisance is None:
-        nuisance = np.zeros(_per_maneuver_count(n_x, n_y, boundary, constants, merged))
+        nuisance = np.zeros(count)
+    nuisance = real_array(nuisance, "nuisance", "nuisance values")
+    if nuisance.shape != (count,):
+        raise InputError(
+            f"nuisance: expected {count} values (nuisance_names of this maneuver), got "
+            f"{describe(nuisance)}"
+        )
     omega = spectra.omega_rad_s
+    inputs = delayed_inputs(system, spectra)
     # right-hand side B U(ω) (K, n_x)
-    rhs = spectra.inputs @ B.T
+    rhs = inputs @ B.T
     i = 0
     if boundary and merged:
         # + (x(0) − x(T) e^{−jωT}), one constant vector
@@ -175,8 +227,8 @@ def model_response(
     # X(ω) = (jωI − A)⁻¹ rhs(ω)
     resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
     states = np.linalg.solve(resolvent, rhs[:, :, None])[:, :, 0]
-    # Y(ω) = C X + D U (+ d E)
-    y = states @ C.T + spectra.inputs @ D.T
+    # Y(ω) = e^{−jωτ_y} (C X + D U) (+ d E): a delayed constant stays a constant
+    y = (states @ C.T + inputs @ D.T) * system.output_phase(omega)
     if constants:
         y = y + spectra.constant[:, None] * d[None, :]
     return y
@@ -191,15 +243,15 @@ def nuisance_sensitivities(
 ) -> np.ndarray:
     """∂Y/∂(nuisance) (K, n_y, count) of one maneuver, in ``nuisance_names`` order:
 
-    ∂Y/∂x(0) = C G,   ∂Y/∂x(T) = −e^{−jωT} C G,   ∂Y/∂c = E C G,   ∂Y/∂d = E I,
-    G(ω) = (jωI − A)⁻¹.
+    ∂Y/∂x(0) = Φ C G,   ∂Y/∂x(T) = −e^{−jωT} Φ C G,   ∂Y/∂c = E Φ C G,   ∂Y/∂d = E I,
+    G(ω) = (jωI − A)⁻¹,  Φ(ω) = diag(e^{−jωτ_y}) (the output delays).
     """
     A, C = system.A, system.C
     n_x, n_y = A.shape[0], C.shape[0]
     omega = spectra.omega_rad_s
     resolvent = 1j * omega[:, None, None] * np.eye(n_x)[None] - A[None]
-    # C G(ω) (K, n_y, n_x)
-    cg = C[None] @ np.linalg.inv(resolvent)
+    # Φ C G(ω) (K, n_y, n_x)
+    cg = system.output_phase(omega)[:, :, None] * (C[None] @ np.linalg.inv(resolvent))
     blocks = []
     if boundary and spectra.end_phase_constant:
         blocks.append(cg)
@@ -222,19 +274,77 @@ def _real_stack(weighted: np.ndarray) -> np.ndarray:
 def checked_start(
     theta_start: np.ndarray, free: np.ndarray, spectra: Sequence[ManeuverSpectra]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """θ_start as floats and ``free`` as a boolean mask of its shape, with at least one
-    maneuver's spectra (the arguments of ``output_error`` and ``equation_error``); else
+    """θ_start as finite floats and ``free`` as a boolean mask of its shape, with at least
+    one maneuver's spectra (the arguments of ``output_error`` and ``equation_error``); else
     ``InputError`` saying what came."""
-    theta_start = np.asarray(theta_start, dtype=float)
-    free = np.asarray(free, dtype=bool)
-    if theta_start.shape != free.shape or theta_start.ndim != 1:
+    theta_start = real_array(theta_start, "theta_start", "start values (numbers)")
+    if theta_start.ndim != 1 or not np.all(np.isfinite(theta_start)):
         raise InputError(
-            f"free: expected a mask of the shape of theta_start {theta_start.shape}, "
-            f"got {free.shape}"
+            f"theta_start: expected a 1-D array of finite start values, got {describe(theta_start)}"
         )
-    if not spectra:
-        raise InputError("spectra: expected at least one maneuver")
+    free = boolean_mask(free, "free", theta_start.size)
+    spectra_list(spectra)
     return theta_start, free
+
+
+def checked_model_arguments(
+    system_of: SystemFunction,
+    theta_start: np.ndarray,
+    spectra: Sequence[ManeuverSpectra],
+    states: Sequence[str],
+    outputs: Sequence[str],
+    boundary: bool,
+    constants: bool,
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Check ``system_of`` (θ → ``LinearSystem`` of len(states) states, len(outputs) outputs
+    and the spectra's inputs), the names and the two flags; the names as tuples."""
+    checked_callable(system_of, "system_of")
+    states, outputs = name_list(states, "states"), name_list(outputs, "outputs")
+    flag(boundary, "boundary")
+    flag(constants, "constants")
+    system = system_of(theta_start)
+    if not isinstance(system, LinearSystem):
+        raise InputError(f"system_of: expected a LinearSystem for θ, got {describe(system)}")
+    n_u = system.B.shape[1]
+    if system.A.shape[0] != len(states) or system.C.shape[0] != len(outputs):
+        raise InputError(
+            f"states/outputs: the system has {system.A.shape[0]} states and "
+            f"{system.C.shape[0]} outputs, the names {len(states)} and {len(outputs)}"
+        )
+    for s in spectra:
+        if s.inputs.shape[1] != n_u or s.outputs.shape[1] != len(outputs):
+            raise InputError(
+                f"spectra: maneuver {s.name!r} has {s.inputs.shape[1]} inputs and "
+                f"{s.outputs.shape[1]} outputs, the system {n_u} and {len(outputs)}"
+            )
+    return states, outputs
+
+
+def check_equation_count(
+    spectra: Sequence[ManeuverSpectra],
+    n_free: int,
+    n_states: int,
+    n_outputs: int,
+    *,
+    boundary: bool = True,
+    constants: bool = True,
+) -> np.ndarray:
+    """Where each maneuver's nuisance parameters start in the nuisance vector (n_m + 1
+    offsets), after checking that the 2·n_y·K real equations outnumber the unknowns (free
+    parameters plus nuisance); else ``InputError`` saying how many of each."""
+    counts = [
+        _per_maneuver_count(n_states, n_outputs, boundary, constants, s.end_phase_constant)
+        for s in spectra
+    ]
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    n_total_freq = sum(s.frequencies_hz.size for s in spectra)
+    n_unknowns = n_free + int(starts[-1])
+    if 2 * n_outputs * n_total_freq <= n_unknowns:
+        raise InputError(
+            f"band_hz/step_hz: {n_total_freq} frequencies give {2 * n_outputs * n_total_freq} "
+            f"real equations for {n_unknowns} unknowns; widen the band or refine the step"
+        )
+    return starts
 
 
 def output_error(
@@ -267,27 +377,26 @@ def output_error(
         scales: typical magnitudes of θ (for the difference steps); default max(|θ|, 0.01).
     """
     theta_start, free = checked_start(theta_start, free, spectra)
-    n_x, n_y = len(states), len(outputs)
-    for s in spectra:
-        if s.outputs.shape[1] != n_y:
+    states, outputs = checked_model_arguments(
+        system_of, theta_start, spectra, states, outputs, boundary, constants
+    )
+    max_noise_cycles = positive_integer(max_noise_cycles, "max_noise_cycles")
+    tolerance = finite_number(tolerance, "tolerance", positive=True)
+    if tolerance >= 1.0:
+        raise InputError(f"tolerance: expected a relative change in (0, 1), got {tolerance!r}")
+    if scales is not None:
+        scales = real_array(scales, "scales", "typical magnitudes of θ")
+        if scales.shape != theta_start.shape or not np.all(np.isfinite(scales) & (scales > 0)):
             raise InputError(
-                f"spectra: maneuver {s.name!r} has {s.outputs.shape[1]} outputs, expected {n_y}"
+                f"scales: expected {theta_start.size} finite magnitudes > 0, one per "
+                f"parameter, got {describe(scales)}"
             )
-    counts = [
-        _per_maneuver_count(n_x, n_y, boundary, constants, s.end_phase_constant) for s in spectra
-    ]
-    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    n_x, n_y = len(states), len(outputs)
+    n_free = int(free.sum())
+    starts = check_equation_count(spectra, n_free, n_x, n_y, boundary=boundary, constants=constants)
     n_nuisance = int(starts[-1])
     nuis_names = nuisance_names(states, outputs, spectra, boundary=boundary, constants=constants)
-    n_free = int(free.sum())
-    n_total_freq = sum(s.frequencies_hz.size for s in spectra)
-    n_unknowns = n_free + n_nuisance
-    if 2 * n_y * n_total_freq <= n_unknowns:
-        raise InputError(
-            f"band_hz/step_hz: {n_total_freq} frequencies give {2 * n_y * n_total_freq} real "
-            f"equations for {n_unknowns} unknowns; widen the band or refine the step"
-        )
-    scales = np.maximum(np.abs(theta_start), 0.01) if scales is None else np.asarray(scales, float)
+    scales = np.maximum(np.abs(theta_start), 0.01) if scales is None else scales
 
     def unpack(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         theta = theta_start.copy()

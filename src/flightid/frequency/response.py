@@ -33,6 +33,7 @@ import numpy as np
 from scipy.signal import csd
 
 from flightid.errors import InputError
+from flightid.frequency.arguments import finite_number, real_array
 
 __all__ = ["FrequencyResponse", "frequency_response", "spectral_matrix"]
 
@@ -67,7 +68,7 @@ class FrequencyResponse:
 
 
 def _channels(values: np.ndarray, argument: str, n: int | None = None) -> np.ndarray:
-    x = np.asarray(values, dtype=float)
+    x = real_array(values, argument, "real samples")
     x = x[:, None] if x.ndim == 1 else x
     if x.ndim != 2 or (n is not None and x.shape[0] != n):
         want = f"({n},) or ({n}, channels)" if n is not None else "(N,) or (N, channels)"
@@ -83,8 +84,10 @@ def spectral_matrix(
     """Welch estimates G (F, n, n), G[f, a, b] = E[A* B] one-sided, of the columns of
     ``signals`` (N, n), and the frequencies (F,) Hz."""
     x = _channels(signals, "signals")
-    if not dt_s > 0:
-        raise InputError(f"dt_s: expected a positive sampling interval, got {dt_s!r}")
+    dt_s = finite_number(dt_s, "dt_s", positive=True)
+    segment_s = finite_number(segment_s, "segment_s", positive=True)
+    if not isinstance(window, str):
+        raise InputError(f"window: expected a scipy.signal window name, got {window!r}")
     n_per_segment = int(round(segment_s / dt_s))
     if n_per_segment < 8 or n_per_segment > x.shape[0]:
         raise InputError(
@@ -127,7 +130,10 @@ def frequency_response(
     freqs, G = spectral_matrix(np.hstack([u, y]), dt_s, segment_s, window=window)
     keep = freqs > 0
     if band_hz is not None:
-        lo, hi = band_hz
+        band = real_array(band_hz, "band_hz", "[low, high] in Hz")
+        if band.shape != (2,) or not np.all(np.isfinite(band)) or not band[0] < band[1]:
+            raise InputError(f"band_hz: expected [low, high] in Hz, low < high, got {band_hz!r}")
+        lo, hi = band
         keep &= (freqs >= lo) & (freqs <= hi)
     if not keep.any():
         raise InputError(f"band_hz: no spectral line of the estimate falls in {band_hz}")

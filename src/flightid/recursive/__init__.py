@@ -7,6 +7,7 @@ augmented model, estimated sample by sample (Jategaonkar ch. 7; CASES.md §8).
   ``AugmentedUnscentedKalmanFilter`` (noise in the sigma-point state),
   ``ExtendedForgettingRLS`` (forgetting-factor RLS), ``FourierTransformRegression``
   (recursive DFT + least squares);
+* ``InputDelayLine`` — the model's fixed input delays, u(t − τ) from the samples fed so far;
 * ``RecursiveEstimator`` — feed one sample or a block, read the current estimates and σ;
 * ``RecursiveResult`` — parameter histories, reported and last filtered values.
 
@@ -15,6 +16,7 @@ Case files with a ``[recursive]`` table run through ``flightid.cases.recursive_c
 
 from flightid.recursive.augmented import AugmentedModel
 from flightid.recursive.base import RecursiveDivergenceError
+from flightid.recursive.delay import InputDelayLine
 from flightid.recursive.efrls import ExtendedForgettingRLS
 from flightid.recursive.ekf import ExtendedKalmanFilter
 from flightid.recursive.ftr import FourierTransformRegression, NoEstimateYetError
@@ -26,6 +28,7 @@ __all__ = [
     "AugmentedModel",
     "AugmentedUnscentedKalmanFilter",
     "ExtendedForgettingRLS",
+    "InputDelayLine",
     "ExtendedKalmanFilter",
     "FourierTransformRegression",
     "NoEstimateYetError",

@@ -136,12 +136,47 @@ def relative_steps(x_a: np.ndarray, step: float) -> np.ndarray:
     return h
 
 
+def model_has_input_delays(model: StateSpaceModel) -> bool:
+    """True if the model declares input delays."""
+    return bool(model.input_delays)
+
+
+def _check_recursive_model(model: StateSpaceModel) -> None:
+    """``InputError`` for what the filters cannot take: per-maneuver parameters, output
+    delays, an estimated (free) or negative input delay."""
+    if model.maneuver_parameters:
+        raise InputError(
+            "model: per-maneuver parameters are not available in recursive estimation (one "
+            f"continuous record); got {sorted(model.maneuver_parameters)}"
+        )
+    if model.output_delays:
+        raise InputError(
+            "model: output delays are not available in recursive estimation (the measurement "
+            "at t would need the state at t − τ); delay the inputs instead (input_delays)"
+        )
+    for channel, name in model.input_delays.items():
+        parameter = model.parameters[name]
+        if parameter.free:
+            raise InputError(
+                f"model: the input delay {name!r} of {channel!r} is free; the recursive filters "
+                f"take a fixed, known delay (set {name} = {{ value = ..., free = false }}, e.g. "
+                "from output error or the frequency domain)"
+            )
+        if not (np.isfinite(parameter.value) and parameter.value >= 0.0):
+            raise InputError(
+                f"model: the input delay {name!r} of {channel!r} is {parameter.value} s; the "
+                "recursive filters take a delay >= 0 (they cannot read inputs not yet fed)"
+            )
+
+
 class AugmentedModel:
     """A ``StateSpaceModel`` with its free parameters appended to the state.
 
     Args:
         model: the model (one maneuver's parameter layout: no per-maneuver parameters, no
-            output or input delays; the recursive filters run one continuous record).
+            output delays; the recursive filters run one continuous record). Input delays
+            must be fixed parameters ≥ 0: the filters feed the model u(t − τ)
+            (``flightid.recursive.delay.InputDelayLine``).
         x0: initial state (len(model.states)), in the states' units.
         compiled: run the batch loops numba-compiled (falls back to Python, with the same
             numbers, when numba cannot compile the model functions).
@@ -163,12 +198,12 @@ class AugmentedModel:
                 "model: recursive estimation needs a model with states (the augmented state "
                 "x_a = (x, θ)); this one has none"
             )
-        if model.output_delays or model.input_delays or model.maneuver_parameters:
-            raise InputError(
-                "model: output/input delays and per-maneuver parameters are not available in "
-                "recursive estimation (one continuous record, plain f and h)"
-            )
-        x0 = np.asarray(x0, dtype=float)
+        _check_recursive_model(model)
+        from flightid.recursive.base import float_array
+
+        if not isinstance(compiled, (bool, np.bool_)):
+            raise InputError(f"compiled: expected True or False, got {describe(compiled)}")
+        x0 = float_array(x0, "x0", f"{len(model.states)} initial states")
         if x0.shape != (len(model.states),):
             raise InputError(
                 f"x0: expected {len(model.states)} initial states {list(model.states)}, "
@@ -189,8 +224,20 @@ class AugmentedModel:
         self.free_units = [model.parameters[i].unit for i in self.free_index]
         self.names = [*model.states, *self.free_names]
         self.x_a0 = np.concatenate([x0, self.theta_template[self.free_index]])
+        # fixed input delays τ (s) per input (0: not delayed)
+        self.input_delays_s = np.zeros(self.n_u)
+        for k, p in model.input_delay_maps():
+            self.input_delays_s[k] = self.theta_template[p]
         self.compiled = False
         self._build(compiled)
+
+    def input_delay_line(self):
+        """A fresh ``InputDelayLine`` for the model's input delays, or None without any."""
+        if not model_has_input_delays(self.model):
+            return None
+        from flightid.recursive.delay import InputDelayLine
+
+        return InputDelayLine(self.input_delays_s, self.model.delay_convention)
 
     # ------------------------------------------------------------------ kernels
 

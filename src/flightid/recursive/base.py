@@ -30,6 +30,7 @@ __all__ = [
     "RecursiveDivergenceError",
     "RecursiveEstimatorBase",
     "diagonal_matrix",
+    "float_array",
     "symmetric_sqrt",
 ]
 
@@ -42,15 +43,39 @@ class RecursiveDivergenceError(FlightIdError, ArithmeticError):
         self.sample = sample
 
 
-def diagonal_matrix(value: float | Sequence[float], n: int, argument: str) -> np.ndarray:
-    """``value``·I (a number) or diag(value) (a list of n numbers), all ≥ 0 and finite."""
-    array = np.asarray(value, dtype=float) if not isinstance(value, str) else None
-    if array is None or array.ndim > 1 or (array.ndim == 1 and array.size != n):
+def float_array(value: object, argument: str, what: str = "numbers") -> np.ndarray:
+    """``value`` as a float array, or ``InputError`` naming ``argument`` for strings,
+    None, booleans and anything numpy cannot read as real numbers."""
+    if value is None or isinstance(value, (str, bytes, bool, np.bool_)):
+        raise InputError(f"{argument}: expected {what}, got {describe(value)}")
+    if isinstance(value, (complex, np.complexfloating)) or np.iscomplexobj(value):
+        raise InputError(f"{argument}: expected real {what}, got complex {describe(value)}")
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{argument}: expected {what}, got {describe(value)}") from None
+    if np.asarray(value).dtype == bool:
+        raise InputError(f"{argument}: expected {what}, got booleans {describe(value)}")
+    return array
+
+
+def diagonal_matrix(
+    value: float | Sequence[float], n: int, argument: str, *, positive: bool = False
+) -> np.ndarray:
+    """``value``·I (a number) or diag(value) (a list of n numbers), all ≥ 0 (> 0 with
+    ``positive``) and finite."""
+    array = float_array(value, argument, f"a number or a list of {n} numbers")
+    if array.ndim > 1 or (array.ndim == 1 and array.size != n):
         raise InputError(
             f"{argument}: expected a number or a list of {n} numbers, got {describe(value)}"
         )
     if not np.all(np.isfinite(array)) or np.any(array < 0):
         raise InputError(f"{argument}: expected finite values >= 0, got {np.ravel(array).tolist()}")
+    if positive and np.any(array == 0):
+        raise InputError(
+            f"{argument}: expected values > 0 (a zero variance makes the filter's gain "
+            f"singular), got {np.ravel(array).tolist()}"
+        )
     return np.diag(np.broadcast_to(array, (n,)).astype(float))
 
 
@@ -75,7 +100,7 @@ def symmetric_sqrt(P: np.ndarray) -> np.ndarray:
 
 
 def _check_series(value: np.ndarray, n: int, argument: str) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
+    array = float_array(value, argument, f"{n} values")
     if array.shape != (n,):
         raise InputError(f"{argument}: expected {n} values, got {describe(value)}")
     if not np.all(np.isfinite(array)):
@@ -109,6 +134,8 @@ class RecursiveEstimatorBase:
         """Process one sample: time ``t`` (s), inputs ``u``, measured outputs ``z``."""
         u = _check_series(u, self.n_inputs, "u")
         z = _check_series(z, self.n_outputs, "z")
+        if isinstance(t, (bool, np.bool_)) or not isinstance(t, (int, float, np.number)):
+            raise InputError(f"t: expected a time in s (a number), got {describe(t)}")
         t = float(t)
         if not np.isfinite(t):
             raise InputError(f"t: expected a finite time, got {t}")
@@ -117,6 +144,7 @@ class RecursiveEstimatorBase:
                 f"t: sample {self.k + 1} at {t} s does not follow the previous one at "
                 f"{self._t_prev} s (times must increase)"
             )
+        u = self._model_input(t, u)
         self.k += 1
         self._t_current = t
         try:
@@ -136,6 +164,11 @@ class RecursiveEstimatorBase:
                 sample=self.k,
             ) from None
         self._t_prev, self._u_prev = t, u
+
+    def _model_input(self, t: float, u: np.ndarray) -> np.ndarray:
+        """The inputs the estimator works with at time ``t`` for the fed inputs ``u`` (the
+        fed ones; a filter whose model delays inputs returns the delayed ones)."""
+        return u
 
     # helpers for the state-space filters -------------------------------------------
 
@@ -214,12 +247,20 @@ class AugmentedFilter(RecursiveEstimatorBase):
         n_x, n = self.augmented.n_x, self.augmented.n
         Q = np.zeros((n, n))
         Q[:n_x, :n_x] = diagonal_matrix(q_states, n_x, "q_states")
-        return Q, diagonal_matrix(r0, self.augmented.n_y, "r0")
+        return Q, diagonal_matrix(r0, self.augmented.n_y, "r0", positive=True)
 
     def reset(self) -> None:
         super().reset()
         self.x = self.augmented.x_a0.copy()
         self.P = self.P0.copy()
+        self._delay_line = self.augmented.input_delay_line()
+
+    def _model_input(self, t: float, u: np.ndarray) -> np.ndarray:
+        """ũ(t) = u(t − τ) for the model's fixed input delays (``InputDelayLine``); the fed
+        inputs where the model delays none."""
+        if self._delay_line is None:
+            return u
+        return self._delay_line.push(t, u)
 
     @property
     def theta(self) -> np.ndarray:

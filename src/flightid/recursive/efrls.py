@@ -21,11 +21,18 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg
 
-from flightid.errors import InputError
+from flightid.errors import InputError, describe
 from flightid.recursive.augmented import AugmentedModel, relative_steps
 from flightid.recursive.base import AugmentedFilter
 
 __all__ = ["ExtendedForgettingRLS"]
+
+
+def _real_number(value: object) -> bool:
+    """True for an int or float (numpy's too), not a bool."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
 
 
 class ExtendedForgettingRLS(AugmentedFilter):
@@ -42,9 +49,11 @@ class ExtendedForgettingRLS(AugmentedFilter):
         jacobian_step: float = 1e-7,
     ) -> None:
         super().__init__(augmented, p0)
-        if not (isinstance(forgetting, (int, float)) and 0.0 < forgetting <= 1.0):
+        if np.any(np.diag(self.P0) <= 0):
+            raise InputError(f"p0: expected a start matrix > 0 (× I), got {describe(p0)}")
+        if not (_real_number(forgetting) and 0.0 < forgetting <= 1.0):
             raise InputError(f"forgetting: expected a number in (0, 1], got {forgetting!r}")
-        if not (isinstance(jacobian_step, (int, float)) and jacobian_step > 0):
+        if not (_real_number(jacobian_step) and np.isfinite(jacobian_step) and jacobian_step > 0):
             raise InputError(f"jacobian_step: expected a positive number, got {jacobian_step!r}")
         self.forgetting = float(forgetting)
         self.step_size = float(jacobian_step)

@@ -27,7 +27,7 @@ import numpy as np
 
 from flightid.errors import InputError, describe
 from flightid.recursive.augmented import AugmentedModel, absolute_steps
-from flightid.recursive.base import AugmentedFilter
+from flightid.recursive.base import AugmentedFilter, float_array
 
 __all__ = ["ExtendedKalmanFilter", "transition_series"]
 
@@ -71,7 +71,7 @@ class ExtendedKalmanFilter(AugmentedFilter):
         super().__init__(augmented, p0)
         self.Q, self.R0 = self._additive_noise(q_states, r0)
         n = augmented.n
-        steps = np.asarray(jacobian_step, dtype=float)
+        steps = float_array(jacobian_step, "jacobian_step", f"a positive number or {n} of them")
         if steps.ndim > 1 or (steps.ndim == 1 and steps.size != n) or not np.all(steps > 0):
             raise InputError(
                 f"jacobian_step: expected a positive number or {n} positive numbers, got "

@@ -60,6 +60,22 @@ def frequency_grid_hz(start: float, stop: float, step: float) -> np.ndarray:
     return start + step * np.arange(count)
 
 
+def _checked_delays(value, n_inputs: int) -> np.ndarray:
+    """``input_delays_s`` as n_inputs finite delays ≥ 0 (s); zeros for None."""
+    if value is None:
+        return np.zeros(n_inputs)
+    from flightid.recursive.base import float_array
+
+    delays = float_array(value, "input_delays_s", f"{n_inputs} delays (s)")
+    if delays.shape != (n_inputs,):
+        raise InputError(
+            f"input_delays_s: expected {n_inputs} delays (s), one per input, got {describe(value)}"
+        )
+    if not np.all(np.isfinite(delays)) or np.any(delays < 0):
+        raise InputError(f"input_delays_s: expected finite delays >= 0 s, got {delays.tolist()}")
+    return delays
+
+
 class FourierTransformRegression(RecursiveEstimatorBase):
     """Recursive FTR for n_x measured states and n_u inputs.
 
@@ -74,6 +90,9 @@ class FourierTransformRegression(RecursiveEstimatorBase):
             default "A11", …, "B11", ….
         offsets: name → known part subtracted from that coefficient before reporting.
         n_mean: samples whose mean is removed from every signal (10).
+        input_delays_s: a fixed delay τ ≥ 0 (s) per input (default none): the inputs are
+            regressed as ũ(t) = u(t − τ), linear between samples, the first sample held
+            before it (``flightid.recursive.delay.InputDelayLine``, "fractional").
     """
 
     method = "ftr"
@@ -87,6 +106,7 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         parameter_names: Sequence[Sequence[str]] | None = None,
         offsets: Mapping[str, float] | None = None,
         n_mean: int = 10,
+        input_delays_s: Sequence[float] | np.ndarray | None = None,
     ) -> None:
         for name, value in (("n_states", n_states), ("n_inputs", n_inputs)):
             if (
@@ -95,7 +115,9 @@ class FourierTransformRegression(RecursiveEstimatorBase):
                 or value < (name == "n_states")
             ):
                 raise InputError(f"{name}: expected a non-negative integer, got {value!r}")
-        freq = np.asarray(frequencies_hz, dtype=float)
+        from flightid.recursive.base import float_array
+
+        freq = float_array(frequencies_hz, "frequencies_hz", "frequencies (Hz)")
         n_p = n_states + n_inputs
         if freq.ndim != 1 or freq.size <= n_p or not np.all(np.isfinite(freq)) or np.any(freq <= 0):
             raise InputError(
@@ -112,6 +134,17 @@ class FourierTransformRegression(RecursiveEstimatorBase):
                 + [f"B{i + 1}{j + 1}" for j in range(n_inputs)]
                 for i in range(n_states)
             ]
+        if (
+            isinstance(parameter_names, str)
+            or not isinstance(parameter_names, Sequence)
+            or not all(
+                isinstance(row, Sequence) and not isinstance(row, str) for row in parameter_names
+            )
+        ):
+            raise InputError(
+                f"parameter_names: expected {n_states} rows of {n_p} names, got "
+                f"{describe(parameter_names)}"
+            )
         rows = [list(row) for row in parameter_names]
         if len(rows) != n_states or any(len(row) != n_p for row in rows):
             raise InputError(
@@ -120,10 +153,19 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         names = [name for row in rows for name in row]
         if len(set(names)) != len(names) or not all(isinstance(n, str) for n in names):
             raise InputError(f"parameter_names: expected unique names, got {names}")
+        if offsets is not None and not isinstance(offsets, Mapping):
+            raise InputError(f"offsets: expected a mapping name → number, got {describe(offsets)}")
         offsets = dict(offsets or {})
         unknown = [name for name in offsets if name not in names]
         if unknown:
             raise InputError(f"offsets: {unknown} are not parameter names {names}")
+        for name, value in offsets.items():
+            if (
+                isinstance(value, (bool, np.bool_))
+                or not isinstance(value, (int, float, np.number))
+                or not np.isfinite(value)
+            ):
+                raise InputError(f"offsets[{name!r}]: expected a finite number, got {value!r}")
         self.n_states, self.n_inputs, self.n_outputs = n_states, n_inputs, n_states
         self.frequencies_hz = freq
         # ω = 2πf (rad/s)
@@ -132,10 +174,16 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         self.n_mean = n_mean
         self.parameter_names = names
         self.offsets = np.array([float(offsets.get(name, 0.0)) for name in names])
+        self.input_delays_s = _checked_delays(input_delays_s, n_inputs)
         self.reset()
 
     def reset(self) -> None:
         super().reset()
+        from flightid.recursive.delay import InputDelayLine
+
+        self._delay_line = (
+            InputDelayLine(self.input_delays_s) if np.any(self.input_delays_s) else None
+        )
         n_f = self.omega.size
         self.X = np.zeros((n_f, self.n_states), dtype=complex)
         self.U = np.zeros((n_f, self.n_inputs), dtype=complex)
@@ -147,6 +195,10 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         self._std: np.ndarray | None = None
         self.updates: list[tuple[int, float, np.ndarray, np.ndarray]] = []
         self.skipped_updates = 0  # updates without information (Re(ΘᴴΘ) singular)
+
+    def _model_input(self, t: float, u: np.ndarray) -> np.ndarray:
+        """ũ(t) = u(t − τ) for the fixed input delays; the fed inputs without any."""
+        return u if self._delay_line is None else self._delay_line.push(t, u)
 
     # ---------------------------------------------------------------- transform
 

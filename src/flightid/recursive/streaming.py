@@ -86,9 +86,11 @@ class RecursiveEstimator:
     def feed_block(self, t: np.ndarray, u: np.ndarray, z: np.ndarray) -> None:
         """Rows of samples: times ``t`` (N), inputs ``u`` (N × n_u), measurements ``z``
         (N × n_z)."""
-        t = np.asarray(t, dtype=float).reshape(-1)
-        u = np.asarray(u, dtype=float)
-        z = np.asarray(z, dtype=float)
+        from flightid.recursive.base import float_array
+
+        t = float_array(t, "t", "sample times (s)").reshape(-1)
+        u = float_array(u, "u", "input samples")
+        z = float_array(z, "z", "measurement samples")
         n = t.size
         if u.ndim == 1 and self.estimator.n_inputs == 1:
             u = u[:, None]

@@ -136,7 +136,7 @@ class AugmentedUnscentedKalmanFilter(AugmentedFilter):
     ) -> None:
         super().__init__(augmented, p0)
         self.Qw = diagonal_matrix(q_states, augmented.n_x, "q_states")
-        self.R0 = diagonal_matrix(r0, augmented.n_y, "r0")
+        self.R0 = diagonal_matrix(r0, augmented.n_y, "r0", positive=True)
         self.n_a = augmented.n + augmented.n_x + augmented.n_y
         self.wm, self.wc, self.gamma = unscented_weights(self.n_a)
 
