@@ -40,6 +40,7 @@ from flightid.cases.build import (
     build_model,
     build_solver,
     load_maneuvers,
+    prediction_initial_state,
     resolve_data_dir,
     unbiased_model,
     with_process_noise,
@@ -61,6 +62,7 @@ __all__ = [
     "Prediction",
     "accuracy_methods",
     "input_interpolation",
+    "prediction_model",
     "prepare_case",
     "run_case",
 ]
@@ -250,6 +252,10 @@ def prepare_case(
             f"prediction: not available with parameters per maneuver "
             f"{list(model.maneuver_parameters)} (a predicted maneuver has no copy of its own)"
         )
+    # the predicted maneuvers' models are built now, so that a bad initial state is named
+    # before the estimation and not after it
+    for maneuver in prediction:
+        prediction_model(case, maneuver, base)
     # stabilizing gain, eigenvalue shift, multiple shooting (docs/unstable.md)
     model, maneuvers = apply_unstable_options(case, model, maneuvers)
     return Prepared(
@@ -275,19 +281,31 @@ def input_interpolation(case: Case) -> str:
     return case.estimation.get("input_interpolation", "linear")
 
 
+def prediction_model(
+    case: Case,
+    maneuver: FlightData,
+    base: StateSpaceModel,
+    values: dict[str, float] | None = None,
+) -> tuple[StateSpaceModel, list[FlightData]]:
+    """The case's model for one predicted maneuver, at ``values`` (name → value; None: the
+    start values), with the prediction's initial states (``prediction_initial_state``: its
+    own table over the case's ``[initial_state]``); raises ``CaseError`` naming the key."""
+    return build_model(
+        case,
+        [maneuver],
+        base=base,
+        initial_state=prediction_initial_state(case),
+        values={} if values is None else values,
+        key="prediction.initial_state",
+    )
+
+
 def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
     case = prepared.case
     values = dict(zip(result.names, result.values, strict=True))
     predictions = []
     for maneuver in prepared.prediction_maneuvers:
-        model, (data,) = build_model(
-            case,
-            [maneuver],
-            base=prepared.base,
-            initial_state=case.prediction_initial_state,
-            values=values,
-            key="prediction.initial_state",
-        )
+        model, (data,) = prediction_model(case, maneuver, prepared.base, values)
         try:
             y = simulate(
                 model,

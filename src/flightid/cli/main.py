@@ -10,6 +10,9 @@ Every failure ends in one line on stderr and a non-zero exit status:
                                                                exit 1 (a bug)
     flightid: interrupted                                      exit 130 (Ctrl-C, SIGINT)
 
+flightid's own warnings (``flightid.errors.FlightIdWarning``, e.g. a model that runs in pure
+Python) are one line each on stderr: ``flightid: warning: <message>``.
+
 ``--debug`` (before or after the command) adds the Python traceback.
 """
 
@@ -21,9 +24,10 @@ import importlib
 import os
 import sys
 import traceback
+import warnings
 
 from flightid import __version__
-from flightid.errors import error_line
+from flightid.errors import FlightIdWarning, error_line
 
 # Sub-command modules, in the order they appear in --help.
 SUBCOMMAND_MODULES = ("batch", "design", "paper", "regress", "run", "validate")
@@ -64,7 +68,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warnings(show):
+    """``warnings.showwarning`` that prints a ``FlightIdWarning`` as one line
+    ``flightid: warning: <message>`` and hands every other warning to ``show``."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, FlightIdWarning):
+            text = " ".join(str(message).split())
+            print(f"flightid: warning: {text}", file=sys.stderr if file is None else file)
+            return
+        show(message, category, filename, lineno, file, line)
+
+    return showwarning
+
+
 def main(argv: list[str] | None = None) -> int:
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warnings(warnings.showwarning)
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)

@@ -68,10 +68,26 @@ def _stages(case, data_dir):
     return prepared
 
 
+def _design(case, data_dir) -> None:
+    """The ``[design]`` table checked as ``flightid design`` checks it before designing
+    (``flightid.design.case.design_problem``: keys, ranges, bands below the Nyquist
+    frequency, inputs and outputs of the model, the trim search)."""
+    from pathlib import Path
+
+    from flightid.design.case import design_problem
+
+    problem, _ = design_problem(case, Path(data_dir) if data_dir else None)
+    print(
+        f"[design]: {problem.signal} for {list(problem.names)} over {problem.duration_s:g} s "
+        f"at dt {problem.dt_s:g} s, settings valid"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, prepare_case
-    from flightid.cases.build import build_model, unbiased_model
+    from flightid.cases.build import unbiased_model
+    from flightid.cases.run import prediction_model
 
     case = load_case(args.case)
     # an estimator's own table is checked by its module (a bad key: CaseError naming it)
@@ -85,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
 
         frequency_settings(case.frequency_domain)
         print("[frequency_domain]: settings valid")
+    if case.design:
+        _design(case, args.data_dir)
     if case.staged:
         prepared = _stages(case, args.data_dir)
         if prepared is None:
@@ -115,14 +133,7 @@ def run(args: argparse.Namespace) -> int:
     if base is not None:
         _check(base, prepared.maneuvers, method, "without biases: ")
     for maneuver in prepared.prediction_maneuvers:
-        predicted, data = build_model(
-            case,
-            [maneuver],
-            base=prepared.base,
-            initial_state=case.prediction_initial_state,
-            values={},
-            key="prediction.initial_state",
-        )
+        predicted, data = prediction_model(case, maneuver, prepared.base)
         _check(predicted, data, method, f"prediction maneuver {maneuver.name}: ")
     print("valid")
     return 0
