@@ -244,6 +244,7 @@ def estimate(
     problem = OutputErrorProblem(
         model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
     )
+    problem.check_enough_data()
     r_diag = _check_r(R, problem.n_outputs)
     evaluations_before = problem.evaluations
     run = _optimise(problem, solver, r_diag, noise, convergence, progress)

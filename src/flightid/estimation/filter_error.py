@@ -809,6 +809,7 @@ def estimate_filter_error(
         raise InputError(f"gradients: expected one of {list(GRADIENTS)}, got {gradients!r}")
     settings["gradients"] = gradients
     problem = _new_problem(model, data, process_noise, settings)
+    problem.check_enough_data()
     # R₀: one pass with K = 0 (a plain simulation) at the start values
     r_start = problem.noise_covariance(problem.simulate(problem.theta_start))
     trace = _Trace()
