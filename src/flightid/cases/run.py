@@ -290,8 +290,9 @@ def check_estimator(
     kernel and dropped): free parameters, the data against the model (channels, initial
     states and parameters per maneuver, stabilizing gain, shooting intervals) and, for the
     filter error method, its solver, states, delays, uniform sampling and, for analytic
-    gradients, a linear model; more scalar measurements than free parameters. A refusal is a ``CaseError`` before any work is done, in
-    ``flightid validate`` as in ``flightid run``."""
+    gradients, a linear model; more scalar measurements than free parameters. A refusal is
+    a ``CaseError`` before any work is done, in ``flightid validate`` as in ``flightid run``.
+    """
     settings = case.estimation
     common = {
         "method": settings.get("method", "rk4"),

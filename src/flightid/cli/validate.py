@@ -86,9 +86,8 @@ def _design(case, data_dir) -> None:
 def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, prepare_case
-    from flightid.cases.run import accuracy_methods, check_accuracy_methods
     from flightid.cases.build import unbiased_model
-    from flightid.cases.run import prediction_model
+    from flightid.cases.run import accuracy_methods, check_accuracy_methods, prediction_model
 
     case = load_case(args.case)
     # the accuracy methods `flightid run` would run after this estimator

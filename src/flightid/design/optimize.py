@@ -197,7 +197,9 @@ class DesignProblem:
             if band is None:
                 continue
             if len(band) != 2 or not 0 <= band[0] < band[1] or not np.isfinite(band[1]):
-                raise InputError(f"{key}: expected [low, high] with 0 ≤ low < high (Hz), got {band!r}")
+                raise InputError(
+                    f"{key}: expected [low, high] with 0 ≤ low < high (Hz), got {band!r}"
+                )
             if band[1] >= nyquist_hz:
                 raise InputError(
                     f"{key}: the band reaches {band[1]:g} Hz, at or above the Nyquist frequency "

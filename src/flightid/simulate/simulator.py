@@ -19,13 +19,13 @@ returns the continuity defects x_end(interval m) − x0(interval m + 1) beside t
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import InputError, SimulationError
+from flightid.errors import InputError, InputTypeError, SimulationError, describe
 from flightid.model.compilation import is_compile_error, warn_pure_python
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate.feedback import make_feedback_kernel
@@ -173,6 +173,10 @@ class SimulationBatch:
 def _as_data_list(data: FlightData | Sequence[FlightData]) -> list[FlightData]:
     if isinstance(data, FlightData):
         return [data]
+    if isinstance(data, (str, bytes, Mapping)) or not isinstance(data, Iterable):
+        raise InputTypeError(
+            f"data: expected a FlightData or a non-empty list of FlightData, got {describe(data)}"
+        )
     items = list(data)
     if not items or not all(isinstance(d, FlightData) for d in items):
         raise InputError("data: expected a FlightData or a non-empty list of FlightData")
