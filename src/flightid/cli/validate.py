@@ -6,7 +6,11 @@ regression stage built with every candidate term), builds the model (user module
 or built-in airplane), initial states, biases, solver and rules, then evaluates the model's
 ``f`` and ``h`` on the data at the start values (``flightid.model.check_model``: indices into
 x, u and θ, number and type of returned values, finite at the start), for the estimation
-maneuvers and for every prediction maneuver, and prints what it found.
+maneuvers and for every prediction maneuver (with the prediction's initial states), makes the
+estimator's own checks of its arguments (``flightid.cases.run.check_estimator``: free
+parameters, more measurements than free parameters, what the filter error method refuses) and
+the accuracy methods against the estimator, checks a ``[design]`` table as ``flightid design``
+does, and prints what it found.
 Exit status 0 when the case is valid, 1 with a message naming the key or function otherwise.
 
 ``model.module`` names a Python file; validating (like running) the case **executes** it.
@@ -40,7 +44,9 @@ def register(subparsers) -> None:
             "Check a TOML case file without estimating: data files and channels, the model, "
             "parameters, initial states, biases and solver settings, and the model functions "
             "f and h, evaluated on the data at the start values (indices into x, u and theta, "
-            "number and type of returned values, finite at the start). Every error names the "
+            "number and type of returned values, finite at the start), the estimator's own checks "
+            "and a [design] table; every check `flightid run` / `flightid design` makes before "
+            "estimating. Every error names the "
             "key or function and the problem. " + _MODULE_WARNING
         ),
     )
