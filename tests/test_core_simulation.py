@@ -98,7 +98,7 @@ def test_model_numba_cannot_compile_falls_back_to_python_with_a_warning():
 
     model = StateSpaceModel(("x",), ("u",), ("y",), f, h, Parameters({"a": 1.0}), x0=(0.0,))
     t = np.arange(0.0, 1.0, 0.1)
-    with pytest.warns(RuntimeWarning, match="pure-Python"):
+    with pytest.warns(RuntimeWarning, match="runs in pure Python"):
         simulator = Simulator(model, FlightData(t, {"u": np.ones_like(t)}))
     assert not simulator.compiled
     y = simulator.outputs(np.array([1.0]))

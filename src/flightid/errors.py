@@ -44,6 +44,17 @@ class TaskError(FlightIdError, RuntimeError):
     names the task and its error; the original exception is the ``__cause__``."""
 
 
+class FlightIdWarning(UserWarning):
+    """Base class of flightid's warnings; ``flightid`` prints each as one line
+    ``flightid: warning: <message>``."""
+
+
+class CompileWarning(FlightIdWarning, RuntimeWarning):
+    """numba could not compile a model's functions, which then run in pure Python (several
+    times slower); the message names the line of the model that caused it and how to avoid
+    it (``flightid.model.compilation``)."""
+
+
 def describe(value: object) -> str:
     """Short description of a value for error messages."""
     shape = getattr(value, "shape", None)

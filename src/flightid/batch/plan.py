@@ -28,6 +28,7 @@ missing or repeated name, and an expanded text that is not a valid case.
 from __future__ import annotations
 
 import csv
+import math
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -83,16 +84,23 @@ def _read_text(path: Path, what: str) -> str:
         raise BatchError(f"{what}: {path} cannot be read ({exc.strerror or exc})") from None
 
 
+# a decimal number as a table cell writes it: sign, digits, point, exponent (Python's int()
+# and float() also take "1_000", "nan", "inf" and surrounding blanks)
+_DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
 def _number_or_text(text: str) -> Any:
-    """A table cell as a number (int or float) where it reads as one, else the text."""
+    """A table cell as a number (int or float) where it is a finite decimal number, else the
+    text as written ("1_000", "nan", "inf" stay text: the record must be valid JSON and
+    nothing may be read as a number it does not say)."""
+    if not _DECIMAL.fullmatch(text):
+        return text
     try:
         return int(text)
     except ValueError:
         pass
-    try:
-        return float(text)
-    except ValueError:
-        return text
+    number = float(text)
+    return number if math.isfinite(number) else text
 
 
 def _read_table(path: Path, where: str) -> list[dict[str, str]]:

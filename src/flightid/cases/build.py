@@ -39,6 +39,7 @@ __all__ = [
     "build_model",
     "build_solver",
     "build_convergence",
+    "prediction_initial_state",
     "MANEUVER_CHANNEL",
 ]
 
@@ -125,6 +126,15 @@ def maneuver_entry(maneuver: FlightData) -> dict:
     if maneuver.notes:
         entry["time_base"] = list(maneuver.notes)
     return entry
+
+
+def time_base_lines(maneuvers) -> list[str]:
+    """What was done to the maneuvers' stored time bases (``FlightData.notes``), each line
+    once, in order: the lines ``flightid run`` and ``validate`` print."""
+    lines: list[str] = []
+    for maneuver in maneuvers:
+        lines.extend(n for n in maneuver.notes if n not in lines)
+    return lines
 
 
 # ------------------------------------------------------------------------------ base model
@@ -436,6 +446,42 @@ def _initial_states(
     return x0, [p for _, _, p in sorted(extra, key=lambda e: (e[0], e[1]))]
 
 
+def _predicted_entry(value: Any) -> Any:
+    """One ``[initial_state]`` entry as it applies to a predicted maneuver, or None where it
+    does not apply: numbers and ``channel`` are kept; an estimated start ("estimate" or
+    ``free = true``) becomes the maneuver's first measured value of the same channel (a
+    predicted maneuver has nothing to estimate it from); a list (one value per estimation
+    maneuver) does not apply, nor does a plain "measured" (the prediction's own default
+    decides)."""
+    spec = dict(value) if isinstance(value, Mapping) else {"value": value}
+    start = spec.get("value", "measured")
+    if isinstance(start, list):
+        return None
+    if start == "estimate" or spec.get("free") is True:
+        start = "measured"
+    if start == "measured" and "channel" not in spec:
+        return None
+    entry = {"value": start}
+    if "channel" in spec:
+        entry["channel"] = spec["channel"]
+    return entry
+
+
+def prediction_initial_state(case: Case) -> dict[str, Any]:
+    """The initial-state settings of the predicted maneuvers, per state: the entry of
+    ``[prediction.initial_state]`` (or a prediction stage's ``initial_state``), else the
+    case's ``[initial_state]`` entry as it applies to a predicted maneuver
+    (``_predicted_entry``), else the ``default`` of the prediction's table, else that of
+    ``[initial_state]``, else the first measured value."""
+    section: dict[str, Any] = {}
+    for state, value in case.initial_state.items():
+        entry = _predicted_entry(value)
+        if entry is not None:
+            section[state] = entry
+    section.update(case.prediction_initial_state)
+    return section
+
+
 def _num(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise CaseError(f"{where}: expected a number, got {value!r}")
@@ -482,19 +528,22 @@ def _biases(
 
 
 def _compiled(fn, n_x: int, n_u: int, n_p: int):
-    """``fn`` compiled by numba (tried on zeros), or None where numba cannot compile it.
+    """``fn`` compiled by numba, or numba's error where it cannot compile it.
 
     The compiled function is the one of ``compiled_function``: one per process for the same
-    function (a case built twice compiles once) and kept in the on-disk kernel cache.
+    function (a case built twice compiles once) and kept in the on-disk kernel cache. It is
+    compiled by one call on zeros; an error the compiled code raises there (a division by a
+    parameter that is zero here) is not a compilation failure (``try_compiled``).
     """
+    from flightid.model.compilation import try_compiled
     from flightid.simulate.cache import compiled_function
 
     try:
         jitted = compiled_function(fn)
-        jitted(0.0, np.zeros(n_x), np.zeros(n_u), np.zeros(n_p))
-        return jitted
-    except Exception:  # numba typing errors have many classes; a wrong model fails later
-        return None
+    except Exception as exc:  # numba's errors have many classes
+        return exc
+    failure = try_compiled(jitted, 0.0, np.zeros(n_x), np.zeros(n_u), np.zeros(n_p))
+    return jitted if failure is None else failure
 
 
 def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
@@ -606,7 +655,8 @@ def build_model(
             if case.estimation.get("compiled", True)
             else [None]
         )
-        compiled = all(fn is not None for fn in jitted)
+        compiled = not any(fn is None or isinstance(fn, BaseException) for fn in jitted)
+        failure = next((fn for fn in jitted if isinstance(fn, BaseException)), None)
         # the wrappers call the compiled f and h (their own out forms where they carry one)
         f_base, h_base = (
             [
@@ -627,6 +677,11 @@ def build_model(
             per_maneuver,
             compiled,
         )
+        if failure is not None:
+            # the simulator's fall-back to Python names the user's line from this error (its
+            # own error would name the wrappers)
+            for fn in (f, h):
+                fn.out_form.compile_failure = failure
         if per_maneuver:
             inputs = (*base.inputs, MANEUVER_CHANNEL)
             maneuvers = [_with_maneuver_channel(m, k) for k, m in enumerate(maneuvers)]

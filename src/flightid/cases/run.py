@@ -41,14 +41,16 @@ from flightid.cases.build import (
     build_solver,
     load_maneuvers,
     maneuver_entry,
+    prediction_initial_state,
     resolve_data_dir,
+    time_base_lines,
     unbiased_model,
     with_process_noise,
 )
 from flightid.cases.spec import ACCURACY_METHODS, Case, CaseError
 from flightid.cases.unstable import apply_unstable_options
 from flightid.data.flightdata import FlightData
-from flightid.errors import SimulationError
+from flightid.errors import InputError, SimulationError
 from flightid.estimation import Estimate, estimate
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.estimation.shooting import estimate_multiple_shooting
@@ -61,7 +63,10 @@ __all__ = [
     "CaseRun",
     "Prediction",
     "accuracy_methods",
+    "check_accuracy_methods",
+    "check_estimator",
     "input_interpolation",
+    "prediction_model",
     "prepare_case",
     "run_case",
 ]
@@ -249,8 +254,13 @@ def prepare_case(
             f"prediction: not available with parameters per maneuver "
             f"{list(model.maneuver_parameters)} (a predicted maneuver has no copy of its own)"
         )
+    # the predicted maneuvers' models are built now, so that a bad initial state is named
+    # before the estimation and not after it
+    for maneuver in prediction:
+        prediction_model(case, maneuver, base)
     # stabilizing gain, eigenvalue shift, multiple shooting (docs/unstable.md)
     model, maneuvers = apply_unstable_options(case, model, maneuvers)
+    check_estimator(case, model, maneuvers, process_noise)
     return Prepared(
         case,
         directory,
@@ -261,6 +271,65 @@ def prepare_case(
         description,
         process_noise,
     )
+
+
+def _estimation_key(case: Case) -> str:
+    """The table that holds the estimation settings: ``estimation`` or ``stages[i]``."""
+    stage = next((s for s in case.stages if s.kind == "output_error"), None)
+    return "estimation" if stage is None else f"stages[{stage.index}]"
+
+
+def check_estimator(
+    case: Case,
+    model: StateSpaceModel,
+    maneuvers: Sequence[FlightData],
+    process_noise: dict[str, str],
+) -> None:
+    """The checks the estimator makes on its arguments before its first iteration, made
+    without estimating and without compiling (the problem is set up with the pure-Python
+    kernel and dropped): free parameters, the data against the model (channels, initial
+    states and parameters per maneuver, stabilizing gain, shooting intervals) and, for the
+    filter error method, its solver, states, delays, uniform sampling and, for analytic
+    gradients, a linear model; more scalar measurements than free parameters. A refusal is
+    a ``CaseError`` before any work is done, in ``flightid validate`` as in ``flightid run``.
+    """
+    settings = case.estimation
+    common = {
+        "method": settings.get("method", "rk4"),
+        "compiled": False,
+        "input_interpolation": input_interpolation(case),
+    }
+    try:
+        if filter_error(case):
+            # the filter error method's own checks of its solver and problem
+            from flightid.estimation.filter_error import _check_solver, _new_problem
+
+            _check_solver(build_solver(case))
+            problem = _new_problem(
+                model,
+                list(maneuvers),
+                process_noise,
+                {
+                    **common,
+                    "linearisation": settings.get("linearisation", "start"),
+                    "gradients": settings.get("filter_gradients", "differences"),
+                },
+            )
+        else:
+            problem = OutputErrorProblem(model, list(maneuvers), **common)
+        problem.check_enough_data()
+    except InputError as exc:
+        raise CaseError(f"{_estimation_key(case)}: {exc}") from None
+
+
+def check_accuracy_methods(case: Case, methods: Sequence[str]) -> None:
+    """The accuracy methods ``methods`` can follow the case's estimator: with the filter
+    error method only the Cramér–Rao bounds are given (``CaseError`` otherwise)."""
+    if filter_error(case) and methods:
+        raise CaseError(
+            f"accuracy.methods: {list(methods)} re-simulate the model without the filter; with "
+            "the filter error method only the Cramér–Rao bounds are given (leave methods out)"
+        )
 
 
 def _has_schedule(model: StateSpaceModel) -> bool:
@@ -274,19 +343,31 @@ def input_interpolation(case: Case) -> str:
     return case.estimation.get("input_interpolation", "linear")
 
 
+def prediction_model(
+    case: Case,
+    maneuver: FlightData,
+    base: StateSpaceModel,
+    values: dict[str, float] | None = None,
+) -> tuple[StateSpaceModel, list[FlightData]]:
+    """The case's model for one predicted maneuver, at ``values`` (name → value; None: the
+    start values), with the prediction's initial states (``prediction_initial_state``: its
+    own table over the case's ``[initial_state]``); raises ``CaseError`` naming the key."""
+    return build_model(
+        case,
+        [maneuver],
+        base=base,
+        initial_state=prediction_initial_state(case),
+        values={} if values is None else values,
+        key="prediction.initial_state",
+    )
+
+
 def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
     case = prepared.case
     values = dict(zip(result.names, result.values, strict=True))
     predictions = []
     for maneuver in prepared.prediction_maneuvers:
-        model, (data,) = build_model(
-            case,
-            [maneuver],
-            base=prepared.base,
-            initial_state=case.prediction_initial_state,
-            values=values,
-            key="prediction.initial_state",
-        )
+        model, (data,) = prediction_model(case, maneuver, prepared.base, values)
         try:
             y = simulate(
                 model,
@@ -464,6 +545,7 @@ def run_case(
         )
     say = progress or (lambda message: None)
     methods = accuracy_methods(case, accuracy)
+    check_accuracy_methods(case, methods)
     case_file = Path(case.path)
     # the report names the exact case text that ran: SHA-256 of the file's bytes
     case_sha256 = hashlib.sha256(case_file.read_bytes()).hexdigest() if case_file.is_file() else ""
@@ -476,6 +558,8 @@ def run_case(
         f"solver {case.estimation.get('solver', 'mnres')}, noise "
         f"{case.estimation.get('noise', 'max')}"
     )
+    for line in time_base_lines(prepared.maneuvers):
+        say(f"time base: {line}")
     last_report = [_time.monotonic()]
 
     def report_pass(passes: int, evaluations: int, cost: float) -> None:
@@ -485,11 +569,6 @@ def run_case(
             last_report[0] = now
             progress(f"estimating: pass {passes}, {evaluations} simulations, cost {cost:.6g}")
 
-    if filter_error(case) and methods:
-        raise CaseError(
-            f"accuracy.methods: {list(methods)} re-simulate the model without the filter; with "
-            "the filter error method only the Cramér–Rao bounds are given (leave methods out)"
-        )
     with _heartbeat(progress, "estimating", heartbeat_s):
         if filter_error(case):
             result = _estimate_filter_error(case, prepared, report_pass)

@@ -44,6 +44,7 @@ objects. Nothing is evaluated: expressions and terms go to their own safe parser
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -303,10 +304,20 @@ class Case:
         return self.path.parent
 
 
+def _positive(value: Any, key: str) -> float:
+    """A finite number > 0 (a scale: the typical magnitude of a parameter)."""
+    number = _number(value, key)
+    if number <= 0:
+        raise CaseError(f"{key}: expected a positive number, got {value!r}")
+    return number
+
+
 def _initial_state_types(section: Mapping[str, Any], key: str) -> None:
     """Types of ``[initial_state]`` entries (the state names are checked with the model)."""
     for state, value in section.items():
         where = f"{key}.{state}"
+        if isinstance(value, Mapping):
+            _known(value, {"value", "free", "channel", "scale"}, where)
         spec = value if isinstance(value, Mapping) else {"value": value}
         for name in ("free",):
             if name in spec:
@@ -314,7 +325,7 @@ def _initial_state_types(section: Mapping[str, Any], key: str) -> None:
         if "channel" in spec:
             _string(spec["channel"], f"{where}.channel")
         if "scale" in spec:
-            _number(spec["scale"], f"{where}.scale")
+            _positive(spec["scale"], f"{where}.scale")
         start = spec.get("value", "measured")
         if isinstance(start, list):
             for k, v in enumerate(start):
@@ -403,6 +414,11 @@ def _maneuvers(section: Mapping[str, Any], key: str, defaults: Mapping[str, Any]
         dt = item.get("dt", defaults.get("dt"))
         if dt is not None and _number(dt, f"{where}.dt") <= 0:
             raise CaseError(f"{where}.dt: expected a positive sampling interval (s), got {dt!r}")
+        if start is not None and stop is not None:
+            if _number(start, f"{where}.start") >= _number(stop, f"{where}.stop"):
+                raise CaseError(
+                    f"{where}.stop: expected stop > start (s), got start {start!r}, stop {stop!r}"
+                )
         mode, mode_index = _maneuver_mode(item, where, start, stop)
         resampling = _resampling(item, defaults, where)
         result.append(
@@ -458,6 +474,17 @@ def _channels(data: Mapping[str, Any]) -> None:
     """``[data.inputs]`` / ``[data.outputs]``: the channel grammar of ``ChannelSpec``."""
     for key in ("inputs", "outputs"):
         for name, value in _table(data.get(key, {}), f"data.{key}").items():
+            column = value.get("column") if isinstance(value, Mapping) else None
+            if column is not None and (
+                isinstance(column, bool)
+                or not isinstance(column, (int, str))
+                or (isinstance(column, int) and column < 1)
+                or column == ""
+            ):
+                raise CaseError(
+                    f"data.{key}.{name}.column: expected a column number (1, 2, ...) or a "
+                    f"column name, got {column!r}"
+                )
             try:
                 ChannelSpec.from_value(value, f"data.{key}.{name}")
             except InputError as exc:
@@ -640,7 +667,7 @@ def _parameters_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
         for key, check in (
             ("value", _number),
             ("free", _bool),
-            ("scale", _number),
+            ("scale", _positive),
             ("per_maneuver", _bool),
         ):
             if key in value:
@@ -648,6 +675,9 @@ def _parameters_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
         for bound in ("lower", "upper"):
             if bound in value:
                 _number(value[bound], f"{where}.{bound}", infinite=True)
+        lower, upper = value.get("lower", -math.inf), value.get("upper", math.inf)
+        if not lower < upper:
+            raise CaseError(f"{where}.lower: expected lower < upper, got [{lower}, {upper}]")
         if "unit" in value:
             _string(value["unit"], f"{where}.unit")
     return parameters
@@ -662,7 +692,7 @@ def _bias_entry(value: Any, where: str) -> None:
         ("value", _number),
         ("free", _bool),
         ("per_maneuver", _bool),
-        ("scale", _number),
+        ("scale", _positive),
     ):
         if key in value:
             check(value[key], f"{where}.{key}")
@@ -810,7 +840,11 @@ def accuracy_settings(accuracy: Mapping[str, Any], key: str = "accuracy") -> Non
         raise CaseError(f"{key}.confidence: expected a level between 0 and 1, got {confidence}")
     if _number(accuracy.get("bound_factor", 1.0), f"{key}.bound_factor") <= 0:
         raise CaseError(f"{key}.bound_factor: expected a positive number")
-    _number(accuracy.get("correlation_warning", 0.9), f"{key}.correlation_warning")
+    correlation = _number(accuracy.get("correlation_warning", 0.9), f"{key}.correlation_warning")
+    if not 0 < correlation <= 1:
+        raise CaseError(
+            f"{key}.correlation_warning: expected a correlation in (0, 1], got {correlation}"
+        )
     _accuracy_methods(accuracy, key)
     for name, smallest in (("budget", 1), ("seed", 0)):
         _integer(accuracy.get(name, smallest), f"{key}.{name}", smallest)
@@ -863,7 +897,7 @@ def _process_noise_section(raw: Mapping[str, Any], estimation: Mapping[str, Any]
         if "free" in value:
             _bool(value["free"], f"{where}.free")
         if "scale" in value:
-            _number(value["scale"], f"{where}.scale")
+            _positive(value["scale"], f"{where}.scale")
         if "name" in value:
             name = _string(value["name"], f"{where}.name")
             if not name.isidentifier():

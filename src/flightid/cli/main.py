@@ -15,6 +15,9 @@ SIGTERM (``kill PID``, a job scheduler's stop) is handled like Ctrl-C: the comma
 where it is, its result-folder lock and temporary files are removed, nothing half written
 stays.
 
+flightid's own warnings (``flightid.errors.FlightIdWarning``, e.g. a model that runs in pure
+Python) are one line each on stderr: ``flightid: warning: <message>``.
+
 ``--debug`` (before or after the command) adds the Python traceback.
 """
 
@@ -28,9 +31,10 @@ import signal
 import sys
 import threading
 import traceback
+import warnings
 
 from flightid import __version__
-from flightid.errors import error_line
+from flightid.errors import FlightIdWarning, error_line
 
 # Sub-command modules, in the order they appear in --help.
 SUBCOMMAND_MODULES = (
@@ -107,8 +111,23 @@ def _sigterm_as_interrupt():
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+def _one_line_warnings(show):
+    """``warnings.showwarning`` that prints a ``FlightIdWarning`` as one line
+    ``flightid: warning: <message>`` and hands every other warning to ``show``."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, FlightIdWarning):
+            text = " ".join(str(message).split())
+            print(f"flightid: warning: {text}", file=sys.stderr if file is None else file)
+            return
+        show(message, category, filename, lineno, file, line)
+
+    return showwarning
+
+
 def main(argv: list[str] | None = None) -> int:
-    with _sigterm_as_interrupt():
+    with _sigterm_as_interrupt(), warnings.catch_warnings():
+        warnings.showwarning = _one_line_warnings(warnings.showwarning)
         return _main(argv)
 
 

@@ -6,7 +6,11 @@ regression stage built with every candidate term), builds the model (user module
 or built-in airplane), initial states, biases, solver and rules, then evaluates the model's
 ``f`` and ``h`` on the data at the start values (``flightid.model.check_model``: indices into
 x, u and θ, number and type of returned values, finite at the start), for the estimation
-maneuvers and for every prediction maneuver, and prints what it found.
+maneuvers and for every prediction maneuver (with the prediction's initial states), makes the
+estimator's own checks of its arguments (``flightid.cases.run.check_estimator``: free
+parameters, more measurements than free parameters, what the filter error method refuses) and
+the accuracy methods against the estimator, checks a ``[design]`` table as ``flightid design``
+does, and prints what it found.
 Exit status 0 when the case is valid, 1 with a message naming the key or function otherwise.
 
 ``model.module`` names a Python file; validating (like running) the case **executes** it.
@@ -40,7 +44,9 @@ def register(subparsers) -> None:
             "Check a TOML case file without estimating: data files and channels, the model, "
             "parameters, initial states, biases and solver settings, and the model functions "
             "f and h, evaluated on the data at the start values (indices into x, u and theta, "
-            "number and type of returned values, finite at the start). Every error names the "
+            "number and type of returned values, finite at the start), the estimator's own checks "
+            "and a [design] table; every check `flightid run` / `flightid design` makes before "
+            "estimating. Every error names the "
             "key or function and the problem. " + _MODULE_WARNING
         ),
     )
@@ -68,12 +74,30 @@ def _stages(case, data_dir):
     return prepared
 
 
+def _design(case, data_dir) -> None:
+    """The ``[design]`` table checked as ``flightid design`` checks it before designing
+    (``flightid.design.case.design_problem``: keys, ranges, bands below the Nyquist
+    frequency, inputs and outputs of the model, the trim search)."""
+    from pathlib import Path
+
+    from flightid.design.case import design_problem
+
+    problem, _ = design_problem(case, Path(data_dir) if data_dir else None)
+    print(
+        f"[design]: {problem.signal} for {list(problem.names)} over {problem.duration_s:g} s "
+        f"at dt {problem.dt_s:g} s, settings valid"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, prepare_case
-    from flightid.cases.build import build_model, unbiased_model
+    from flightid.cases.build import time_base_lines, unbiased_model
+    from flightid.cases.run import accuracy_methods, check_accuracy_methods, prediction_model
 
     case = load_case(args.case)
+    # the accuracy methods `flightid run` would run after this estimator
+    check_accuracy_methods(case, accuracy_methods(case))
     # an estimator's table, and every check its run makes before estimating, by its module
     # (a bad key or a band the data cannot give: CaseError naming it)
     if case.recursive:
@@ -89,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
             f"[frequency_domain]: settings valid for the data ({prepared_fd.frequencies.size} "
             f"frequencies × {len(prepared_fd.spectra)} maneuver(s))"
         )
+    if case.design:
+        _design(case, args.data_dir)
     if case.staged:
         prepared = _stages(case, args.data_dir)
         if prepared is None:
@@ -104,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"  maneuver {m.name}: {m.n_samples} samples, dt = {m.dt:g} s")
     for m in prepared.prediction_maneuvers:
         print(f"  prediction maneuver {m.name}: {m.n_samples} samples, dt = {m.dt:g} s")
+    for line in time_base_lines([*prepared.maneuvers, *prepared.prediction_maneuvers]):
+        print(f"  time base: {line}")
     print(f"model: {prepared.model_description}")
     if "module" in case.model:
         print("  (model.module is Python code: it was executed to read the model)")
@@ -119,14 +147,7 @@ def run(args: argparse.Namespace) -> int:
     if base is not None:
         _check(base, prepared.maneuvers, method, "without biases: ")
     for maneuver in prepared.prediction_maneuvers:
-        predicted, data = build_model(
-            case,
-            [maneuver],
-            base=prepared.base,
-            initial_state=case.prediction_initial_state,
-            values={},
-            key="prediction.initial_state",
-        )
+        predicted, data = prediction_model(case, maneuver, prepared.base)
         _check(predicted, data, method, f"prediction maneuver {maneuver.name}: ")
     print("valid")
     return 0

@@ -5,7 +5,9 @@ Checks made on construction (each failure names the argument):
 * time is one-dimensional, finite, strictly increasing and uniform (relative spread of the
   intervals below ``1e-6`` by default), with at least two samples;
 * every channel is finite and has the same length as time;
-* channel names are unique identifiers.
+* channel names are unique identifiers;
+* every value is a real number: complex values are refused (their imaginary part would be
+  lost without a word), as are strings and other objects.
 
 Arrays are copied and made read-only, so nothing the user passed is modified later.
 """
@@ -20,6 +22,26 @@ import numpy as np
 from flightid.errors import InputError, InputTypeError, describe
 
 __all__ = ["FlightData"]
+
+
+def _real_array(values: object, argument: str) -> np.ndarray:
+    """``values`` as a new float array; complex values, strings and other objects are an
+    ``InputTypeError`` naming ``argument`` (a cast to float would drop an imaginary part)."""
+    try:
+        array = np.asarray(values)
+    except (TypeError, ValueError):
+        array = None
+    if array is not None and np.iscomplexobj(array):
+        raise InputTypeError(
+            f"{argument}: expected real numbers, got complex values ({describe(array)}, dtype "
+            f"{array.dtype}); pass the part you mean (np.real(...), np.abs(...))"
+        )
+    try:
+        return np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputTypeError(
+            f"{argument}: expected a numeric series, got {describe(values)}"
+        ) from None
 
 
 def _as_channel_matrix(
@@ -37,7 +59,7 @@ def _as_channel_matrix(
         names = list(values)
         columns = []
         for name in names:
-            column = np.asarray(values[name], dtype=float)
+            column = _real_array(values[name], f"{argument}[{name!r}]")
             if column.ndim != 1:
                 raise InputError(
                     f"{argument}[{name!r}]: expected a one-dimensional series, "
@@ -51,13 +73,12 @@ def _as_channel_matrix(
             columns.append(column)
         matrix = np.column_stack(columns) if columns else np.zeros((n_samples, 0))
     else:
-        try:
-            matrix = np.array(values, dtype=float)
-        except (TypeError, ValueError):
+        if isinstance(values, (str, bytes)):
             raise InputTypeError(
                 f"{argument}: expected a mapping of name to series or a numeric matrix, "
                 f"got {describe(values)}"
-            ) from None
+            )
+        matrix = _real_array(values, argument)
         if matrix.ndim == 1:
             matrix = matrix[:, None]
         if matrix.ndim != 2:
@@ -130,10 +151,29 @@ class FlightData:
         uniform_rtol: float = 1e-6,
         notes: Sequence[str] = (),
     ) -> None:
-        try:
-            t = np.array(time, dtype=float)
-        except (TypeError, ValueError):
-            raise InputTypeError(f"time: expected a numeric series, got {describe(time)}") from None
+        t = _real_array(time, "time")
+        if not isinstance(name, str):
+            raise InputTypeError(
+                f"name: expected a string (the maneuver's label), got {describe(name)}"
+            )
+        if units is not None and (
+            not isinstance(units, Mapping)
+            or not all(
+                isinstance(k, str) and (v is None or isinstance(v, str)) for k, v in units.items()
+            )
+        ):
+            raise InputTypeError(
+                f"units: expected a mapping {{channel name: unit string}}, got {describe(units)}"
+            )
+        if (
+            isinstance(uniform_rtol, bool)
+            or not isinstance(uniform_rtol, (int, float))
+            or not (np.isfinite(uniform_rtol) and uniform_rtol >= 0)
+        ):
+            raise InputError(
+                f"uniform_rtol: expected a relative spread ≥ 0 (e.g. 1e-6), got "
+                f"{describe(uniform_rtol)}"
+            )
         if t.ndim != 1 or t.shape[0] < 2:
             raise InputError(
                 f"time: expected a 1-D series of at least 2 samples, got {describe(t)}"

@@ -157,13 +157,54 @@ class DesignProblem:
                 )
             if not np.isfinite(limit) or limit <= 0:
                 raise InputError(f"limits.{output}: expected a positive limit, got {limit!r}")
-        if not isinstance(self.candidates, int) or self.candidates < 1:
+        if (
+            isinstance(self.candidates, bool)
+            or not isinstance(self.candidates, int)
+            or self.candidates < 1
+        ):
             raise InputError(f"candidates: expected a positive integer, got {self.candidates!r}")
+        self._check_timing()
+        self._check_bands()
         for parameter in self.parameters:
             if parameter not in self.model.parameters.free_names:
                 raise InputError(
                     f"parameters: {parameter!r} is not a free parameter; free: "
                     f"{self.model.parameters.free_names}"
+                )
+
+    def _check_timing(self) -> None:
+        """``start_s`` and ``gap_s``: finite and ≥ 0 (a pulse before t = 0 would be cut off
+        without a word); a step signal's first pulse starts inside ``duration_s``."""
+        for key in ("start_s", "gap_s"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not np.isfinite(value) or value < 0:
+                raise InputError(f"{key}: expected a time ≥ 0 s, got {value!r}")
+        if self.signal in STEP_SIGNALS and self.start_s >= self.duration_s:
+            raise InputError(
+                f"start_s: the first pulse starts at {self.start_s:g} s, at or after the end of "
+                f"the input (duration_s = {self.duration_s:g} s)"
+            )
+
+    def _check_bands(self) -> None:
+        """Every multisine band (``band_hz`` and each input's) below the Nyquist frequency
+        f_N = 1/(2 Δt) of ``dt_s``: a harmonic at or above it cannot be sampled."""
+        # f_N = 1 / (2 Δt)
+        nyquist_hz = 0.5 / self.dt_s
+        bands = [("band_hz", self.band_hz)] + [
+            (f"inputs.{s.name}.band_hz", s.band_hz) for s in self.inputs
+        ]
+        for key, band in bands:
+            if band is None:
+                continue
+            if len(band) != 2 or not 0 <= band[0] < band[1] or not np.isfinite(band[1]):
+                raise InputError(
+                    f"{key}: expected [low, high] with 0 ≤ low < high (Hz), got {band!r}"
+                )
+            if band[1] >= nyquist_hz:
+                raise InputError(
+                    f"{key}: the band reaches {band[1]:g} Hz, at or above the Nyquist frequency "
+                    f"{nyquist_hz:g} Hz of dt_s = {self.dt_s:g} s; lower the band's upper edge "
+                    f"below {nyquist_hz:g} Hz or shorten dt_s"
                 )
 
     @property

@@ -37,10 +37,27 @@ __all__ = ["estimate"]
 _SOLVERS = (MNRES, MNR, FPS)
 
 
+def check_call_options(compiled: object, progress: object) -> None:
+    """``compiled`` is True or False and ``progress`` None or callable (``InputTypeError``
+    naming the argument; a string "no" would otherwise count as true)."""
+    if not isinstance(compiled, (bool, np.bool_)):
+        raise InputTypeError(f"compiled: expected True or False, got {describe(compiled)}")
+    if progress is not None and not callable(progress):
+        raise InputTypeError(
+            f"progress: expected None or a function (passes, evaluations, cost), got "
+            f"{describe(progress)}"
+        )
+
+
 def _check_r(r: np.ndarray | Sequence[float] | None, n_outputs: int) -> np.ndarray:
     if r is None:
         return np.ones(n_outputs)
-    r = np.asarray(r, dtype=float)
+    if isinstance(r, (str, bytes)) or np.iscomplexobj(r):
+        raise InputTypeError(f"R: expected real noise variances, got {describe(r)}")
+    try:
+        r = np.asarray(r, dtype=float)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"R: expected real noise variances, got {describe(r)}") from None
     if r.ndim == 2:
         if r.shape != (n_outputs, n_outputs):
             raise InputError(f"R: expected a {n_outputs}×{n_outputs} matrix, got {r.shape}")
@@ -237,6 +254,7 @@ def estimate(
     convergence = Convergence() if convergence is None else convergence
     if not isinstance(convergence, Convergence):
         raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
+    check_call_options(compiled, progress)
 
     started = _time.perf_counter()
     # The model contract (lengths, indices, finite values at the start), before anything else.
@@ -244,6 +262,7 @@ def estimate(
     problem = OutputErrorProblem(
         model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
     )
+    problem.check_enough_data()
     r_diag = _check_r(R, problem.n_outputs)
     evaluations_before = problem.evaluations
     run = _optimise(problem, solver, r_diag, noise, convergence, progress)

@@ -55,7 +55,7 @@ from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError, InputTypeError, describe
 from flightid.estimation.confirm import confirm_convergence
 from flightid.estimation.convergence import Convergence
-from flightid.estimation.driver import _covariance
+from flightid.estimation.driver import _covariance, check_call_options
 from flightid.estimation.gauss_newton import information_matrix
 from flightid.estimation.objective import Objective
 from flightid.estimation.problem import OutputErrorProblem
@@ -797,6 +797,7 @@ def estimate_filter_error(
     convergence = Convergence() if convergence is None else convergence
     if not isinstance(convergence, Convergence):
         raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
+    check_call_options(compiled, progress)
     started = _time.perf_counter()
     check_model(model, data, method=method)
     settings = {
@@ -809,6 +810,7 @@ def estimate_filter_error(
         raise InputError(f"gradients: expected one of {list(GRADIENTS)}, got {gradients!r}")
     settings["gradients"] = gradients
     problem = _new_problem(model, data, process_noise, settings)
+    problem.check_enough_data()
     # R₀: one pass with K = 0 (a plain simulation) at the start values
     r_start = problem.noise_covariance(problem.simulate(problem.theta_start))
     trace = _Trace()

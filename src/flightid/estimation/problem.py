@@ -155,6 +155,19 @@ class OutputErrorProblem:
             self._defect_scale = float(np.sqrt(model.shooting_weight))
             self.measured = np.vstack([self.measured, np.zeros((n_defects, self.n_outputs))])
 
+    def check_enough_data(self) -> None:
+        """Refuse a record with no more scalar measurements N·n_o than free parameters n_f:
+        the residual variance s² = J(θ̂)/(N·n_o − n_f) [5.30], and with it every accuracy
+        measure, needs N·n_o > n_f (an estimate on fewer is a fit through the points)."""
+        measurements = self.n_data * self.n_outputs
+        if measurements <= self.n_free:
+            raise InputError(
+                f"data: {self.n_data} samples × {self.n_outputs} outputs = {measurements} "
+                f"scalar measurements for {self.n_free} free parameters; an estimate needs "
+                "more measurements than free parameters (N·n_o > n_f): give a longer record "
+                "or fix parameters"
+            )
+
     # ------------------------------------------------------------------ sizes
     @property
     def n_free(self) -> int:

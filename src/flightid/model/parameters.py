@@ -10,6 +10,7 @@ MNRES perturbations.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 
@@ -27,6 +28,24 @@ def _check_name(name: object, argument: str) -> str:
             f"(letters, digits, underscore), got {describe(name)}"
         )
     return name
+
+
+def _real(value: object, argument: str, *, infinite: bool = False) -> float:
+    """``value`` as a float: a real number (Python or numpy, or a 0-d real array); bools,
+    strings, complex numbers and other objects are an ``InputTypeError``; NaN, and ±inf
+    unless ``infinite``, an ``InputError``."""
+    real = isinstance(value, numbers.Real) or (
+        isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf"
+    )
+    if isinstance(value, (bool, np.bool_)) or not real:
+        raise InputTypeError(f"{argument}: expected a real number, got {describe(value)}")
+    number = float(value)
+    if math.isnan(number) or (math.isinf(number) and not infinite):
+        raise InputError(
+            f"{argument}: expected a {'number (not NaN)' if infinite else 'finite number'}, "
+            f"got {number}"
+        )
+    return number
 
 
 @dataclass(frozen=True)
@@ -53,20 +72,25 @@ class Parameter:
 
     def __post_init__(self) -> None:
         _check_name(self.name, "Parameter.name")
-        try:
-            value = float(self.value)
-        except (TypeError, ValueError):
-            raise InputTypeError(
-                f"Parameter {self.name!r}: value must be a real number, got {describe(self.value)}"
-            ) from None
-        if not math.isfinite(value):
-            raise InputError(f"Parameter {self.name!r}: value must be finite, got {value}")
+        where = f"Parameter {self.name!r}"
+        value = _real(self.value, f"{where}: value")
         object.__setattr__(self, "value", value)
-        if self.scale is not None and not (math.isfinite(self.scale) and self.scale > 0):
-            raise InputError(
-                f"Parameter {self.name!r}: scale must be a positive finite number, "
-                f"got {self.scale!r}"
+        if not isinstance(self.free, (bool, np.bool_)):
+            raise InputTypeError(f"{where}: free must be True or False, got {describe(self.free)}")
+        object.__setattr__(self, "free", bool(self.free))
+        if self.scale is not None:
+            scale = _real(self.scale, f"{where}: scale")
+            if scale <= 0:
+                raise InputError(
+                    f"{where}: scale must be a positive finite number, got {self.scale!r}"
+                )
+            object.__setattr__(self, "scale", scale)
+        for bound in ("lower", "upper"):
+            object.__setattr__(
+                self, bound, _real(getattr(self, bound), f"{where}: {bound}", infinite=True)
             )
+        if not isinstance(self.unit, str):
+            raise InputTypeError(f"{where}: unit must be a string, got {describe(self.unit)}")
         if not self.lower <= value <= self.upper:
             raise InputError(
                 f"Parameter {self.name!r}: value {value} lies outside its bounds "
@@ -93,6 +117,11 @@ class Parameters(Sequence[Parameter]):
             params = list(items)
         elif isinstance(items, Mapping):
             params = [Parameter(name, value) for name, value in items.items()]
+        elif isinstance(items, (str, bytes)) or not isinstance(items, Iterable):
+            raise InputTypeError(
+                "parameters: expected Parameter objects, (name, value) tuples or a mapping "
+                f"{{name: value}}, got {describe(items)}"
+            )
         else:
             params = []
             for item in items:

@@ -47,7 +47,7 @@ such a model from an ordinary one::
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -74,6 +74,8 @@ def per_maneuver_name(name: str, maneuver: int) -> str:
 def _names(values: Sequence[str], argument: str) -> tuple[str, ...]:
     if isinstance(values, str):
         raise InputTypeError(f"{argument}: expected a list of names, got the string {values!r}")
+    if isinstance(values, Mapping) or not isinstance(values, Iterable):
+        raise InputTypeError(f"{argument}: expected a list of names, got {describe(values)}")
     names = tuple(values)
     for name in names:
         if not isinstance(name, str) or not name.isidentifier():
@@ -133,6 +135,8 @@ class StateSpaceModel:
     function_form: str = "auto"
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise InputTypeError(f"name: expected a string, got {describe(self.name)}")
         object.__setattr__(self, "states", _names(self.states, "states"))
         object.__setattr__(self, "inputs", _names(self.inputs, "inputs"))
         object.__setattr__(self, "outputs", _names(self.outputs, "outputs"))

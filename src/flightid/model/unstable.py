@@ -209,22 +209,30 @@ def with_eigenvalue_shift(
         check_linear_homogeneous(model)
     sigma = float(sigma)
     f = model.f
+    failure = None
     if hasattr(f, "py_func"):
         f_inner = f
     else:
+        from flightid.model.compilation import try_compiled
+
         try:
             # compiled through the digest-keyed disk cache (an uncached njit here was
             # compiled again by every process, and with it every kernel calling it)
             from flightid.simulate.cache import compiled_function
 
             f_inner = compiled_function(f)
-            f_inner(
+            # an error the compiled f raises at these values (a division by a parameter)
+            # is not a compilation failure
+            failure = try_compiled(
+                f_inner,
                 0.0,
                 np.zeros(len(model.states)),
                 np.zeros(len(model.inputs)),
                 model.function_theta(None, 0),
             )
-        except Exception:  # numba typing errors have many classes: run in Python
+        except Exception as exc:  # numba typing errors have many classes: run in Python
+            failure = exc
+        if failure is not None:
             f_inner = getattr(f, "py_func", f)
 
     def f_shifted(t, x, u, theta):
@@ -235,6 +243,9 @@ def with_eigenvalue_shift(
             out[i] = dx[i] - sigma * x[i]
         return out
 
+    if failure is not None:
+        # the simulator's fall-back to Python names the user's line from this error
+        f_shifted.compile_failure = failure
     from dataclasses import replace
 
     return replace(model, f=f_shifted)

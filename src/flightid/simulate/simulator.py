@@ -19,14 +19,14 @@ returns the continuity defects x_end(interval m) − x0(interval m + 1) beside t
 
 from __future__ import annotations
 
-import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import InputError, SimulationError
+from flightid.errors import InputError, InputTypeError, SimulationError, describe
+from flightid.model.compilation import is_compile_error, warn_pure_python
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate.feedback import make_feedback_kernel
 from flightid.simulate.kernels import EULER, INTERPOLATIONS, RK4, make_kernel
@@ -173,6 +173,10 @@ class SimulationBatch:
 def _as_data_list(data: FlightData | Sequence[FlightData]) -> list[FlightData]:
     if isinstance(data, FlightData):
         return [data]
+    if isinstance(data, (str, bytes, Mapping)) or not isinstance(data, Iterable):
+        raise InputTypeError(
+            f"data: expected a FlightData or a non-empty list of FlightData, got {describe(data)}"
+        )
     items = list(data)
     if not items or not all(isinstance(d, FlightData) for d in items):
         raise InputError("data: expected a FlightData or a non-empty list of FlightData")
@@ -368,13 +372,17 @@ class Simulator:
             )
             return kernel, True
         except Exception as exc:  # numba typing errors have many classes
-            if type(exc).__module__.startswith("numba"):
-                warnings.warn(
-                    f"model {self.model.name!r}: numba could not compile f/h "
-                    f"({type(exc).__name__}); running the pure-Python kernel instead",
-                    RuntimeWarning,
-                    stacklevel=4,
+            if is_compile_error(exc):
+                # a wrapper around the user's f/h (case biases) carries the user's own error
+                cause = next(
+                    (
+                        getattr(fn, "compile_failure", None)
+                        for fn in (self.model.f_out, self.model.h_out, self.model.f, self.model.h)
+                        if getattr(fn, "compile_failure", None) is not None
+                    ),
+                    exc,
                 )
+                warn_pure_python(self.model.name, cause, stacklevel=4)
                 return make_kernel(
                     self.model.f_out,
                     self.model.h_out,

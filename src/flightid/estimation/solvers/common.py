@@ -9,12 +9,86 @@ outside the bounds.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import math
+import numbers
+import types
+import typing
+
 import numpy as np
 
+from flightid.errors import InputError, InputTypeError, describe
 from flightid.estimation.gauss_newton import GaussNewtonStep, step_from_factor, triangular_factor
 from flightid.estimation.objective import Objective
 
-__all__ = ["halving_search", "budget_status", "limit_step", "bounded_gauss_newton_step"]
+__all__ = [
+    "halving_search",
+    "budget_status",
+    "limit_step",
+    "bounded_gauss_newton_step",
+    "check_setting_types",
+    "named_settings",
+]
+
+
+def named_settings(cls: type) -> type:
+    """Class decorator for a solver dataclass: an unknown keyword or too many positional
+    arguments is an ``InputTypeError`` naming the solver's settings (not Python's bare
+    ``TypeError`` of ``__init__``)."""
+    init = cls.__init__
+    names = [f.name for f in dataclasses.fields(cls) if f.init]
+
+    @functools.wraps(init)
+    def __init__(self, *args, **kwargs):
+        unknown = sorted(set(kwargs) - set(names))
+        if unknown:
+            raise InputTypeError(
+                f"{cls.__name__}.{unknown[0]}: not a setting of {cls.__name__}; its settings: "
+                f"{names}"
+            )
+        if len(args) > len(names):
+            raise InputTypeError(
+                f"{cls.__name__}: expected at most {len(names)} settings {names}, got "
+                f"{len(args)} positional arguments"
+            )
+        init(self, *args, **kwargs)
+
+    cls.__init__ = __init__
+    return cls
+
+
+def _setting_type(value: object, hint: object, where: str) -> None:
+    """``value`` against one annotation: bool, int, float, str or X | None."""
+    arguments = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        if value is None:
+            return
+        hint = arguments[0] if len(arguments) == 1 else None
+    is_bool = isinstance(value, (bool, np.bool_))
+    if hint is bool and not is_bool:
+        raise InputTypeError(f"{where}: expected True or False, got {describe(value)}")
+    if hint is int and (is_bool or not isinstance(value, numbers.Integral)):
+        raise InputTypeError(f"{where}: expected an integer, got {describe(value)}")
+    if hint is float:
+        if is_bool or not isinstance(value, numbers.Real):
+            raise InputTypeError(f"{where}: expected a number, got {describe(value)}")
+        if math.isnan(float(value)):
+            raise InputError(f"{where}: expected a number, got NaN")
+    if hint is str and not isinstance(value, str):
+        raise InputTypeError(f"{where}: expected a string, got {describe(value)}")
+
+
+def check_setting_types(settings: object) -> None:
+    """Every field of the solver dataclass ``settings`` has its annotated type (named
+    ``InputTypeError`` otherwise), so that range checks compare numbers with numbers."""
+    cls = type(settings)
+    hints = typing.get_type_hints(cls)
+    for field in dataclasses.fields(cls):
+        if field.name in hints:
+            _setting_type(
+                getattr(settings, field.name), hints[field.name], f"{cls.__name__}.{field.name}"
+            )
 
 
 def bounded_gauss_newton_step(

@@ -31,7 +31,11 @@ import numpy as np
 
 from flightid.errors import InputError
 from flightid.estimation.objective import Objective, SolverOutcome
-from flightid.estimation.solvers.common import budget_status
+from flightid.estimation.solvers.common import (
+    budget_status,
+    check_setting_types,
+    named_settings,
+)
 
 __all__ = ["FPS"]
 
@@ -74,6 +78,7 @@ class _Coordinates:
         return np.clip(theta, lo, up)
 
 
+@named_settings
 @dataclass(frozen=True)
 class FPS:
     """Nelder–Mead flexible polyhedron search.
@@ -93,10 +98,15 @@ class FPS:
     name = "fps"
 
     def __post_init__(self) -> None:
+        check_setting_types(self)
         if not self.initial_size > 0:
             raise InputError(f"FPS.initial_size: expected > 0, got {self.initial_size!r}")
         if not (0 < self.contraction < 1 and 0 < self.shrink < 1 and self.expansion > 1):
             raise InputError("FPS: expected 0 < contraction, shrink < 1 and expansion > 1")
+        if not self.reflection > 0:
+            raise InputError(f"FPS.reflection: expected > 0, got {self.reflection!r}")
+        if self.max_restarts < 0:
+            raise InputError(f"FPS.max_restarts: expected ≥ 0, got {self.max_restarts!r}")
 
     def settings(self) -> dict:
         return {

@@ -23,13 +23,16 @@ from flightid.estimation.objective import Objective, SolverOutcome
 from flightid.estimation.solvers.common import (
     bounded_gauss_newton_step,
     budget_status,
+    check_setting_types,
     halving_search,
     limit_step,
+    named_settings,
 )
 
 __all__ = ["MNR"]
 
 
+@named_settings
 @dataclass(frozen=True)
 class MNR:
     """Gauss–Newton with finite-difference sensitivities.
@@ -56,6 +59,7 @@ class MNR:
     name = "mnr"
 
     def __post_init__(self) -> None:
+        check_setting_types(self)
         if not 0 < self.relative_step < 1:
             raise InputError(f"MNR.relative_step: expected 0 < step < 1, got {self.relative_step}")
         if self.sensitivities not in ("differences", "equations"):
@@ -65,6 +69,10 @@ class MNR:
             )
         if self.max_halvings < 0:
             raise InputError(f"MNR.max_halvings: expected ≥ 0, got {self.max_halvings}")
+        if not self.max_relative_step > 0:
+            raise InputError(
+                f"MNR.max_relative_step: expected > 0 (math.inf: off), got {self.max_relative_step}"
+            )
 
     def settings(self) -> dict:
         return {

@@ -203,7 +203,9 @@ from flightid.estimation.problem import FiniteDifferences
 from flightid.estimation.solvers.common import (
     bounded_gauss_newton_step,
     budget_status,
+    check_setting_types,
     limit_step,
+    named_settings,
 )
 from flightid.estimation.surface import RecursiveSurface, algebraic_surface, batch_surface
 
@@ -468,6 +470,7 @@ def _secant_step(
     return gn, gn * (radius / length)
 
 
+@named_settings
 @dataclass(frozen=True)
 class MNRES:
     """Newton–Raphson with sensitivities from a surface through past points.
@@ -517,6 +520,7 @@ class MNRES:
     name = "mnres"
 
     def __post_init__(self) -> None:
+        check_setting_types(self)
         if self.form not in _FORMS:
             raise InputError(f"MNRES.form: expected one of {_FORMS}, got {self.form!r}")
         if self.replacement not in _REPLACEMENTS:
@@ -536,6 +540,15 @@ class MNRES:
             )
         if self.form == "algebraic" and self.window is not None:
             raise InputError("MNRES.window: only the 'batch' and 'recursive' forms take a window")
+        if self.window is not None and self.window < 2:
+            raise InputError(f"MNRES.window: expected ≥ 2 points (≥ n_f + 1), got {self.window}")
+        if not self.max_relative_step > 0:
+            raise InputError(
+                f"MNRES.max_relative_step: expected > 0 (math.inf: off), got "
+                f"{self.max_relative_step}"
+            )
+        if not self.max_condition > 1:
+            raise InputError(f"MNRES.max_condition: expected > 1, got {self.max_condition}")
 
     def settings(self) -> dict:
         return {
