@@ -296,6 +296,7 @@ def test_fixedwing_log_streams_units_and_modes(example_logs):
     assert np.allclose(roll * 100, np.round(roll * 100), atol=1e-6)  # centidegrees
     mode = by_name["MODE"]
     assert mode.fields["ModeNum"].tolist() == [5.0, 0.0, 5.0]  # FBWA, MANUAL, FBWA
+    assert by_name["VER"].fields["BU"].tolist() == [3.0]  # ArduPlane: names the modes
     assert np.allclose(mode.time_s[1:], [log.modes[1][1], log.modes[2][1]])
 
 
@@ -348,13 +349,15 @@ def _segments(lo, hi, dropouts, margin_s=0.02):
     return list(zip(edges[::2], edges[1::2], strict=True))
 
 
-def _resampled_case(tmp_path, case_name, columns, hz, dropouts) -> Path:
+def _resampled_case(tmp_path, case_name, columns, hz, log) -> Path:
     """The shipped case with its [data] replaced by CSV segments, resampled here by linear
-    interpolation at ``hz`` between the drop-outs (the case's start/stop kept)."""
+    interpolation at ``hz`` between the drop-outs, over the case's flight-mode interval as
+    the log's writer states it (``ExampleLog.modes``)."""
     case_text = (EXAMPLES / case_name).read_text()
-    data = tomllib.loads(case_text)["data"]
+    (maneuver,) = tomllib.loads(case_text)["data"]["maneuvers"]
+    (lo, hi) = [(a, b) for m, a, b in log.modes if m.lower() == maneuver["mode"].lower()][0]
     files = []
-    for k, (a, b) in enumerate(_segments(data["start"], data["stop"], dropouts)):
+    for k, (a, b) in enumerate(_segments(lo, hi, log.dropouts)):
         t = np.arange(math.ceil(a * hz), math.floor(b * hz) + 1) / hz
         table = [t] + [np.interp(t, ts, values) for ts, values in columns.values()]
         name = f"segment_{k}.csv"
@@ -395,9 +398,9 @@ def test_fixedwing_case_recovers_the_truth_from_resampled_segments(example_logs,
         "ATT.Roll": (att.time_s, att.fields["Roll"]),
         "RCOU.C1": (rcou.time_s, rcou.fields["C1"]),
     }
-    case = _resampled_case(tmp_path, "fixedwing_roll.toml", columns, 100, log.dropouts)
+    case = _resampled_case(tmp_path, "fixedwing_roll.toml", columns, 100, log)
     run = run_case(case)
-    assert len(run.maneuvers) == 3  # cut at the two drop-outs inside start..stop
+    assert len(run.maneuvers) == 4  # MANUAL, cut at the three drop-outs inside it
     _assert_recovered(run, log.parameters, {"Lp": "Lp", "Lda": "Lda"})
 
 
@@ -410,7 +413,7 @@ def test_multirotor_case_recovers_the_truth_from_resampled_segments(example_logs
         "vehicle_angular_velocity.xyz_0": (gyro.time_s, gyro.fields["xyz_0"]),
         "vehicle_rates_setpoint.roll": (setpoint.time_s, setpoint.fields["roll"]),
     }
-    case = _resampled_case(tmp_path, "multirotor_roll_rate.toml", columns, 200, log.dropouts)
+    case = _resampled_case(tmp_path, "multirotor_roll_rate.toml", columns, 200, log)
     run = run_case(case)
     assert len(run.maneuvers) == 2
     _assert_recovered(run, log.parameters, {"omega_n": "wn", "zeta": "zeta", "tau": "tau"})

@@ -120,6 +120,28 @@ def test_step_held_to_the_end_stops_max_hold_after_its_edge():
     assert step.stop_s == pytest.approx(25.0, abs=0.3)
 
 
+def test_single_smooth_pulse_is_a_pulse_not_a_multisine():
+    """A controller's return to level at a mode change: the rate command jumps to −1.8 and
+    decays back to the hold level (time constant 0.08 s) — one excursion of one sign, not a
+    multi-frequency input; a doublet and a multisine in the same record keep their kinds."""
+    t = np.arange(0.0, 30.0, 0.005)
+    tau = t - 20.0
+    # return to level: x = −1.8 e^(−τ/0.08) for τ ≥ 0
+    x = np.where(tau >= 0, -1.8 * np.exp(-np.clip(tau, 0, None) / 0.08), 0.0)
+    x += _square(t, 5.0, [(1, 1), (1, -1)], 0.1, 1.2)
+    x += _multisine(t, 10.0, 6.0, (0.7, 1.3, 2.1, 2.9), 0.3)
+    # a smooth one-signed bump: half a sine period of 0.6 s
+    bump = (t >= 25.0) & (t < 25.6)
+    x[bump] += 0.9 * np.sin(np.pi * (t[bump] - 25.0) / 0.6)
+    x += RNG.normal(0.0, 0.008, t.size)
+    found = detect_excitation(t, x, "vehicle_rates_setpoint.roll", "rad/s")
+    assert [s.kind for s in found] == ["doublet", "multisine", "pulse", "pulse"]
+    pulse = found[2]
+    assert pulse.start_s == pytest.approx(20.0, abs=0.01)
+    assert pulse.amplitude == pytest.approx(1.8, abs=0.05)
+    assert found[3].start_s == pytest.approx(25.0, abs=0.1)
+
+
 # ---------------------------------------------------------------- streams and modes
 
 

@@ -9,7 +9,8 @@
 * ``write_fixedwing_dataflash``: a fixed-wing roll mode in an ArduPilot DataFlash log,
   ṗ = L_p p + L_δa δa with L_p = −4 1/s and L_δa = 30 1/s² (δa in rad), φ̇ = p. Two 3-2-1-1
   and two doublets on the aileron in MANUAL between FBWA; ``IMU.GyrX`` (rad/s, ~400 Hz),
-  ``ATT.Roll`` (deg, ~50 Hz), ``RCOU.C1`` (PWM µs, ~50 Hz) and ``MODE``. The aileron is
+  ``ATT.Roll`` (deg, ~50 Hz), ``RCOU.C1`` (PWM µs, ~50 Hz), ``MODE`` and ``VER`` (an
+  ArduPlane build, so that the mode numbers read as Plane modes). The aileron is
   δa = (C1 − 1500 µs) · 0.05 deg/µs (1000…2000 µs ↔ −25…+25 deg), positive rolling right.
 
 Both logs look like logs of real flights: every stream on its own time base with jittering
@@ -462,7 +463,7 @@ def write_fixedwing_dataflash(
         for s in streams
         for keep in [_kept(np.rint(s.time_s * _US), dropouts)]
     ]
-    streams.append(_fw_modes(start_us))
+    streams += [_fw_modes(start_us), _fw_version(start_us)]
     path = write_dataflash(
         path,
         streams,
@@ -472,6 +473,7 @@ def write_fixedwing_dataflash(
             | {"DesYaw": "C", "Yaw": "C"},
             "RCOU": {f"C{i}": "H" for i in range(1, 5)},
             "MODE": {"Mode": "M", "ModeNum": "B", "Rsn": "B"},
+            "VER": {"Maj": "B", "Min": "B", "Pat": "B", "FWT": "B", "BU": "B"},
         },
         parameters={"SERVO1_MIN": 1000.0, "SERVO1_TRIM": 1500.0, "SERVO1_MAX": 2000.0},
         overwrite=overwrite,
@@ -546,6 +548,14 @@ def _fw_modes(start_us: int) -> Stream:
     return Stream(
         "MODE", stamps / _US, {"Mode": numbers, "ModeNum": numbers, "Rsn": np.ones(3)}, {}
     )
+
+
+def _fw_version(start_us: int) -> Stream:
+    """VER: the firmware of the log, ArduPlane 4.5.7 official (FWT 255); ``BU`` = 3 is the
+    build type (Plane), which names the MODE numbers (0 = Manual, 5 = FBWA). ArduPilot's
+    VER also holds strings (git hash, firmware name) that this writer does not store."""
+    fields = {"Maj": [4.0], "Min": [5.0], "Pat": [7.0], "FWT": [255.0], "BU": [3.0]}
+    return Stream("VER", np.array([start_us + 1_000]) / _US, fields, {})
 
 
 def write_example_logs(folder: str | Path, *, overwrite: bool = False) -> dict[str, ExampleLog]:

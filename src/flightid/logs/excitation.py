@@ -18,7 +18,9 @@ Kind, from y = x − x₀ on the segment (A: the median of |y| where |y| > peak/
 - square-wave inputs (at least 75 % of the samples within ±25 % of ±A): the runs of one
   sign with |y| > A/2 give "step" (one), "doublet" (two of opposite sign, durations within
   a factor 1.6), "3-2-1-1" (four alternating, durations 3:2:1:1 within 35 %), else "pulses";
-- smooth inputs: "sweep" when the frequency from the zero crossings (with hysteresis ±A/4)
+- smooth inputs: "pulse" when y keeps one sign (it never swings from beyond +A/4 to
+  beyond −A/4 or back: one smooth excursion, such as a controller's return to level at a
+  mode change); "sweep" when the frequency from the zero crossings (with hysteresis ±A/4)
   rises or falls monotonically (Spearman |ρ| ≥ 0.9) over more than a factor 1.5, else
   "multisine" (any other multi-frequency input).
 
@@ -47,7 +49,7 @@ from scipy.stats import spearmanr
 
 __all__ = ["Segment", "detect_excitation", "KINDS"]
 
-KINDS = ("step", "doublet", "3-2-1-1", "pulses", "sweep", "multisine")
+KINDS = ("step", "doublet", "3-2-1-1", "pulses", "pulse", "sweep", "multisine")
 _GAP_S = 0.5  # s: the input back at its level this long ends a segment
 _PRE_S = 1.0  # s: the level before a segment is the median over this long
 _FLAT_SHARE = 0.75
@@ -198,9 +200,9 @@ def _square_kind(y: np.ndarray, A: float, fs: float) -> str:
     return "pulses"
 
 
-def _crossing_frequencies(y: np.ndarray, t: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """(times, Hz) of the local frequency from crossings of ±h (Schmitt trigger): each
-    half period between alternate-sign crossings gives f = 1 / (2·half period)."""
+def _crossing_times(y: np.ndarray, t: np.ndarray, h: float) -> np.ndarray:
+    """The times (s) where y swings from beyond +h to beyond −h or back (Schmitt trigger
+    with hysteresis ±h)."""
     state, crossings = 0, []
     above, below = y > h, y < -h
     for i in np.flatnonzero(above | below):
@@ -209,7 +211,13 @@ def _crossing_frequencies(y: np.ndarray, t: np.ndarray, h: float) -> tuple[np.nd
             if state != 0:
                 crossings.append(t[i])
             state = new
-    crossings = np.asarray(crossings)
+    return np.asarray(crossings)
+
+
+def _crossing_frequencies(y: np.ndarray, t: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(times, Hz) of the local frequency from crossings of ±h (Schmitt trigger): each
+    half period between alternate-sign crossings gives f = 1 / (2·half period)."""
+    crossings = _crossing_times(y, t, h)
     if crossings.size < 3:
         return np.empty(0), np.empty(0)
     half = np.diff(crossings)
@@ -247,6 +255,9 @@ def _classify(y: np.ndarray, t: np.ndarray, fs: float) -> tuple[str, tuple[float
     flat = float(np.mean(np.abs(np.abs(y) - A) < 0.25 * A))
     if flat >= _FLAT_SHARE:
         return _square_kind(y, A, fs), _energy_band(y, fs)
+    if _crossing_times(y, t, 0.25 * A).size == 0:
+        # one sign throughout: a single smooth excursion from x₀ and back
+        return "pulse", _energy_band(y, fs)
     times, freqs = _crossing_frequencies(y - np.mean(y), t, 0.25 * A)
     if freqs.size >= 6:
         rho = spearmanr(times, freqs).statistic
