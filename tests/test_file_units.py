@@ -20,6 +20,7 @@ import pytest
 from flightid.cases import CaseError, load_case
 from flightid.cases.build import load_maneuvers
 from flightid.data.loaders import (
+    ChannelError,
     ChannelSpec,
     FileUnitError,
     Table,
@@ -303,9 +304,9 @@ def test_dataflash_fmtu_units_apply(tmp_path):
 
 
 def test_channel_spec_checks_the_new_key():
-    with pytest.raises(Exception, match=r"ignore_file_unit: expected true or false"):
+    with pytest.raises(ChannelError, match=r"ignore_file_unit: expected true or false"):
         ChannelSpec.from_value({"column": 1, "ignore_file_unit": "yes"}, "outputs.x")
-    with pytest.raises(Exception, match=r"outputs\.x\.to: .*unknown unit"):
+    with pytest.raises(ChannelError, match=r"outputs\.x\.to: .*unknown unit"):
         ChannelSpec.from_value({"column": 1, "to": "furlong"}, "outputs.x")
 
 

@@ -13,6 +13,7 @@ import pytest
 from flightid.cli.main import main
 from flightid.data.formats import Stream
 from flightid.data.loaders import ChannelError, _finish_table, to_flight_data
+from flightid.data.signals import quaternion_to_euler
 from flightid.logs.caselines import case_lines
 from flightid.logs.excitation import detect_excitation
 from flightid.logs.modes import (
@@ -22,7 +23,6 @@ from flightid.logs.modes import (
     select_mode,
     sysid_runs,
 )
-from flightid.logs.signals import quaternion_to_euler
 from flightid.logs.streams import summarize_stream
 from log_writers import jittered_stamps_us, write_dataflash, write_ulog
 
@@ -433,3 +433,20 @@ def test_mode_interval_matches_aliases():
     interval = ModeInterval("Stabilized", 15, 0.0, 1.0, "vehicle_status.nav_state", ("STAB",))
     assert interval.matches(" stab ") and interval.matches("STABILIZED")
     assert not interval.matches("Stab2")
+
+
+def test_streams_without_a_rate_print_a_dash_not_inf_or_nan():
+    # a log's parameter messages (three samples at one stamp) and a version message (one
+    # sample) have no rate: the summary says NaN and the printed table a dash
+    from flightid.data.formats import Stream
+    from flightid.logs.inspection import _hz
+    from flightid.logs.streams import summarize_stream
+
+    one_stamp = Stream("PARM", np.array([1.0, 1.0, 1.0]), {"Value": np.array([1.0, 2.0, 3.0])})
+    single = Stream("VER", np.array([2.0]), {"BU": np.array([3.0])})
+    regular = Stream("ATT", np.arange(0.0, 1.0, 0.02), {"Roll": np.zeros(50)})
+    assert math.isnan(summarize_stream(one_stamp).rate_hz)
+    assert math.isnan(summarize_stream(single).rate_hz)
+    assert summarize_stream(regular).rate_hz == pytest.approx(50.0)
+    assert _hz(summarize_stream(one_stamp).rate_hz) == "–"
+    assert _hz(summarize_stream(regular).rate_hz) == "50.00"

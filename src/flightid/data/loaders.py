@@ -64,6 +64,13 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.data.preprocess import apply_steps, parse_derivative, parse_smooth
+from flightid.data.signals import (
+    BUILTIN_SIGNALS,
+    builtin_signal,
+    quaternion_pitch,
+    quaternion_roll,
+    quaternion_yaw,
+)
 from flightid.data.timebase import (
     HALF_INTERVAL,
     TimeBaseError,
@@ -73,13 +80,6 @@ from flightid.data.timebase import (
 )
 from flightid.data.units import channel_conversion, parse_unit, same_unit
 from flightid.errors import InputError, InputTypeError, describe
-from flightid.logs.signals import (
-    BUILTIN_SIGNALS,
-    builtin_signal,
-    quaternion_pitch,
-    quaternion_roll,
-    quaternion_yaw,
-)
 
 __all__ = [
     "DataFileError",
@@ -821,7 +821,7 @@ _FUNCTIONS = {
     # log (natural): x > 0
     "log": _Function(1, np.log, lambda x: x <= 0, "x > 0"),
     "abs": _Function(1, np.abs),
-    # ZYX Euler angles (rad) of a Hamilton quaternion (w, x, y, z), flightid.logs.signals
+    # ZYX Euler angles (rad) of a Hamilton quaternion (w, x, y, z), flightid.data.signals
     "quat_roll": _Function(4, quaternion_roll),
     "quat_pitch": _Function(4, quaternion_pitch),
     "quat_yaw": _Function(4, quaternion_yaw),
@@ -979,7 +979,7 @@ def parse_expression(text: str) -> tuple:
 def _lookup(name: int | str, table: Table, where: str, names: Mapping[str, Any] | None):
     """A name's values: a signal or constant of ``names`` (signals: arrays over all rows),
     else the table's column (``$N`` is always the column), else a built-in log signal
-    (``px4.roll``, ... of ``flightid.logs.signals``, from the table's columns)."""
+    (``px4.roll``, ... of ``flightid.data.signals``, from the table's columns)."""
     if names and isinstance(name, str) and name in names:
         return names[name]
     try:

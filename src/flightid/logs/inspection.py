@@ -135,6 +135,11 @@ def _ms(seconds: float) -> str:
     return "–" if not math.isfinite(seconds) else f"{seconds * 1000:.2f}"
 
 
+def _hz(rate: float) -> str:
+    """A stream's rate; "–" where it has none (one sample, or every sample at one stamp)."""
+    return "–" if not math.isfinite(rate) else f"{rate:.2f}"
+
+
 def inspection_text(inspection: Inspection) -> str:
     """The printed report: header, streams, modes, SysID runs and excitation segments."""
     c = inspection.contents
@@ -150,7 +155,7 @@ def inspection_text(inspection: Inspection) -> str:
     ]
     for s in inspection.summaries:
         lines.append(
-            f"  {s.name:<30} {s.samples:>8d} {s.rate_hz:>9.2f} {_ms(s.jitter_s):>10} "
+            f"  {s.name:<30} {s.samples:>8d} {_hz(s.rate_hz):>9} {_ms(s.jitter_s):>10} "
             f"{_ms(s.max_interval_s):>11} {s.dropouts:>9d}  {_fields_words(s.fields)}"
         )
     lines.append("")

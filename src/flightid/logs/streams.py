@@ -19,7 +19,7 @@ import numpy as np
 
 from flightid.data.formats import Stream, dataflash_streams, ulog_streams
 from flightid.data.loaders import ChannelError, DataFileError, read_table
-from flightid.logs.signals import BUILTIN_SIGNALS, builtin_signal
+from flightid.data.signals import BUILTIN_SIGNALS, builtin_signal
 
 __all__ = ["LogContents", "StreamSummary", "read_log", "summarize_stream", "log_kind"]
 
@@ -36,7 +36,8 @@ class StreamSummary:
         name: the stream's name (``vehicle_attitude``, ``IMU[1]``).
         samples: number of time stamps.
         start_s, stop_s: first and last stamp (s).
-        rate_hz: 1 / median interval (Hz); NaN with fewer than 2 samples.
+        rate_hz: 1 / median interval (Hz); NaN with fewer than 2 samples or a zero median
+            interval (samples logged at one stamp, such as a log's parameters).
         jitter_s: standard deviation of the intervals that are no drop-outs (s).
         max_interval_s: the largest interval (s).
         dropouts: number of intervals longer than ``DROPOUT_FACTOR`` median intervals.
@@ -71,7 +72,7 @@ def summarize_stream(stream: Stream) -> StreamSummary:
         int(t.size),
         float(t[0]),
         float(t[-1]),
-        1.0 / median if median > 0 else float("inf"),
+        1.0 / median if median > 0 else float("nan"),
         jitter,
         float(dt.max()),
         int((~regular).sum()),
@@ -134,7 +135,7 @@ class LogContents:
 
     def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, str]:
         """(time s, values, unit) of ``stream.field``, of a field of a one-stream log, or of a
-        built-in signal (``px4.roll``, ...: ``flightid.logs.signals``). Unknown names raise
+        built-in signal (``px4.roll``, ...: ``flightid.data.signals``). Unknown names raise
         ``ChannelError`` listing what the log holds."""
         if name in BUILTIN_SIGNALS:
             return self._builtin(name)
