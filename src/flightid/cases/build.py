@@ -356,6 +356,24 @@ _DERIVED_STATES = {
 # channels a derivation may do without (then 0: symmetric flight, wings level)
 _OPTIONAL_ZERO = {"beta", "phi"}
 
+# Initial states of the built-in airplane models are estimated (start: the first measured
+# or derived sample) unless [initial_state] names them or sets a `default`; only the direction
+# cosine that enters the decoupled models solely multiplied by a measured rate (l_yz of the
+# longitudinal, l_xz of the lateral model: nearly unidentifiable) stays at the first sample.
+# A state fixed at one noisy sample offsets the whole simulated record (airspeed: the
+# phugoid; attitude: gravity) and makes the Cramér–Rao σ 1.5–4× too small; measured in
+# docs/cases.md, "Initial states from measurements".
+BUILTIN_AIRPLANE_TYPES = ("longitudinal", "lateral", "six_dof", "wind_axis_longitudinal")
+FIXED_BY_DEFAULT = {"longitudinal": ("l_yz",), "lateral": ("l_xz",)}
+
+
+def estimated_by_default(model_type: str | None, states: Sequence[str]) -> tuple[str, ...]:
+    """The states of a ``model_type`` model estimated when ``[initial_state]`` is silent."""
+    if model_type not in BUILTIN_AIRPLANE_TYPES:
+        return ()
+    fixed = FIXED_BY_DEFAULT.get(model_type, ())
+    return tuple(s for s in states if s not in fixed)
+
 
 def _has(maneuver: FlightData, channel: str) -> bool:
     return channel in maneuver.input_names or channel in maneuver.output_names
@@ -392,10 +410,12 @@ def _initial_states(
     maneuvers: Sequence[FlightData],
     key: str,
     allow_estimate: bool = True,
+    default_estimated: Sequence[str] = (),
 ) -> tuple[list[list], list[Parameter]]:
     """Per-maneuver x0 specifications and the x0 parameters they need, in maneuver-major
     order (maneuver 1's free states in state order, then maneuver 2's …, as CASES.md §4c
-    lists them)."""
+    lists them). A state without an entry takes the section's ``default``, else "estimate"
+    if it is one of ``default_estimated`` (and estimation is allowed), else "measured"."""
     unknown = sorted(set(section) - set(model.states) - {"default"})
     if unknown:
         raise CaseError(
@@ -406,7 +426,8 @@ def _initial_states(
     extra: list[tuple[int, int, Parameter]] = []  # (maneuver, state, parameter)
     for j, state in enumerate(model.states):
         where = f"{key}.{state}"
-        value = section.get(state, section.get("default", "measured"))
+        implicit = "estimate" if allow_estimate and state in default_estimated else "measured"
+        value = section.get(state, section.get("default", implicit))
         spec = dict(value) if isinstance(value, Mapping) else {"value": value}
         allowed = {"value", "free", "channel", "scale"}
         if set(spec) - allowed:
@@ -635,7 +656,14 @@ def build_model(
     per_names = _per_maneuver_names(case.parameters, base.parameters, new_delays)
     bx, by, bias_params, per_maneuver = _biases(base, case.biases, n_m)
     section = case.initial_state if initial_state is None else initial_state
-    x0, x0_params = _initial_states(base, section, maneuvers, key, allow_estimate=values is None)
+    x0, x0_params = _initial_states(
+        base,
+        section,
+        maneuvers,
+        key,
+        allow_estimate=values is None,
+        default_estimated=estimated_by_default(case.model.get("type"), base.states),
+    )
     # f and h index θ as (model, biases, x0, delays); with per-maneuver parameters θ holds
     # (other model parameters, copies per maneuver, biases, x0, delays) and the simulator
     # substitutes each maneuver's copies (StateSpaceModel.maneuver_parameters)
