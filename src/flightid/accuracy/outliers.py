@@ -3,13 +3,17 @@
 A single wild point (a telemetry glitch, a spike in a vane angle) pulls an output-error fit:
 its residual enters the cost squared, so one sample 250 times the noise outweighs tens of
 thousands of good ones, and the stated σ do not show it. The screen here works on the raw
-residuals ν_ik = z_ik − y_ik of an estimate, per output k, against a robust scale that the
+residuals ν_ik = z_ik − y_ik of an estimate, per output k: on each residual's departure from
+the running median of its neighbours (so that a smooth misfit — a transient from the initial
+state, a slow model error — is not taken for wild points), against a robust scale that the
 outliers themselves cannot inflate:
 
-    s_k = 1.4826 · median_i |ν_ik − median_i ν_ik|          (MAD; = σ for Gaussian noise)
-    z_ik = ν_ik / s_k
+    d_ik = ν_ik − median(ν_(i−3…i+3),k)                     (7-sample running median)
+    s_k  = 1.4826 · median_i |d_ik − median_i d_ik|         (MAD; a σ for Gaussian noise)
+    z_ik = d_ik / s_k
 
-and names every measurement with |z_ik| > ``threshold`` (default 6: a Gaussian sample exceeds
+and names every measurement with |z_ik| > ``threshold``, stating its size as ν_ik over the
+residuals' own robust scale 1.4826 · median_i |ν_ik − median_i ν_ik| (default 6: a Gaussian sample exceeds
 it with probability 2·10⁻⁹, so a clean record of 10⁶ measurements raises no false alarm).
 
 What to do about them (``OUTLIER_MODES``):
@@ -56,6 +60,8 @@ DEFAULT_THRESHOLD = 6.0
 HUBER_K = 1.345
 # MAD → σ for Gaussian noise: 1/Φ⁻¹(3/4)
 MAD_TO_SIGMA = 1.482602218505602
+# samples of the running median the spikes are measured from (``spike_sizes``)
+SPIKE_WINDOW = 7
 # messages name at most this many outliers one by one
 LISTED = 10
 
@@ -76,7 +82,7 @@ class Outlier:
         time_s: its time (s).
         output: the output's name.
         residual: ν = z − y in the output's units.
-        size_sigma: ν / s (signed), s the output's robust noise scale.
+        size_sigma: ν / s (signed), s the output's robust noise scale (``robust_scale``).
     """
 
     maneuver: int
@@ -113,7 +119,7 @@ class OutlierScreen:
     Attributes:
         outliers: the named measurements, largest |size| first.
         threshold: the |ν|/s limit (robust σ).
-        scale: s_k, the robust noise scale of each output (its units).
+        scale: s_k, the robust noise scale of each output's residuals (its units).
         output_names: the outputs.
         mode: ``"warn"``, ``"exclude"`` or ``"huber"``.
         weights: the weights (N, n_o) the reported estimate used (None: all 1).
@@ -184,6 +190,27 @@ class OutlierScreen:
         }
 
 
+def spike_sizes(residuals: np.ndarray, maneuver_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(z (N, n_o), s (n_o,)): each residual's departure from the running median of its
+    maneuver, d_ik = ν_ik − median(ν_(i−h…i+h),k), in robust σ of d, z_ik = d_ik / s_k.
+
+    The running median (``SPIKE_WINDOW`` samples, edges held) follows a smooth misfit — a
+    transient from the initial state, a slow model error — so only wild points, isolated or
+    in runs of up to h = ``SPIKE_WINDOW`` // 2 samples, stand out.
+    """
+    half = SPIKE_WINDOW // 2
+    departure = np.empty_like(residuals)
+    for m in np.unique(maneuver_index):
+        rows = np.flatnonzero(maneuver_index == m)
+        block = residuals[rows]
+        padded = np.pad(block, ((half, half), (0, 0)), mode="edge")
+        windows = np.lib.stride_tricks.sliding_window_view(padded, SPIKE_WINDOW, axis=0)
+        # d_ik = ν_ik − median over the window centred on i
+        departure[rows] = block - np.median(windows, axis=-1)
+    scale = robust_scale(departure)
+    return departure / scale, scale
+
+
 def robust_scale(residuals: np.ndarray) -> np.ndarray:
     """s_k = 1.4826 · MAD of each column of ``residuals`` (N, n_o); the RMS where the MAD is 0
     (more than half the residuals equal), and 1e-300 at the least."""
@@ -227,10 +254,11 @@ def find_outliers(
             f"time, maneuver_index: expected ({residuals.shape[0]},) each, got {time.shape} "
             f"and {maneuver_index.shape}"
         )
+    departure, _ = spike_sizes(residuals, maneuver_index)
+    # the size stated: ν_ik / s_k, s_k the robust noise scale of the residuals themselves
     scale = robust_scale(residuals)
-    # z_ik = ν_ik / s_k
     size = residuals / scale
-    rows, columns = np.nonzero(np.abs(size) > threshold)
+    rows, columns = np.nonzero(np.abs(departure) > threshold)
     first_sample = {int(m): int(np.argmax(maneuver_index == m)) for m in np.unique(maneuver_index)}
     found = []
     for i, k in zip(rows, columns, strict=True):
@@ -280,17 +308,20 @@ def screen_estimate(
 
 
 def outlier_weights(
-    residuals: np.ndarray, screen: OutlierScreen, mode: str, previous: np.ndarray | None = None
+    residuals: np.ndarray,
+    maneuver_index: np.ndarray,
+    threshold: float,
+    mode: str,
+    previous: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Weights (N, n_o) for a re-estimate: 0 at the screen's outliers (``"exclude"``, on top
-    of ``previous``), or Huber's min(1, k_H / |ν/s|) (``"huber"``)."""
+    """Weights (N, n_o) for a re-estimate: 0 where |z| > ``threshold`` (``"exclude"``, on top
+    of ``previous``), or Huber's min(1, k_H / |z|) (``"huber"``); z from ``spike_sizes``."""
+    size = np.abs(spike_sizes(residuals, maneuver_index)[0])
     if mode == "exclude":
         weights = np.ones(residuals.shape) if previous is None else np.array(previous, dtype=float)
-        # the screen's outliers are exactly the measurements with |ν/s| above the threshold
-        weights[np.abs(residuals / screen.scale) > screen.threshold] = 0.0
+        weights[size > threshold] = 0.0
         return weights
     if mode == "huber":
-        size = np.abs(residuals / screen.scale)
         # w = min(1, k_H / |z|)
         with np.errstate(divide="ignore"):
             return np.minimum(1.0, HUBER_K / size)
@@ -306,6 +337,7 @@ def estimate_robust(
     max_rounds: int = 5,
     warn: bool = True,
     first: Estimate | None = None,
+    estimator=None,
     **options,
 ) -> tuple[Estimate, OutlierScreen]:
     """``estimate(model, data, **options)`` with its outliers screened and, as ``outliers``
@@ -320,25 +352,29 @@ def estimate_robust(
             appears; Huber weights when the weights settle to 1 %).
         warn: issue the screen's messages as ``OutlierWarning``.
         first: the plain estimate when already made (saves the first estimation).
-        options: passed to ``flightid.estimation.estimate`` (not ``weights``).
+        estimator: the estimation function, called as ``estimator(model, data, weights=...,
+            **options)`` (default ``flightid.estimation.estimate``); None with ``first``
+            and ``outliers="warn"`` screens ``first`` only.
+        options: passed to the estimator (not ``weights``).
 
     Returns:
         (the estimate to report, the screen of its raw residuals with what was done).
     """
     from flightid.estimation.driver import estimate
 
+    estimator = estimate if estimator is None else estimator
     if outliers not in OUTLIER_MODES:
         raise InputError(f"outliers: expected one of {OUTLIER_MODES}, got {outliers!r}")
     if "weights" in options:
         raise InputError("weights: estimate_robust makes the weights; pass them to estimate")
     maneuvers = [data] if isinstance(data, FlightData) else list(data)
     names = [m.name or "" for m in maneuvers]
-    plain = estimate(model, maneuvers, **options) if first is None else first
+    plain = estimator(model, maneuvers, **options) if first is None else first
     screen = screen_estimate(plain, names, threshold)
     result, weights, rounds = plain, None, 0
     if outliers != "warn" and screen.outliers:
         result, weights, rounds = _reweighted(
-            model, maneuvers, plain, screen, outliers, max_rounds, options
+            estimator, model, maneuvers, plain, screen, outliers, max_rounds, options
         )
         screen = screen_estimate(result, names, threshold)
     free = np.asarray(plain.free)
@@ -363,14 +399,12 @@ def estimate_robust(
     return result, screen
 
 
-def _reweighted(model, maneuvers, plain, screen, mode, max_rounds, options):
+def _reweighted(estimator, model, maneuvers, plain, screen, mode, max_rounds, options):
     """Re-estimate with outlier weights until they settle; (estimate, weights, rounds)."""
-    from flightid.estimation.driver import estimate
-
     result, weights = plain, None
     for rounds in range(1, max(int(max_rounds), 1) + 1):
         residuals = _raw_residuals(result)
-        new = outlier_weights(residuals, screen, mode, weights)
+        new = outlier_weights(residuals, result.maneuver_index, screen.threshold, mode, weights)
         settled = weights is not None and (
             np.array_equal(new, weights)
             if mode == "exclude"
@@ -381,12 +415,5 @@ def _reweighted(model, maneuvers, plain, screen, mode, max_rounds, options):
         weights = new
         # from the previous estimate: the outliers moved it little, the start is close
         start = model.with_parameters(model.parameters.with_values(result.values))
-        result = estimate(start, maneuvers, weights=weights, **options)
-        screen = find_outliers(
-            _raw_residuals(result),
-            result.time,
-            result.maneuver_index,
-            result.output_names,
-            threshold=screen.threshold,
-        )
+        result = estimator(start, maneuvers, weights=weights, **options)
     return result, weights, max(int(max_rounds), 1)
