@@ -12,9 +12,9 @@ outliers themselves cannot inflate:
     s_k  = 1.4826 · median_i |d_ik − median_i d_ik|         (MAD; a σ for Gaussian noise)
     z_ik = d_ik / s_k
 
-and names every measurement with |z_ik| > ``threshold``, stating its size as ν_ik over the
-residuals' own robust scale 1.4826 · median_i |ν_ik − median_i ν_ik| (default 6: a Gaussian sample exceeds
-it with probability 2·10⁻⁹, so a clean record of 10⁶ measurements raises no false alarm).
+and names every measurement with |z_ik| > ``threshold`` (default 6: a Gaussian sample exceeds
+it with probability 2·10⁻⁹, so a clean record of 10⁶ measurements raises no false alarm),
+stating its size as ν_ik over the residuals' own robust scale (``robust_scale``).
 
 What to do about them (``OUTLIER_MODES``):
 
