@@ -90,9 +90,9 @@ class WeakCombination:
             return f"the combination {undetermined} is barely determined by the data {tail}"
         listed = ", ".join(self.names[:-1]) + f" and {self.names[-1]}"
         if len(self.correlations) == 1:
-            rhos = f"ρ = {self.correlations[0][2]:+.4f}"
+            rhos = f"ρ = {_rho_text(self.correlations[0][2])}"
         else:
-            rhos = ", ".join(f"ρ({a}, {b}) = {r:+.4f}" for a, b, r in self.correlations)
+            rhos = ", ".join(f"ρ({a}, {b}) = {_rho_text(r)}" for a, b, r in self.correlations)
         if self.determined:
             verdict = (
                 f"the combination {_combination(self.names, self.determined)} is determined, "
@@ -197,6 +197,13 @@ class IdentifiabilityReport:
         }
 
 
+def _rho_text(rho: float) -> str:
+    """ρ with enough decimals that it does not round to ±1 (at least 4): '−0.99997'."""
+    gap = max(1.0 - abs(rho), 1e-15)
+    digits = max(4, int(np.ceil(-np.log10(gap))) + 1)
+    return f"{rho:+.{digits}f}"
+
+
 def _finite_or_none(value: float) -> float | None:
     return float(value) if np.isfinite(value) else None
 
@@ -288,6 +295,14 @@ def _correlated_group(
     combination: the eigenvector restricted to them; for a single pair also the determined
     combination across it."""
     members = sorted({j for pair in pairs for j in pair})
+    # members that hardly take part in the weak direction (correlated with it only because
+    # their own σ is small) are left out; at least the pair of largest |ρ| stays
+    size = np.abs(vector[members])
+    kept = [j for j, v in zip(members, size, strict=True) if v >= COMPONENT_FLOOR * size.max()]
+    if len(kept) < 2:
+        kept = list(max(pairs, key=lambda pair: abs(rho[pair])))
+    members = kept
+    pairs = [pair for pair in pairs if pair[0] in members and pair[1] in members]
     weak = _oriented(vector[members])
     strong = _oriented(np.array([-weak[1], weak[0]])) if len(members) == 2 else np.array([])
     return WeakCombination(
