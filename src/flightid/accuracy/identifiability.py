@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flightid.errors import FlightIdWarning, InputError
+from flightid.errors import FlightIdError, FlightIdWarning, InputError
 
 __all__ = [
     "CONDITION_THRESHOLD",
@@ -348,7 +348,14 @@ def check_identifiability(
     involved = [n for n in names if any(n in c.names for c in combinations)]
     report = IdentifiabilityReport(combinations, level=level)
     if involved and (data is not None or _has_profile(accuracy, names, involved)):
-        report = _with_profiles(estimate, data, accuracy, involved, combinations, level, compiled)
+        try:
+            report = _with_profiles(
+                estimate, data, accuracy, involved, combinations, level, compiled
+            )
+        except FlightIdError as exc:
+            # the combinations stand; the profile is what could not be had
+            note = f"profile intervals of {involved} not computed: {exc}"
+            report = IdentifiabilityReport(combinations, level=level, notes=(note,))
     if warn:
         for message in report.messages():
             warnings.warn(message, IdentifiabilityWarning, stacklevel=2)

@@ -12,9 +12,10 @@ outliers themselves cannot inflate:
     s_k  = 1.4826 · median_i |d_ik − median_i d_ik|         (MAD; a σ for Gaussian noise)
     z_ik = d_ik / s_k
 
-and names every measurement with |z_ik| > ``threshold`` (default 6: a Gaussian sample exceeds
+and names every measurement with both |z_ik| and |ν_ik|/s_ν,k above ``threshold``
+(s_ν,k the residuals' own robust scale, ``robust_scale``; default 6: a Gaussian sample exceeds
 it with probability 2·10⁻⁹, so a clean record of 10⁶ measurements raises no false alarm),
-stating its size as ν_ik over the residuals' own robust scale (``robust_scale``).
+stating its size as ν_ik / s_ν,k.
 
 What to do about them (``OUTLIER_MODES``):
 
@@ -258,7 +259,8 @@ def find_outliers(
     # the size stated: ν_ik / s_k, s_k the robust noise scale of the residuals themselves
     scale = robust_scale(residuals)
     size = residuals / scale
-    rows, columns = np.nonzero(np.abs(departure) > threshold)
+    # wild against both its neighbours and the record's noise
+    rows, columns = np.nonzero((np.abs(departure) > threshold) & (np.abs(size) > threshold))
     first_sample = {int(m): int(np.argmax(maneuver_index == m)) for m in np.unique(maneuver_index)}
     found = []
     for i, k in zip(rows, columns, strict=True):
@@ -319,7 +321,9 @@ def outlier_weights(
     size = np.abs(spike_sizes(residuals, maneuver_index)[0])
     if mode == "exclude":
         weights = np.ones(residuals.shape) if previous is None else np.array(previous, dtype=float)
-        weights[size > threshold] = 0.0
+        # the screen's test (find_outliers): wild against the neighbours and the noise
+        wild = (size > threshold) & (np.abs(residuals / robust_scale(residuals)) > threshold)
+        weights[wild] = 0.0
         return weights
     if mode == "huber":
         # w = min(1, k_H / |z|)

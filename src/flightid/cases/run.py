@@ -623,7 +623,11 @@ def run_case(
     # both issue their findings as FlightIdWarning (``flightid: warning: ...`` on the terminal)
     identifiability = check_identifiability(
         result,
-        None if filter_error(case) else _likelihood_data(case, result, prepared.maneuvers),
+        # the profile re-simulates the plain output-error problem: not with the filter or with
+        # multiple shooting (whose defect rows it does not have)
+        None
+        if filter_error(case) or getattr(result.model, "shooting", None) is not None
+        else _likelihood_data(case, result, prepared.maneuvers),
         accuracy=assessed,
         level=float(case.accuracy.get("confidence", 0.95)),
         compiled=bool(case.estimation.get("compiled", True)),
