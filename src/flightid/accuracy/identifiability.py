@@ -154,7 +154,7 @@ class ProfiledParameter:
         return (
             f"{self.name} = {self.value:.6g}: profile-likelihood {level:.0%} interval "
             f"[{self.ci_profile[0]:.6g}, {self.ci_profile[1]:.6g}] (as σ: "
-            f"{self.std_profile:.4g}) beside Cramér–Rao σ {self.std_cr:.4g}{coloured} — {verdict}"
+            f"{self.std_profile:.4g}) beside Cramér–Rao σ {self.std_cr:.4g}{coloured}, {verdict}"
         )
 
     def to_dict(self) -> dict:
@@ -181,10 +181,16 @@ class IdentifiabilityReport:
     notes: tuple[str, ...] = field(default=())
 
     def messages(self) -> list[str]:
-        lines = [c.describe() for c in self.combinations]
-        lines += [p.describe(self.level) for p in self.profiled]
-        if self.profiled and np.isfinite(self.n_phi):
-            lines.append(f"Beale's nonlinearity measure of the fit: N_phi = {self.n_phi:.3g}")
+        """One line per combination, with the profile intervals of its parameters."""
+        lines = []
+        for combination in self.combinations:
+            members = [p for p in self.profiled if p.name in combination.names]
+            line = combination.describe()
+            if members:
+                line += "; " + "; ".join(p.describe(self.level) for p in members)
+                if np.isfinite(self.n_phi):
+                    line += f" (Beale's N_phi of the fit {self.n_phi:.3g})"
+            lines.append(line)
         return lines + list(self.notes)
 
     def to_dict(self) -> dict:

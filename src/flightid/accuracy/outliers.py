@@ -63,8 +63,8 @@ HUBER_K = 1.345
 MAD_TO_SIGMA = 1.482602218505602
 # samples of the running median the spikes are measured from (``spike_sizes``)
 SPIKE_WINDOW = 7
-# messages name at most this many outliers one by one
-LISTED = 10
+# the warning names at most this many outliers (the report lists all)
+LISTED = 5
 
 
 class OutlierWarning(FlightIdWarning):
@@ -144,36 +144,31 @@ class OutlierScreen:
         return 0 if self.weights is None else int(np.count_nonzero(self.weights == 0.0))
 
     def messages(self) -> list[str]:
-        """One line per named outlier (at most ``LISTED``), and one for what was done."""
+        """One line: the outliers (the first ``LISTED`` by size) and what was done."""
         if not self.outliers:
             return []
-        lines = [
-            f"outlier: {o.describe()}, beyond {self.threshold:g} σ" for o in self.outliers[:LISTED]
-        ]
-        if len(self.outliers) > LISTED:
-            lines.append(
-                f"outliers: {len(self.outliers) - LISTED} more beyond {self.threshold:g} σ "
-                "(all are listed in the report)"
-            )
-        lines.append(self._action())
-        return lines
+        named = "; ".join(o.describe() for o in self.outliers[:LISTED])
+        more = len(self.outliers) - LISTED
+        if more > 0:
+            named += f"; and {more} more (all in the report)"
+        return [f"{self._action()}: {named}"]
 
     def _action(self) -> str:
         count = len(self.outliers)
         if self.mode == "warn":
             return (
-                f"outliers: {count} measurement(s) beyond {self.threshold:g} σ are in the fit "
-                "and pull the estimates; their σ do not show it. Set [estimation] outliers = "
-                '"exclude" (or "huber") to leave them out (down-weight them)'
+                f"{count} outlier(s) beyond {self.threshold:g} σ are in the fit and pull the "
+                "estimates, and their σ do not show it (set [estimation] outliers = "
+                '"exclude" or "huber" to leave them out or down-weight them)'
             )
         moved = ", ".join(f"{n} {s:+.2f} σ" for n, s in self._largest_shifts())
         what = (
             f"{self.excluded} measurement(s) excluded from the cost (weight 0; N and σ without "
             "them)"
             if self.mode == "exclude"
-            else "measurements down-weighted with Huber weights"
+            else f"{count} outlier(s) down-weighted with Huber weights"
         )
-        return f"outliers: {what}; the estimates moved {moved}" if moved else f"outliers: {what}"
+        return f"{what}, the estimates moved {moved}" if moved else what
 
     def _largest_shifts(self, count: int = 3) -> list[tuple[str, float]]:
         ranked = sorted(self.shift_sigma.items(), key=lambda item: -abs(item[1]))
