@@ -79,7 +79,7 @@ def problem_for(
     compiled: bool = True,
 ) -> OutputErrorProblem:
     """The output-error problem of ``estimate`` on ``data`` (same model, integration method,
-    input interpolation)."""
+    input interpolation, sample weights)."""
     if isinstance(data, OutputErrorProblem):
         problem = data
     else:
@@ -90,6 +90,10 @@ def problem_for(
             compiled=compiled,
             input_interpolation=estimate.input_interpolation,
         )
+    weights = getattr(estimate, "weights", None)
+    if weights is not None and problem.weights is None:
+        # the region of the weighted cost the estimate minimised (excluded samples stay out)
+        problem.set_weights(weights)
     expected = list(estimate.free_names)
     if list(problem.free_names) != expected:
         raise InputError(

@@ -34,6 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from flightid.accuracy import AccuracyResult, accuracy_json, assess
+from flightid.accuracy.identifiability import IdentifiabilityReport, check_identifiability
+from flightid.accuracy.outliers import DEFAULT_THRESHOLD, OutlierScreen, estimate_robust
 from flightid.cases.build import (
     base_model,
     build_convergence,
@@ -155,6 +157,10 @@ class CaseRun:
     model_description: str = ""
     accuracy: AccuracyResult | None = None
     case_sha256: str = ""  # SHA-256 of the case file's bytes when the run started
+    # the residual outliers and what was done (``[estimation] outliers``), and the parameter
+    # combinations the data barely determine (flightid.accuracy.outliers / .identifiability)
+    outliers: OutlierScreen | None = None
+    identifiability: IdentifiabilityReport | None = None
 
     def to_dict(self) -> dict:
         """The core's JSON entry, plus ``case``, ``maneuvers`` and ``prediction``.
@@ -177,6 +183,10 @@ class CaseRun:
         entry["prediction"] = [p.to_dict() for p in self.predictions]
         # residual autocorrelation and Ljung–Box test per output (flightid.accuracy.whiteness)
         entry["whiteness"] = _whiteness_entry(self.estimate)
+        entry["outliers"] = None if self.outliers is None else self.outliers.to_dict()
+        entry["identifiability"] = (
+            None if self.identifiability is None else self.identifiability.to_dict()
+        )
         return entry
 
 
@@ -453,16 +463,7 @@ def _assess(
     # the search draws its own progress bar on a terminal; elsewhere the heartbeat speaks
     bar = progress is not None and sys.stderr.isatty()
     compiled = bool(case.estimation.get("compiled", True))
-    data: list[FlightData] | OutputErrorProblem = list(maneuvers)
-    if input_interpolation(case) != "linear":
-        # the likelihood region with the same input interpolation as the estimation
-        data = OutputErrorProblem(
-            result.model,
-            data,
-            method=result.method,
-            compiled=compiled,
-            input_interpolation=input_interpolation(case),
-        )
+    data = _likelihood_data(case, result, maneuvers)
     with _heartbeat(None if bar else progress, "assessing accuracy", heartbeat_s):
         accuracy = assess(
             result,
@@ -483,6 +484,22 @@ def _assess(
     for message in accuracy.warnings:
         say(f"accuracy warning: {message}")
     return accuracy
+
+
+def _likelihood_data(
+    case: Case, result: Estimate, maneuvers: Sequence[FlightData]
+) -> list[FlightData] | OutputErrorProblem:
+    """The data of the likelihood region: the maneuvers, or with an input interpolation other
+    than linear the output-error problem on them with that interpolation."""
+    if input_interpolation(case) == "linear":
+        return list(maneuvers)
+    return OutputErrorProblem(
+        result.model,
+        list(maneuvers),
+        method=result.method,
+        compiled=bool(case.estimation.get("compiled", True)),
+        input_interpolation=input_interpolation(case),
+    )
 
 
 def _estimate_filter_error(
@@ -573,9 +590,7 @@ def run_case(
         if filter_error(case):
             result = _estimate_filter_error(case, prepared, report_pass)
         else:
-            result = (estimate_multiple_shooting if _has_schedule(model) else estimate)(
-                model,
-                list(prepared.maneuvers),
+            options = dict(
                 solver=build_solver(case),
                 method=case.estimation.get("method", "rk4"),
                 noise=case.estimation.get("noise", "max"),
@@ -585,6 +600,17 @@ def run_case(
                 progress=report_pass,
                 input_interpolation=input_interpolation(case),
             )
+            estimator = estimate_multiple_shooting if _has_schedule(model) else estimate
+            result = estimator(model, list(prepared.maneuvers), **options)
+        result, screen = estimate_robust(
+            model,
+            list(prepared.maneuvers),
+            case.estimation.get("outliers", "warn"),
+            threshold=float(case.estimation.get("outlier_threshold", DEFAULT_THRESHOLD)),
+            first=result,
+            estimator=None if filter_error(case) else estimator,
+            **({} if filter_error(case) else options),
+        )
     say(
         f"{result.status}: {result.iterations} iterations, {result.equivalent_evaluations} "
         f"evaluations, cost {result.cost:.6g}, {result.wall_time_s:.1f} s"
@@ -593,6 +619,18 @@ def run_case(
         _assess(case, result, prepared.maneuvers, methods, say, progress, heartbeat_s, engine)
         if methods
         else None
+    )
+    # both issue their findings as FlightIdWarning (``flightid: warning: ...`` on the terminal)
+    identifiability = check_identifiability(
+        result,
+        # the profile re-simulates the plain output-error problem: not with the filter or with
+        # multiple shooting (whose defect rows it does not have)
+        None
+        if filter_error(case) or getattr(result.model, "shooting", None) is not None
+        else _likelihood_data(case, result, prepared.maneuvers),
+        accuracy=assessed,
+        level=float(case.accuracy.get("confidence", 0.95)),
+        compiled=bool(case.estimation.get("compiled", True)),
     )
     predictions = _predict(prepared, result) if prepared.prediction_maneuvers else []
     for p in predictions:
@@ -611,4 +649,6 @@ def run_case(
         prepared.model_description,
         assessed,
         case_sha256,
+        screen,
+        identifiability,
     )

@@ -171,6 +171,8 @@ _ESTIMATION = {
     "linearisation",
     "max_cycles",
     "filter_gradients",
+    "outliers",
+    "outlier_threshold",
 }
 _ACCURACY = {
     "confidence",
@@ -745,6 +747,31 @@ def estimation_settings(estimation: Mapping[str, Any], key: str = "estimation") 
     )
     _unstable_settings(estimation, key)
     _filter_error_settings(estimation, key)
+    _outlier_settings(estimation, key)
+
+
+def _outlier_settings(estimation: Mapping[str, Any], key: str) -> None:
+    """``outliers`` ("warn", "exclude" or "huber": flightid.accuracy.outliers) and
+    ``outlier_threshold`` (robust σ, > 0); only in [estimation] and with output error."""
+    from flightid.accuracy.outliers import OUTLIER_MODES
+
+    present = [k for k in ("outliers", "outlier_threshold") if k in estimation]
+    if not present:
+        return
+    if key != "estimation":
+        raise CaseError(f"{key}.{present[0]}: an [estimation] setting; stages do not take it")
+    mode = _string(estimation.get("outliers", "warn"), f"{key}.outliers", OUTLIER_MODES)
+    if "outlier_threshold" in estimation:
+        if _number(estimation["outlier_threshold"], f"{key}.outlier_threshold") <= 0:
+            raise CaseError(
+                f"{key}.outlier_threshold: expected a positive number of robust σ, got "
+                f"{estimation['outlier_threshold']!r}"
+            )
+    if mode != "warn" and estimation.get("estimator", "output_error") == "filter_error":
+        raise CaseError(
+            f'{key}.outliers: "{mode}" re-weights the output-error cost; with the filter error '
+            'method only "warn" is available'
+        )
 
 
 def _unstable_settings(estimation: Mapping[str, Any], key: str) -> None:

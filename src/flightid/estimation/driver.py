@@ -216,6 +216,7 @@ def estimate(
     convergence: Convergence | None = None,
     compiled: bool = True,
     progress: Callable[[int, int, float], None] | None = None,
+    weights: np.ndarray | None = None,
 ) -> Estimate:
     """Output-error maximum-likelihood estimate of the model's free parameters.
 
@@ -235,6 +236,10 @@ def estimate(
         compiled: run the numba kernel.
         progress: called after every accepted pass with (pass number, equivalent evaluations
             so far, cost under the current R) — e.g. to print progress.
+        weights: per-sample weights w ∈ [0, 1] over all maneuvers' samples in order, (N,) or
+            (N, n_o): J = Σ w ν²/R; a weight 0 excludes the measurement from the cost, the
+            information matrix, R̂ and N (``OutputErrorProblem.set_weights``). None: all 1.
+            ``flightid.accuracy.outliers`` finds the samples to exclude or down-weight.
 
     Returns:
         A frozen ``Estimate``. Non-convergence is reported in its status, not raised.
@@ -262,6 +267,7 @@ def estimate(
     problem = OutputErrorProblem(
         model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
     )
+    problem.set_weights(weights)
     problem.check_enough_data()
     r_diag = _check_r(R, problem.n_outputs)
     evaluations_before = problem.evaluations
@@ -325,7 +331,11 @@ def estimate(
         time=problem.time,
         # the data rows (multiple shooting appends continuity-defect rows after them)
         measured=problem.measured[: problem.n_data],
-        predicted=outcome.outputs[: problem.n_data],
+        predicted=(
+            outcome.outputs[: problem.n_data]
+            if weights is None
+            else problem.model_outputs(outcome.theta)
+        ),
         residuals=problem.residuals(outcome.outputs)[: problem.n_data],
         maneuver_index=problem.maneuver_index,
         output_names=tuple(model.outputs),
@@ -343,4 +353,5 @@ def estimate(
         model=estimated_model,
         optimality_sigma=confirmation.sigma,
         at_bound=at_bound,
+        weights=problem.weights,
     )

@@ -15,6 +15,13 @@ continuity defects d beside the outputs; they enter as extra rows after the N da
 measured 0 and "simulated" −√w·d in the column of the output that weights the state, so the
 cost and the Gauss–Newton step of every solver see J = Σ νᵀR⁻¹ν + Σ w d²/R_s unchanged in
 form. ``n_data`` is N; R̂ comes from the data rows only.
+
+Sample weights (``set_weights``): a weight w_ik ∈ [0, 1] per data sample and output scales
+its residual and its sensitivities by √w_ik — ``run`` returns y' = y + (1 − √w)(z − y), so
+z − y' = √w (z − y) and ∂y'/∂θ = √w ∂y/∂θ for every consumer of the outputs — so that
+J = Σ_i Σ_k w_ik ν_ik² / R_kk and M = Σ_i G_iᵀ W_i R⁻¹ G_i; a zero weight removes the
+measurement from the cost, the information matrix and R̂ = Σ_i w_ik ν_ik² / Σ_i w_ik, and
+from N (``n_measurements``).
 """
 
 from __future__ import annotations
@@ -154,12 +161,66 @@ class OutputErrorProblem:
             )
             self._defect_scale = float(np.sqrt(model.shooting_weight))
             self.measured = np.vstack([self.measured, np.zeros((n_defects, self.n_outputs))])
+        # √w per row and output (N + defect rows, n_o); None: every weight 1 (set_weights)
+        self.root_weights: np.ndarray | None = None
+
+    def set_weights(self, weights: np.ndarray | None) -> None:
+        """Weights w ∈ [0, 1] of the data samples, (N,) or (N, n_o); None: all 1.
+
+        A zero weight excludes a measurement from the cost, the sensitivities and R̂; a weight
+        in (0, 1) down-weights it (module docstring). Every output keeps at least one sample
+        of positive weight.
+        """
+        if weights is None:
+            self.root_weights = None
+            return
+        w = np.asarray(weights, dtype=float)
+        if w.ndim == 1 and w.shape[0] == self.n_data:
+            w = np.repeat(w[:, None], self.n_outputs, axis=1)
+        if w.shape != (self.n_data, self.n_outputs):
+            raise InputError(
+                f"weights: expected ({self.n_data},) or ({self.n_data}, {self.n_outputs}) "
+                f"weights (samples × outputs), got shape {w.shape}"
+            )
+        if not np.all(np.isfinite(w)) or np.any(w < 0.0) or np.any(w > 1.0):
+            raise InputError("weights: expected finite weights between 0 and 1")
+        if np.any(np.all(w == 0.0, axis=0)):
+            empty = [n for n, c in zip(self.model.outputs, w.T, strict=True) if not c.any()]
+            raise InputError(f"weights: every sample of the outputs {empty} has weight 0")
+        root = np.ones_like(self.measured)
+        root[: self.n_data] = np.sqrt(w)
+        self.root_weights = root
+
+    @property
+    def weights(self) -> np.ndarray | None:
+        """The data rows' weights (N, n_o), or None when all are 1."""
+        if self.root_weights is None:
+            return None
+        return self.root_weights[: self.n_data] ** 2
+
+    @property
+    def n_measurements(self) -> int:
+        """Scalar measurements that enter the cost: N·n_o less those of weight 0."""
+        if self.root_weights is None:
+            return self.n_data * self.n_outputs
+        return int(np.count_nonzero(self.root_weights[: self.n_data]))
+
+    def _weighted(self, outputs: np.ndarray) -> np.ndarray:
+        """y' = y + (1 − √w)·(z − y) of outputs (…, rows, n_o), in place: z − y' = √w·(z − y)
+        and ∂y'/∂θ = √w·∂y/∂θ; a weight of 1 leaves y exactly, NaN (divergence) stays NaN."""
+        outputs += (1.0 - self.root_weights) * (self.measured - outputs)
+        return outputs
+
+    def model_outputs(self, theta_free: np.ndarray) -> np.ndarray:
+        """The model's own outputs y(θ) (N, n_o) at the data rows, without the weights."""
+        full = self.full_theta(np.asarray(theta_free, dtype=float)[None, :])
+        return self.simulator.run(full).outputs[0][: self.n_data]
 
     def check_enough_data(self) -> None:
         """Refuse a record with no more scalar measurements N·n_o than free parameters n_f:
         the residual variance s² = J(θ̂)/(N·n_o − n_f) [5.30], and with it every accuracy
         measure, needs N·n_o > n_f (an estimate on fewer is a fit through the points)."""
-        measurements = self.n_data * self.n_outputs
+        measurements = self.n_measurements
         if measurements <= self.n_free:
             raise InputError(
                 f"data: {self.n_data} samples × {self.n_outputs} outputs = {measurements} "
@@ -235,7 +296,12 @@ class OutputErrorProblem:
         """
         full = self.full_theta(np.atleast_2d(theta_free_batch))
         try:
-            return self._with_defect_rows(self.simulator.run(full))
+            batch = self._with_defect_rows(self.simulator.run(full))
+            if self.root_weights is not None:
+                # the weighted outputs y' (module docstring): every consumer of the outputs —
+                # cost, R̂, finite differences, response surfaces — sees the weighted problem
+                self._weighted(batch.outputs)
+            return batch
         except FlightIdError:
             raise
         except Exception as exc:
@@ -264,7 +330,8 @@ class OutputErrorProblem:
         return self.run(theta_free_batch).outputs
 
     def residuals(self, outputs: np.ndarray) -> np.ndarray:
-        """ν = z − y for outputs of shape (N, n_o) or (B, N, n_o)."""
+        """ν = z − y for outputs of shape (N, n_o) or (B, N, n_o); with weights the outputs
+        are the weighted y' of ``run``, so that ν = √w·(z − y)."""
         return self.measured - outputs
 
     def cost(self, outputs: np.ndarray, r_diag: np.ndarray) -> np.ndarray | float:
@@ -277,7 +344,11 @@ class OutputErrorProblem:
     def noise_covariance(self, outputs: np.ndarray) -> np.ndarray:
         """R̂ diagonal [3.45] from the residuals of (N, n_o) outputs (data rows only)."""
         nu = self.residuals(outputs)[..., : self.n_data, :]
-        return estimate_noise_covariance(nu, self.r_floor)
+        if self.root_weights is None:
+            return estimate_noise_covariance(nu, self.r_floor)
+        # R̂_k = Σ_i w_ik ν_ik² / Σ_i w_ik
+        total = np.sum(self.root_weights[: self.n_data] ** 2, axis=0)
+        return np.maximum(np.sum(nu**2, axis=-2) / total, self.r_floor)
 
     def sensitivities(
         self,
@@ -363,6 +434,7 @@ class OutputErrorProblem:
             # G_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
             np.subtract(plus, minus, out=columns[rows])
             columns[rows] /= 2.0 * steps[rows, None, None]
+
         return columns
 
     def _forward_columns(
@@ -434,6 +506,7 @@ class OutputErrorProblem:
             # G⁻_j δ_j = y(θ) − y(θ − δ_j e_j);  G_j = (G⁺_j + G⁻_j)/2
             np.subtract(outputs, minus, out=minus)
             minus /= steps[rows, None, None]
+
             columns[rows] += minus
             columns[rows] *= 0.5
         return FiniteDifferences(forward.g, outputs, theta, steps, True, True)
@@ -455,6 +528,10 @@ class OutputErrorProblem:
         outputs, g = self.simulator.run_with_sensitivities(
             self.full_theta(theta_free), self.free_index, steps, relative_step
         )
+        if self.root_weights is not None:
+            # the weighted outputs y' and their sensitivities √w·∂y/∂θ (module docstring)
+            outputs = self._weighted(outputs)
+            g = g * self.root_weights[:, :, None]
         return g, outputs
 
     @staticmethod

@@ -62,6 +62,9 @@ class Estimate(ResultSurface):
             θ̂: how far (in Cramér–Rao σ) the linearised model puts the optimum; a converged
             estimate has it ≤ ``Convergence.confirm_sigma``.
         at_bound: free parameters that ended on a bound (their std is NaN).
+        weights: the samples' weights (N, n_o) in the cost, or None when all are 1; with
+            weights, ``residuals`` and ``sensitivities`` are √w·(z − y) and √w·∂y/∂θ, and a
+            weight of 0 leaves the measurement out of ``n_data``.
     """
 
     names: tuple[str, ...]
@@ -100,6 +103,7 @@ class Estimate(ResultSurface):
     input_interpolation: str = "linear"
     at_bound: tuple[str, ...] = ()
     noise_update_passes: tuple[int, ...] = ()
+    weights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         for name in (
@@ -126,6 +130,10 @@ class Estimate(ResultSurface):
                 array = np.array(value)
                 array.flags.writeable = False
             object.__setattr__(self, name, array)
+        if self.weights is not None:
+            weights = np.array(self.weights, dtype=float)
+            weights.flags.writeable = False
+            object.__setattr__(self, "weights", weights)
 
     # ------------------------------------------------------------------ derived
     @property
@@ -148,8 +156,10 @@ class Estimate(ResultSurface):
 
     @property
     def n_data(self) -> int:
-        """N·n_o, the number of scalar measurements."""
-        return int(self.measured.size)
+        """N·n_o, the number of scalar measurements (less those of weight 0)."""
+        if self.weights is None:
+            return int(self.measured.size)
+        return int(np.count_nonzero(self.weights))
 
     @property
     def parameter_units(self) -> tuple[str, ...]:

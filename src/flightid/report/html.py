@@ -626,6 +626,7 @@ def render_html(run, figures: Figures | None, generated_utc: str | None = None) 
         parts.append(_prediction_section(run, units, figures or Figures()))
     parts.append(_convergence_section(run, figures))
     parts.append(_correlation_section(run))
+    parts.append(_trust_section(run))
     parts.append("</body></html>")
     return "\n".join(p for p in parts if p)
 
@@ -683,6 +684,58 @@ def _accuracy_section(run) -> str:
     if acc.warnings:
         items = "".join(f"<li>{html.escape(w)}</li>" for w in acc.warnings)
         text.append(f"<ul class='bad'>{items}</ul>")
+    return "\n".join(text)
+
+
+def _trust_section(run) -> str:
+    """Outliers in the residuals and parameter combinations the data barely determine
+    (``flightid.accuracy.outliers`` / ``.identifiability``); empty when neither has findings."""
+    screen = getattr(run, "outliers", None)
+    weak = getattr(run, "identifiability", None)
+    has_outliers = screen is not None and bool(screen.outliers)
+    has_weak = weak is not None and bool(weak.combinations)
+    if not (has_outliers or has_weak):
+        return ""
+    text = ["<h2>Where the σ cannot be trusted</h2>"]
+    if has_outliers:
+        rows = [
+            [
+                html.escape(o.maneuver_name or str(o.maneuver)),
+                str(o.sample),
+                _fmt(o.time_s, 6),
+                html.escape(o.output),
+                _fmt(o.residual, 4),
+                _fmt(o.size_sigma, 4),
+            ]
+            for o in screen.outliers
+        ]
+        text.append(
+            f"<p class='bad'>{html.escape(screen.messages()[-1])}</p>"
+            + _table(["maneuver", "sample", "time [s]", "output", "residual", "size [σ]"], rows)
+        )
+    if has_weak:
+        items = "".join(f"<li>{html.escape(c.describe())}</li>" for c in weak.combinations)
+        text.append(f"<ul class='bad'>{items}</ul>")
+    if has_weak and weak.profiled:
+        rows = [
+            [
+                html.escape(p.name),
+                _fmt(p.value),
+                _fmt(p.std_cr, 3),
+                _fmt(p.std_coloured, 3),
+                _interval(p.ci_cr),
+                _interval(p.ci_profile),
+                _fmt(p.std_profile, 3),
+                "fails" if p.quadratic_fails else "holds",
+            ]
+            for p in weak.profiled
+        ]
+        headers = ["parameter", "estimate", "CR σ", "coloured σ", "CR interval"]
+        headers += ["profile interval", "profile as σ", "quadratic approximation"]
+        text.append(
+            f"<p>Profile-likelihood intervals at {weak.level:g} beside the quadratic ones "
+            f"(Beale's N_φ = {_fmt(weak.n_phi, 3)}).</p>" + _table(headers, rows)
+        )
     return "\n".join(text)
 
 
