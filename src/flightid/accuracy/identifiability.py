@@ -39,6 +39,7 @@ from flightid.errors import FlightIdError, FlightIdWarning, InputError
 __all__ = [
     "CONDITION_THRESHOLD",
     "CORRELATION_THRESHOLD",
+    "WARN_CORRELATION",
     "IdentifiabilityReport",
     "IdentifiabilityWarning",
     "ProfiledParameter",
@@ -51,6 +52,11 @@ __all__ = [
 CORRELATION_THRESHOLD = 0.99
 # λ_max/λ_i of the normalised information matrix from which a direction is named
 CONDITION_THRESHOLD = 1e4
+# a weak pair is a terminal warning when |ρ| reaches this, or when the profile interval of one
+# of its parameters departs from the quadratic one; below it (and for directions named by
+# their condition alone) the finding is in the results and the report only: the Cramér–Rao σ
+# already carries a correlation, and the profile says whether it can be taken at face value
+WARN_CORRELATION = 0.999
 # a component of an eigenvector smaller than this is left out of the named combination
 COMPONENT_FLOOR = 0.2
 # profile half-widths outside [1/1.1, 1.1] × the quadratic ones: the approximation fails
@@ -182,8 +188,24 @@ class IdentifiabilityReport:
 
     def messages(self) -> list[str]:
         """One line per combination, with the profile intervals of its parameters."""
+        return self._lines(self.combinations) + list(self.notes)
+
+    def serious(self, combination: WeakCombination) -> bool:
+        """Whether a combination is a terminal warning: a pair with |ρ| ≥ ``WARN_CORRELATION``
+        or a parameter whose profile interval departs from the quadratic one."""
+        if not combination.correlations:
+            return False
+        if max(abs(r) for _, _, r in combination.correlations) >= WARN_CORRELATION:
+            return True
+        return any(p.quadratic_fails for p in self.profiled if p.name in combination.names)
+
+    def warning_messages(self) -> list[str]:
+        """The lines worth a terminal warning (``serious``); the rest are in ``messages``."""
+        return self._lines(tuple(c for c in self.combinations if self.serious(c)))
+
+    def _lines(self, combinations) -> list[str]:
         lines = []
-        for combination in self.combinations:
+        for combination in combinations:
             members = [p for p in self.profiled if p.name in combination.names]
             line = combination.describe()
             if members:
@@ -191,7 +213,7 @@ class IdentifiabilityReport:
                 if np.isfinite(self.n_phi):
                     line += f" (Beale's N_phi of the fit {self.n_phi:.3g})"
             lines.append(line)
-        return lines + list(self.notes)
+        return lines
 
     def to_dict(self) -> dict:
         return {
@@ -342,7 +364,8 @@ def check_identifiability(
             them for the parameters) and coloured σ are used instead of a new assessment.
         level: confidence level of the intervals (that of ``accuracy`` when given).
         correlation_threshold, condition_threshold: see ``weak_combinations``.
-        warn: issue the messages as ``IdentifiabilityWarning``.
+        warn: issue the serious findings (``IdentifiabilityReport.warning_messages``) as
+            ``IdentifiabilityWarning``; every finding is in the report.
         compiled: numba kernels for the profile's simulations.
     """
     names = tuple(estimate.free_names)
@@ -351,7 +374,9 @@ def check_identifiability(
             names, estimate.information_matrix, correlation_threshold, condition_threshold
         )
     )
-    involved = [n for n in names if any(n in c.names for c in combinations)]
+    # profiles for the parameters of correlated pairs (a direction named by its condition
+    # alone spreads over many parameters: its finding stands without a profile of each)
+    involved = [n for n in names if any(n in c.names for c in combinations if c.correlations)]
     report = IdentifiabilityReport(combinations, level=level)
     if involved and (data is not None or _has_profile(accuracy, names, involved)):
         try:
@@ -363,7 +388,7 @@ def check_identifiability(
             note = f"profile intervals of {involved} not computed: {exc}"
             report = IdentifiabilityReport(combinations, level=level, notes=(note,))
     if warn:
-        for message in report.messages():
+        for message in report.warning_messages():
             warnings.warn(message, IdentifiabilityWarning, stacklevel=2)
     return report
 
