@@ -181,6 +181,7 @@ class FrequencyResult(ResultSurface):
         ratio = self.std[self.free] / self.std_cr[self.free]
         ratio = ratio[np.isfinite(ratio)]
         return float(ratio.max()) if ratio.size else float("nan")
+
     def model_transfer(self, frequencies_hz: np.ndarray) -> np.ndarray:
         """H(jω) = diag(e^{−jωτ_y}) [C (jωI − A)⁻¹ B + D] diag(e^{−jωτ_u}) at the estimate,
         (F, n_y, n_u) (``LinearSystem.transfer``)."""

@@ -165,9 +165,7 @@ def _checked_segments(segments: Sequence[int] | None, rows: int) -> list[int]:
     except (TypeError, ValueError):
         raise InputError(f"segments: expected row counts, got {describe(segments)}") from None
     if not counts or any(c < 1 for c in counts) or sum(counts) != rows:
-        raise InputError(
-            f"segments: expected positive row counts summing to {rows}, got {counts}"
-        )
+        raise InputError(f"segments: expected positive row counts summing to {rows}, got {counts}")
     return counts
 
 

@@ -550,9 +550,10 @@ def output_error(
     width = 2 * n_y
     bounds = np.concatenate([[0], np.cumsum([s.frequencies_hz.size for s in spectra])]) * width
     jac_blocks = [
-        Jr[a:b].reshape(-1, width, Jr.shape[1]) for a, b in zip(bounds[:-1], bounds[1:])
+        Jr[a:b].reshape(-1, width, Jr.shape[1])
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
     ]
-    res_blocks = [r[a:b].reshape(-1, width) for a, b in zip(bounds[:-1], bounds[1:])]
+    res_blocks = [r[a:b].reshape(-1, width) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
     factors = grid_factors(spectra)
     # Cov_CR = ½ H⁻¹ [Σ_m c_m H_m] H⁻¹   (= M⁻¹ = (2H)⁻¹ on grids of step ≥ 1/T)
     cov_all = 0.5 * grid_corrected_inverse(jac_blocks, factors)
