@@ -85,7 +85,7 @@ def main() -> None:
         fit = output_error(
             system_of, TRUTH, np.ones(6, bool), spectra, ("alpha", "q"), ("alpha", "q")
         )
-        z_cr.append((fit.theta - TRUTH) / fit.std)
+        z_cr.append((fit.theta - TRUTH) / fit.std_cr)
         z_col.append((fit.theta - TRUTH) / fit.std_coloured)
     elapsed = time.perf_counter() - started
     z_cr, z_col = np.array(z_cr), np.array(z_col)

@@ -78,8 +78,8 @@ def _run_json(case: Path, capsys) -> dict:
 def _z_scores(entry: dict, reference: dict) -> dict:
     rows = {p["name"]: p for p in entry["parameters"]}
     return {
-        # z = (θ_fd − θ_td) / sqrt(σ_fd² + σ_td²)
-        name: (rows[name]["value"] - value) / np.hypot(rows[name]["std"], std)
+        # z = (θ_fd − θ_td) / sqrt(σ_fd,CR² + σ_td²)  (the Cramér–Rao bounds, as documented)
+        name: (rows[name]["value"] - value) / np.hypot(rows[name]["std_cr"], std)
         for name, (value, std) in reference.items()
     }
 

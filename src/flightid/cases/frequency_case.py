@@ -141,8 +141,8 @@ class FrequencyResult(ResultSurface):
     names: tuple[str, ...]
     values: np.ndarray
     initial: np.ndarray
-    std: np.ndarray  # Cramér–Rao (NaN: fixed or not estimated)
-    std_coloured: np.ndarray  # coloured-residual corrected (output error; NaN otherwise)
+    std: np.ndarray  # reported σ: the coloured-residual one (NaN: fixed or not estimated)
+    std_coloured: np.ndarray  # coloured-residual sandwich (= std)
     free: np.ndarray  # estimated here
     units: tuple[str, ...]
     not_estimated: dict[str, str]
@@ -167,8 +167,21 @@ class FrequencyResult(ResultSurface):
     cost_history: tuple[float, ...] = ()
     evaluation_history: tuple[int, ...] = ()
     sample_interval_s: float = float("nan")
+    # Cramér–Rao σ, corrected for grids finer than 1/T (empty: taken as std)
+    std_cr: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    grid_factors: tuple[float, ...] = ()
 
-    # ---------------------------------------------------------------- model helpers
+    def __post_init__(self) -> None:
+        if self.std_cr.size == 0:
+            object.__setattr__(self, "std_cr", np.asarray(self.std, dtype=float).copy())
+
+    def cr_understatement(self) -> float:
+        """max over the estimated parameters of std / std_cr: how many times the
+        Cramér–Rao bounds understate the reported σ (NaN without estimates)."""
+        ratio = self.std[self.free] / self.std_cr[self.free]
+        ratio = ratio[np.isfinite(ratio)]
+        return float(ratio.max()) if ratio.size else float("nan")
+
     def model_transfer(self, frequencies_hz: np.ndarray) -> np.ndarray:
         """H(jω) = diag(e^{−jωτ_y}) [C (jωI − A)⁻¹ B + D] diag(e^{−jωτ_u}) at the estimate,
         (F, n_y, n_u) (``LinearSystem.transfer``)."""
@@ -204,15 +217,17 @@ class FrequencyResult(ResultSurface):
                 "name": n,
                 "value": float(v),
                 "std": float(s),
+                "std_cr": float(r),
                 "std_coloured": float(c),
                 "free": bool(f),
                 "unit": u,
                 "initial": float(i),
             }
-            for n, v, s, c, f, u, i in zip(
+            for n, v, s, r, c, f, u, i in zip(
                 self.names,
                 self.values,
                 self.std,
+                self.std_cr,
                 self.std_coloured,
                 self.free,
                 self.units,
@@ -222,7 +237,8 @@ class FrequencyResult(ResultSurface):
         ]
 
     def conf_int(self, level: float = 0.95) -> np.ndarray:
-        """Normal intervals θ̂ ± z·σ (Cramér–Rao) of the estimated parameters, (n, 2)."""
+        """Normal intervals θ̂ ± z·σ (the reported, coloured-residual σ) of the estimated
+        parameters, (n, 2)."""
         from flightid.results import t_intervals
 
         return t_intervals(self.values[self.free], self.std[self.free], level, 0, "normal")
@@ -239,16 +255,17 @@ class FrequencyResult(ResultSurface):
             f"step {self.settings.step_hz:g} Hz, {self.frequencies_hz.size} frequencies × "
             f"{len(self.spectra)} maneuver(s)",
             f"status: {'converged' if self.converged else 'NOT CONVERGED'} ({self.message})",
+            self.sigma_line(),
             "",
-            f"{'parameter':<12}{'estimate':>14}{'std (CR)':>12}{'std (col.)':>12}{'start':>12}",
+            f"{'parameter':<12}{'estimate':>14}{'std':>12}{'std (CR)':>12}{'start':>12}",
         ]
         for row in self._frame_rows():
             if row["free"]:
-                coloured = row["std_coloured"]
-                coloured_text = f"{coloured:>12.3g}" if np.isfinite(coloured) else f"{'—':>12}"
+                cr = row["std_cr"]
+                cr_text = f"{cr:>12.3g}" if np.isfinite(cr) else f"{'—':>12}"
                 lines.append(
                     f"{row['name']:<12}{row['value']:>14.6g}{row['std']:>12.3g}"
-                    f"{coloured_text}{row['initial']:>12.6g}"
+                    f"{cr_text}{row['initial']:>12.6g}"
                 )
             else:
                 lines.append(
@@ -264,6 +281,19 @@ class FrequencyResult(ResultSurface):
             ]
         return "\n".join(lines)
 
+    def sigma_line(self) -> str:
+        """One line: which σ ``std`` is and how far the Cramér–Rao bounds understate it."""
+        ratio = self.cr_understatement()
+        text = "std: coloured-residual σ (correlation across frequency measured from the residuals)"
+        if np.isfinite(ratio) and ratio > 1.2:
+            text += f"; the Cramér–Rao bounds (std (CR)) understate it by up to ×{ratio:.2g}"
+        if self.grid_factors and max(self.grid_factors) > 1.0:
+            text += (
+                f"; grid finer than 1/T: std (CR) counts one independent frequency per "
+                f"{max(self.grid_factors):.3g} grid points"
+            )
+        return text
+
     def to_dict(self) -> dict:
         """One results.json entry (``docs/schema/results.schema.json``)."""
         parameters = []
@@ -277,6 +307,7 @@ class FrequencyResult(ResultSurface):
                 "initial": finite_or_none(row["initial"]),
                 "estimated": row["free"],
                 "std_coloured": finite_or_none(row["std_coloured"]) if row["free"] else None,
+                "std_cr": finite_or_none(row["std_cr"]) if row["free"] else None,
             }
             if row["name"] in self.not_estimated:
                 entry["note"] = self.not_estimated[row["name"]]
@@ -322,8 +353,10 @@ class FrequencyResult(ResultSurface):
                 "S_diagonal": (
                     None if self.S is None else [float(np.real(v)) for v in np.diag(self.S)]
                 ),
-                "std_note": "std: Cramér–Rao M⁻¹; std_coloured: coloured-residual sandwich "
-                "(flightid.frequency.output_error)",
+                "std_note": "std = std_coloured: coloured-residual sandwich across frequency "
+                "(flightid.frequency.uncertainty); std_cr: Cramér–Rao bound with the grid "
+                "correction c = max(1, 1/(T·step_hz))",
+                "grid_factors": [float(c) for c in self.grid_factors],
                 "R_note": "R and fit_rms are time-domain equivalents of the spectral "
                 "residual covariance, R_j = S_jj / (Δt T) (white noise of variance σ² has "
                 "E|V(ω)|² = Δt T σ²); null for equation error",
@@ -522,6 +555,7 @@ def run_frequency_case(
     from flightid.frequency.equation_error import equation_error
     from flightid.frequency.linear_system import linear_system
     from flightid.frequency.output_error import model_response, output_error
+    from flightid.frequency.uncertainty import grid_factors
 
     started = _time.perf_counter()
     case_file = Path(case.path) if case.path is not None else None
@@ -564,7 +598,7 @@ def run_frequency_case(
             model_outputs = tuple(
                 model_response(system, s, None, boundary=False, constants=False) for s in spectra
             )
-            values, std, std_col = ee.theta, ee.std, np.full(ee.theta.size, np.nan)
+            values, std, std_col, std_cr = ee.theta, ee.std, ee.std, ee.std_cr
             S = cost = None
             converged, message, cycles, iterations = True, "closed-form least squares", 0, 0
             nuisance: tuple = ()
@@ -585,7 +619,7 @@ def run_frequency_case(
                 tolerance=settings.tolerance,
                 scales=np.maximum(np.abs(start), 0.01),
             )
-            values, std, std_col = fit.theta, fit.std, fit.std_coloured
+            values, std, std_col, std_cr = fit.theta, fit.std, fit.std_coloured, fit.std_cr
             S, cost = fit.S, fit.cost
             converged, message = fit.converged, fit.message
             cycles, iterations = fit.noise_cycles, fit.iterations
@@ -606,6 +640,8 @@ def run_frequency_case(
         initial=theta0,
         std=np.where(free, std, np.nan),
         std_coloured=np.where(free, std_col, np.nan),
+        std_cr=np.where(free, std_cr, np.nan),
+        grid_factors=tuple(float(c) for c in grid_factors(spectra)),
         free=free,
         units=tuple(p.unit for p in model.parameters),
         not_estimated=not_estimated,

@@ -13,6 +13,8 @@ Modules, one job each:
 * ``equation_error``: complex least squares on jωX = AX + BU (+ boundary terms).
 * ``output_error``: Y = (C(jωI − A)⁻¹B + D)U fitted with S estimated from the residuals,
   Cramér–Rao bounds and the coloured-residual correction.
+* ``uncertainty``: the grid factor of frequencies closer than 1/T and the coloured-residual
+  (sandwich) covariance the two estimators report.
 * ``response``: Welch spectra, single/multiple-input responses, ordinary, partial and
   multiple coherence.
 * ``loes``: low-order equivalent systems with time delay (MIL-STD-1797A cost).

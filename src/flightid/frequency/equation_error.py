@@ -19,7 +19,18 @@ covariance are
     σ̂² = Σ_ω |ε(ω)|² / (2K − n_p)
 
 (2K real equations; each real component of a circular complex residual of variance s has
-variance s/2, which is what σ̂² estimates). The boundary values and constants are per-maneuver
+variance s/2, which is what σ̂² estimates). That is the Cramér–Rao-type σ (``std_cr``) of
+white, equal residuals at independent frequencies; on a grid finer than 1/T it becomes
+σ̂² N⁻¹ [Σ_m c_m N_m] N⁻¹, N = Re(XᴴX), c_m = max(1, 1/(T_m Δf)) (maneuver m's rows N_m;
+``flightid.frequency.uncertainty``), so that refining the grid does not shrink it. The
+equation-error residual is never white and equal: it carries jω times the measurement
+noise of X, growing with frequency, and the noise of the regressors. The reported ``std``
+is therefore the coloured-residual sandwich on the real-stacked rows [Re x_k; Im x_k],
+
+    Cov_c(θ̂) = N⁻¹ [Σ_k Σ_l x_kᵀ R̂(k − l) x_l] N⁻¹,   R̂(m) = (1/K) Σ_k r_{k+m} r_kᵀ
+
+per maneuver, all lags (``flightid.frequency.uncertainty.sandwich_covariance``), which
+reduces to σ̂² N⁻¹ for white, equal residuals. The boundary values and constants are per-maneuver
 nuisance regressors. Output equations y_o = C_o x + D_o u + d_o whose parameters appear in
 no state equation (e.g. a_y = Y_p p + ... of the lateral model) are fitted the same way with
 Z_o(ω) as the response; outputs whose parameters the state equations already determine (ṗ,
@@ -42,6 +53,11 @@ from flightid.frequency.output_error import (
     checked_start,
     delayed_inputs,
 )
+from flightid.frequency.uncertainty import (
+    grid_corrected_inverse,
+    grid_factors,
+    sandwich_covariance,
+)
 
 __all__ = [
     "ComplexRegression",
@@ -54,21 +70,41 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ComplexRegression:
-    """θ̂ (p,), Cov (p, p), σ̂², residuals ε (K,) of one complex regression."""
+    """θ̂ (p,), σ̂², residuals ε (K,) of one complex regression, with the coloured-residual
+    covariance ``covariance`` (the reported one) and the Cramér–Rao-type
+    ``covariance_cr`` = σ̂² N⁻¹[Σ c_m N_m]N⁻¹ (module docstring), both (p, p)."""
 
     theta: np.ndarray
     covariance: np.ndarray
     sigma2: float
     residuals: np.ndarray
     r_squared: float
+    covariance_cr: np.ndarray
 
     @property
     def std(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.covariance))
+        """Reported σ: the coloured-residual sandwich."""
+        return np.sqrt(np.abs(np.diag(self.covariance)))
+
+    @property
+    def std_cr(self) -> np.ndarray:
+        """Cramér–Rao-type σ: sqrt diag(σ̂² N⁻¹[Σ c_m N_m]N⁻¹)."""
+        return np.sqrt(np.diag(self.covariance_cr))
 
 
-def complex_least_squares(regressors: np.ndarray, response: np.ndarray) -> ComplexRegression:
-    """Real θ minimising Σ|z − Xθ|² for complex X (K, p) and z (K,)."""
+def complex_least_squares(
+    regressors: np.ndarray,
+    response: np.ndarray,
+    *,
+    segments: Sequence[int] | None = None,
+    factors: Sequence[float] | None = None,
+) -> ComplexRegression:
+    """Real θ minimising Σ|z − Xθ|² for complex X (K, p) and z (K,).
+
+    ``segments``: the number of rows of each maneuver, in order (default: one maneuver);
+    residual lags of the coloured covariance never cross from one to the next.
+    ``factors``: c_m = max(1, 1/(T_m Δf)) per maneuver (default 1: independent frequencies).
+    """
     try:
         X = np.asarray(regressors, dtype=complex)
         z = np.asarray(response, dtype=complex).reshape(-1)
@@ -100,7 +136,37 @@ def complex_least_squares(regressors: np.ndarray, response: np.ndarray) -> Compl
     sigma2 = float(np.sum(np.abs(residuals) ** 2) / (2 * k - p))
     total = float(np.sum(np.abs(z - z.mean()) ** 2))
     r2 = 1.0 - float(np.sum(np.abs(residuals) ** 2)) / total if total > 0 else float("nan")
-    return ComplexRegression(theta, sigma2 * inverse, sigma2, residuals, r2)
+    counts = _checked_segments(segments, k)
+    factors = np.ones(len(counts)) if factors is None else np.asarray(factors, dtype=float)
+    if factors.shape != (len(counts),) or not np.all(factors >= 1.0):
+        raise InputError(
+            f"factors: expected {len(counts)} grid factors >= 1, one per segment, got "
+            f"{describe(factors)}"
+        )
+    # real-stacked rows per frequency: x_k = [Re x_k; Im x_k] (2, p), r_k = [Re ε_k, Im ε_k]
+    stacked = np.stack([X.real, X.imag], axis=1)
+    stacked_residuals = np.stack([residuals.real, residuals.imag], axis=1)
+    edges = np.concatenate([[0], np.cumsum(counts)])
+    jac_blocks = [stacked[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    res_blocks = [stacked_residuals[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    # Cov_CR = σ̂² N⁻¹ [Σ_m c_m N_m] N⁻¹   (= σ̂² N⁻¹ on grids of step ≥ 1/T)
+    covariance_cr = sigma2 * grid_corrected_inverse(jac_blocks, factors)
+    # Cov_c = N⁻¹ [Σ_k Σ_l x_kᵀ R̂(k − l) x_l] N⁻¹
+    covariance = sandwich_covariance(jac_blocks, res_blocks)
+    return ComplexRegression(theta, covariance, sigma2, residuals, r2, covariance_cr)
+
+
+def _checked_segments(segments: Sequence[int] | None, rows: int) -> list[int]:
+    """Row counts per maneuver summing to ``rows`` (one segment of all rows for None)."""
+    if segments is None:
+        return [rows]
+    try:
+        counts = [int(c) for c in segments]
+    except (TypeError, ValueError):
+        raise InputError(f"segments: expected row counts, got {describe(segments)}") from None
+    if not counts or any(c < 1 for c in counts) or sum(counts) != rows:
+        raise InputError(f"segments: expected positive row counts summing to {rows}, got {counts}")
+    return counts
 
 
 @dataclass(frozen=True)
@@ -109,9 +175,10 @@ class EquationErrorFit:
     their start values and have NaN std) and one regression per fitted equation."""
 
     theta: np.ndarray
-    std: np.ndarray
+    std: np.ndarray  # reported σ: coloured-residual sandwich
     estimated: np.ndarray  # boolean mask: the parameters some regression determined
     equations: dict[str, ComplexRegression]
+    std_cr: np.ndarray  # Cramér–Rao-type σ̂² N⁻¹[Σ c_m N_m]N⁻¹, NaN where not estimated
 
 
 def _affine_rows(
@@ -249,7 +316,10 @@ def equation_error(
     total = sum(s.frequencies_hz.size for s in spectra)
     theta = theta_start.copy()
     std = np.full(theta.size, np.nan)
+    std_cr = np.full(theta.size, np.nan)
     estimated = np.zeros(theta.size, dtype=bool)
+    segments = [s.frequencies_hz.size for s in spectra]
+    factors = grid_factors(spectra)
     equations: dict[str, ComplexRegression] = {}
     # measured state and input transforms [X; U] per maneuver, stacked (total, n_z)
     # (inputs delayed by the model's input delays at θ_start: ``delayed_inputs``)
@@ -269,12 +339,15 @@ def equation_error(
         for k, s in enumerate(spectra):
             columns += nuisance_columns(k, s, total, row0)
             row0 += s.frequencies_hz.size
-        fit = complex_least_squares(np.column_stack(columns), response)
+        fit = complex_least_squares(
+            np.column_stack(columns), response, segments=segments, factors=factors
+        )
         equations[f"d{state}/dt"] = fit
         for col, q in enumerate(used):
             j = free_index[q]
             theta[j] = fit.theta[col]
             std[j] = fit.std[col]
+            std_cr[j] = fit.std_cr[col]
             estimated[j] = True
     for o, output in enumerate(outputs):
         if o in measured:
@@ -297,12 +370,15 @@ def equation_error(
                 col[row0 : row0 + s.frequencies_hz.size] = s.constant
                 columns.append(col)
                 row0 += s.frequencies_hz.size
-        fit = complex_least_squares(np.column_stack(columns), response)
+        fit = complex_least_squares(
+            np.column_stack(columns), response, segments=segments, factors=factors
+        )
         equations[output] = fit
         for col, q in enumerate(own):
             j = free_index[q]
             theta[j] = fit.theta[col]
             std[j] = fit.std[col]
+            std_cr[j] = fit.std_cr[col]
             estimated[j] = True
     del n_x, n_m
-    return EquationErrorFit(theta, std, estimated, equations)
+    return EquationErrorFit(theta, std, estimated, equations, std_cr)

@@ -35,21 +35,33 @@ R). The sensitivities ∂Y/∂θ are central differences of the model response; 
 nuisance parameters, in which Y is linear, are written out (``nuisance_sensitivities``).
 
 Accuracy. For a circular complex residual with covariance S, each of the 2 n_y real
-components of r has variance ½, so the Fisher information is
+components of r has variance ½, so the Fisher information of independent frequencies is
 
-    M = 2 Σ_ω Re[∂Yᴴ/∂θ S⁻¹ ∂Y/∂θ] = 2 J_rᵀ J_r ,      Cov(θ̂) ≈ M⁻¹     (Cramér–Rao)
+    M = 2 Σ_ω Re[∂Yᴴ/∂θ S⁻¹ ∂Y/∂θ] = 2 J_rᵀ J_r = 2H ,      Cov(θ̂) ≈ M⁻¹     (Cramér–Rao)
 
 (Morelli & Klein write the same matrix with the transform normalisation folded into S).
-The transforms at frequencies closer than 1/T are correlated, and model error colours the
-residuals across frequency; the coloured-residual correction is the sandwich
+The transforms at frequencies closer than 1/T are correlated; a grid of step Δf < 1/T
+holds only T·Δf of a record's independent frequencies per point, and the bound reported as
+``std_cr`` is
 
-    Cov_c(θ̂) = H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹,      H = J_rᵀ J_r,
+    Cov_CR(θ̂) = ½ H⁻¹ [Σ_m c_m H_m] H⁻¹,       c_m = max(1, 1/(T_m Δf))
+
+(maneuver m's part H_m of H; = c/(2H) for one maneuver), which does not shrink when the
+grid is refined below 1/T (derivation: ``flightid.frequency.uncertainty``). Model error
+colours the residuals across frequency; the coloured-residual σ (``std_coloured``) is the
+sandwich
+
+    Cov_c(θ̂) = H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹,
     R̂(m) = (1/K) Σ_k r_{k+m} r_kᵀ       (per maneuver, all lags; zero between maneuvers)
 
 the frequency-index analogue of Morelli & Klein's correction of the least-squares and
 output-error covariance for coloured residuals (their ch. 5 and 6; Morelli & Klein, "Determining
 the accuracy of maximum likelihood parameter estimates with colored residuals", NASA
-CR-194893, 1994). With white residuals R̂(0) → ½I, R̂(m ≠ 0) → 0 and it reduces to M⁻¹.
+CR-194893, 1994). It measures the correlation of the grid and of the model error from the
+residuals; with white residuals on a 1/T grid R̂(0) → ½I, R̂(m ≠ 0) → 0 and it reduces to
+M⁻¹. The reported ``std`` is the coloured σ: frequency-domain residuals are correlated
+whenever the grid is finer than 1/T or the model leaves anything unexplained, and where
+they are white it is the Cramér–Rao σ within its sampling error.
 """
 
 from __future__ import annotations
@@ -73,6 +85,11 @@ from flightid.frequency.arguments import (
 )
 from flightid.frequency.fourier import ManeuverSpectra
 from flightid.frequency.linear_system import LinearSystem
+from flightid.frequency.uncertainty import (
+    grid_corrected_inverse,
+    grid_factors,
+    sandwich_covariance,
+)
 
 __all__ = [
     "OutputErrorFit",
@@ -92,15 +109,16 @@ class OutputErrorFit:
     """The frequency-domain output-error estimate.
 
     ``theta`` is the full model parameter vector (fixed ones at their given values);
-    ``std`` and ``std_coloured`` are NaN for fixed parameters. Nuisance parameters (boundary
-    values, constants) are listed separately.
+    ``std`` (the reported σ: the coloured-residual one), ``std_cr`` (Cramér–Rao, corrected
+    for grids finer than 1/T) and ``std_coloured`` are NaN for fixed parameters. Nuisance
+    parameters (boundary values, constants) are listed separately, with Cramér–Rao σ.
     """
 
     theta: np.ndarray
     free: np.ndarray
     std: np.ndarray
     std_coloured: np.ndarray
-    covariance: np.ndarray  # free model parameters, M⁻¹
+    covariance: np.ndarray  # free model parameters, Cramér–Rao ½H⁻¹[Σ c_m H_m]H⁻¹
     covariance_coloured: np.ndarray
     nuisance_names: tuple[str, ...]
     nuisance: np.ndarray
@@ -115,6 +133,8 @@ class OutputErrorFit:
     residuals: tuple[np.ndarray, ...]
     cost_history: tuple[float, ...] = field(default_factory=tuple)
     evaluation_history: tuple[int, ...] = field(default_factory=tuple)  # nfev per noise cycle
+    std_cr: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    grid_factors: tuple[float, ...] = ()  # c_m = max(1, 1/(T_m Δf)) per maneuver
 
 
 def nuisance_names(
@@ -526,40 +546,30 @@ def output_error(
             "output_error: the information matrix is singular; a parameter (or nuisance "
             "parameter) is not determined by the data on this band"
         )
-    # M = 2 Jᵣᵀ Jᵣ ,  Cov = M⁻¹
-    cov_all = np.linalg.inv(2.0 * H)
-    # coloured correction: H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹, per maneuver
+    # per maneuver: the rows J_k (K, 2n_y, n_free + n_nuisance) and residuals r_k (K, 2n_y)
     width = 2 * n_y
-    middle = np.zeros_like(H)
-    row = 0
-    for s in spectra:
-        k_count = s.frequencies_hz.size
-        rk = r[row * width : (row + k_count) * width].reshape(k_count, width)
-        jk = Jr[row * width : (row + k_count) * width].reshape(k_count, width, -1)
-        row += k_count
-        for m in range(-(k_count - 1), k_count):
-            # R̂(m) = (1/K) Σ_k r_{k+m} r_kᵀ
-            if m >= 0:
-                R_m = rk[m:].T @ rk[: k_count - m] / k_count
-                left, right = jk[m:], jk[: k_count - m]
-            else:
-                R_m = rk[: k_count + m].T @ rk[-m:] / k_count
-                left, right = jk[: k_count + m], jk[-m:]
-            # Σ_l J_{l+m}ᵀ R̂(m) J_l
-            middle += np.einsum("kai,ab,kbj->ij", left, R_m, right)
-    H_inv = np.linalg.inv(H)
-    cov_col_all = H_inv @ middle @ H_inv
+    bounds = np.concatenate([[0], np.cumsum([s.frequencies_hz.size for s in spectra])]) * width
+    jac_blocks = [
+        Jr[a:b].reshape(-1, width, Jr.shape[1])
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+    ]
+    res_blocks = [r[a:b].reshape(-1, width) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    factors = grid_factors(spectra)
+    # Cov_CR = ½ H⁻¹ [Σ_m c_m H_m] H⁻¹   (= M⁻¹ = (2H)⁻¹ on grids of step ≥ 1/T)
+    cov_all = 0.5 * grid_corrected_inverse(jac_blocks, factors)
+    # coloured correction: H⁻¹ [Σ_k Σ_l J_kᵀ R̂(k − l) J_l] H⁻¹, per maneuver
+    cov_col_all = sandwich_covariance(jac_blocks, res_blocks)
     n_p = theta_start.size
-    std = np.full(n_p, np.nan)
+    std_cr = np.full(n_p, np.nan)
     std_col = np.full(n_p, np.nan)
-    std[free] = np.sqrt(np.diag(cov_all)[:n_free])
+    std_cr[free] = np.sqrt(np.diag(cov_all)[:n_free])
     std_col[free] = np.sqrt(np.abs(np.diag(cov_col_all)[:n_free]))
     theta, nuis = unpack(p)
     model_outputs = tuple(responses(p))
     return OutputErrorFit(
         theta=theta,
         free=free,
-        std=std,
+        std=std_col,
         std_coloured=std_col,
         covariance=cov_all[:n_free, :n_free],
         covariance_coloured=cov_col_all[:n_free, :n_free],
@@ -578,4 +588,6 @@ def output_error(
         residuals=tuple(s.outputs - y for s, y in zip(spectra, model_outputs, strict=True)),
         cost_history=tuple(history),
         evaluation_history=tuple(evaluations),
+        std_cr=std_cr,
+        grid_factors=tuple(float(c) for c in factors),
     )

@@ -14,7 +14,14 @@ Filter health (house rule: a wrong answer must not look like a right one):
   positive semi-definiteness) is recorded as a warning with the sample number;
 * the normalised innovation squared ε_k = ν_kᵀ S_k⁻¹ ν_k is recorded; an ε above the
   χ²(n_y) quantile 1 − 1e-6 is an innovation far outside its covariance (counted, and the
-  result warns when they exceed 5 % of the samples).
+  result warns when they exceed 5 % of the samples);
+* the mean ε̄ of the N recorded ε is n_y for a filter whose noise model describes the data
+  (E[ε] = n_y, ε ~ χ²(n_y)); its statistical band n_y ± 3√(2 n_y / N) is too narrow for real
+  data, whose noise model is never exact, so the result warns when ε̄ lies a factor 10 or
+  more outside n_y: ε̄ > 10 n_y (the filter's S far too small: its σ are optimistic) or
+  ε̄ < n_y / 10 (S far too large: e.g. an absurd process noise Q lets the states follow
+  the measurements, the parameters stop learning and their σ say nothing about the data).
+  Any of these warnings turns the result's status to ``inconsistent``.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import numpy as np
 from flightid.errors import FlightIdError, InputError, describe
 
 __all__ = [
+    "NIS_FACTOR",
     "AugmentedFilter",
     "RecursiveDivergenceError",
     "RecursiveEstimatorBase",
@@ -33,6 +41,10 @@ __all__ = [
     "float_array",
     "symmetric_sqrt",
 ]
+
+
+# a mean normalised innovation squared this factor above or below n_y is inconsistent
+NIS_FACTOR = 10.0
 
 
 class RecursiveDivergenceError(FlightIdError, ArithmeticError):
@@ -222,7 +234,38 @@ class RecursiveEstimatorBase:
                     f"(ν'S⁻¹ν > {limit:.1f}, the χ²({self.n_outputs}) 1−1e-6 quantile): the "
                     "filter's noise model does not describe the data"
                 )
+            warnings += self._mean_nis_warning()
         return warnings
+
+    def _mean_nis_warning(self) -> list[str]:
+        """The warning for a mean ε̄ a factor ``NIS_FACTOR`` or more away from n_y (module
+        docstring); empty when inside."""
+        values = np.asarray(self.nis, dtype=float)
+        values = values[np.isfinite(values)]
+        if not values.size:
+            return []
+        # ε̄ = (1/N) Σ ε_k, expected n_y
+        mean = float(np.mean(values))
+        n_y = self.n_outputs
+        low, high = n_y / NIS_FACTOR, n_y * NIS_FACTOR
+        if low <= mean <= high:
+            return []
+        if mean < low:
+            why = (
+                "far below: the predicted innovation covariance S is much larger than the "
+                "innovations (process noise q_states or r0 far too large?); the parameter σ "
+                "do not describe the data"
+            )
+        else:
+            why = (
+                "far above: the innovations are much larger than their covariance S "
+                "(q_states or r0 too small, or a model error); the σ are optimistic"
+            )
+        return [
+            f"inconsistent filter: mean normalised innovation squared ν'S⁻¹ν = {mean:.3g} "
+            f"over {values.size} samples, expected {n_y} (χ²({n_y}); accepted "
+            f"{low:.3g}–{high:.3g}), {why}"
+        ]
 
 
 class AugmentedFilter(RecursiveEstimatorBase):

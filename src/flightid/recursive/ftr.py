@@ -16,8 +16,18 @@ Every ``update_every`` samples (k mod M = 0) each state equation i is solved by 
 over the n_f frequencies with real parts (Θ = [X U], n_f × n_p, n_p = n_x + n_u):
 
     θ_i = Re(ΘᴴΘ)⁻¹ Re(Θᴴ jωX_i)                         (row i of [A B])
-    σ_i² = Σ_ω |jωX_i − Θθ_i|² / (n_f − n_p)
+    σ_i² = Σ_ω |jωX_i − Θθ_i|² / (2 n_f − n_p)
     std_i = sqrt(diag(σ_i² Re(ΘᴴΘ)⁻¹))
+
+This is ordinary least squares on the real-stacked equations [Re; Im] (2 n_f rows, n_p real
+unknowns, Re(ΘᴴΘ) = ΘᵣᵀΘᵣ): each real component of a circular complex residual of variance s
+has variance s/2, which σ_i² estimates with 2 n_f − n_p degrees of freedom, as the
+frequency-domain equation error does (``flightid.frequency.equation_error``). Dividing by
+n_f − n_p instead would estimate s, not s/2, and make every σ about √2 too large. The σ is
+the Cramér–Rao-type one of white, equal residuals at independent frequencies (space the
+frequencies by at least 1/T of the record); the equation-error residual carries jω times
+the measurement noise, so it is conservative where that noise dominates (measured in
+docs/recursive.md).
 
 An update whose Re(ΘᴴΘ) is singular (condition number ≥ 1e12: no excitation yet) is
 skipped and counted (``skipped_updates``); the estimate stays that of the last update.
@@ -257,8 +267,8 @@ class FourierTransformRegression(RecursiveEstimatorBase):
             response = 1j * self.omega * self.X[:, i]
             # θ_i = Re(ΘᴴΘ)⁻¹ Re(Θᴴ jωX_i)
             theta = covariance @ np.real(Theta.conj().T @ response)
-            # σ_i² = Σ |jωX_i − Θθ_i|² / (n_f − n_p)
-            sigma2 = float(np.sum(np.abs(response - Theta @ theta) ** 2)) / (n_f - n_p)
+            # σ_i² = Σ |jωX_i − Θθ_i|² / (2 n_f − n_p)
+            sigma2 = float(np.sum(np.abs(response - Theta @ theta) ** 2)) / (2 * n_f - n_p)
             theta_all[i] = theta
             # std_i = sqrt(diag(σ_i² Re(ΘᴴΘ)⁻¹))
             std_all[i] = np.sqrt(np.clip(sigma2 * np.diag(covariance), 0.0, None))

@@ -8,9 +8,18 @@ the reported final values and the last filtered values:
   filters, 5 updates for the FTR — or the last row (``"final"``);
 * ``last_filtered``: the estimate and σ of the very last row.
 
-For the EKF and UKFs σ = sqrt(diag P̂) of the filter covariance; for the EFRLS it is
-sqrt(diag P) of the forgetting-factor RLS matrix (a scaled quantity, not a noise-based
-covariance); for the FTR the least-squares std of each equation.
+Which σ ``std`` is, per method:
+
+* EKF, UKF, UKF_aug: sqrt(diag P̂) of the filter covariance, the Cramér–Rao-type σ of the
+  filter's noise model (also ``std_cr``). It holds only when that model describes the data,
+  which the innovation tests check (``flightid.recursive.base``: a mean normalised
+  innovation squared a factor 10 away from n_y, or too many innovations far outside their
+  covariance, make the status ``inconsistent`` with the figure in the warning);
+* FTR: the least-squares σ of each equation (``flightid.recursive.ftr``; also ``std_cr``);
+* EFRLS: none. sqrt(diag P) of the forgetting-factor RLS matrix depends on P0 and λ, not on
+  the data's noise (±3.6 for an L_p known to ±0.003), so it is not a standard error: it is
+  reported as ``rls_scale``, ``std`` and ``std_cr`` are NaN (null in results.json), and the
+  summary says so.
 
 The result answers the common result surface (``flightid.results``): ``summary()``,
 ``to_dict()`` (one results.json entry), ``to_json()``, ``to_frame()``, ``conf_int()``,
@@ -101,8 +110,30 @@ class RecursiveResult(ResultSurface):
         return self.theta_history[-self.n_report :].mean(axis=0)
 
     @property
+    def has_standard_error(self) -> bool:
+        """False for the EFRLS, whose σ history is an RLS scale, not a standard error."""
+        return self.method != "efrls"
+
+    @property
     def std(self) -> np.ndarray:
-        """Reported σ: mean of the last ``n_report`` rows of σ."""
+        """Reported σ: mean of the last ``n_report`` rows of σ (NaN for the EFRLS: no
+        standard error, see ``rls_scale``)."""
+        if not self.has_standard_error:
+            return np.full(self.theta_history.shape[1], np.nan)
+        return self.std_history[-self.n_report :].mean(axis=0)
+
+    @property
+    def std_cr(self) -> np.ndarray:
+        """The Cramér–Rao-type σ: the filter covariance's (EKF, UKFs) or the least-squares
+        one (FTR); equal to ``std``."""
+        return self.std
+
+    @property
+    def rls_scale(self) -> np.ndarray:
+        """EFRLS: mean over the last ``n_report`` rows of sqrt(diag P) of the RLS matrix (not
+        a standard error); NaN for the other methods."""
+        if self.has_standard_error:
+            return np.full(self.theta_history.shape[1], np.nan)
         return self.std_history[-self.n_report :].mean(axis=0)
 
     @property
@@ -112,6 +143,9 @@ class RecursiveResult(ResultSurface):
 
     @property
     def last_filtered_std(self) -> np.ndarray:
+        """σ of the last history row (NaN for the EFRLS)."""
+        if not self.has_standard_error:
+            return np.full(self.theta_history.shape[1], np.nan)
         return self.std_history[-1].copy()
 
     @property
@@ -146,8 +180,9 @@ class RecursiveResult(ResultSurface):
                     "name": name,
                     "value": float(self.values[j]),
                     "std": float(self.std[j]),
+                    "rls_scale": float(self.rls_scale[j]),
                     "last_filtered": float(self.theta_history[-1, j]),
-                    "last_filtered_std": float(self.std_history[-1, j]),
+                    "last_filtered_std": float(self.last_filtered_std[j]),
                     "initial": None if self.initial is None else self.initial[j],
                     "unit": self.units[j],
                 }
@@ -168,14 +203,34 @@ class RecursiveResult(ResultSurface):
         ]
         for row in self._frame_rows():
             initial = "" if row["initial"] is None else f"{row['initial']:12.6g}"
+            std = f"{row['std']:12.4g}" if np.isfinite(row["std"]) else f"{'—':>12}"
             lines.append(
-                f"{row['name']:<12} {row['value']:14.6g} {row['std']:12.4g} "
+                f"{row['name']:<12} {row['value']:14.6g} {std} "
                 f"{row['last_filtered']:14.6g} {initial:>12}  {row['unit']}"
             )
+        if not self.has_standard_error:
+            scales = ", ".join(
+                f"{n} {v:.3g}" for n, v in zip(self.parameter_names, self.rls_scale, strict=True)
+            )
+            lines += ["", f"NOTE: {self._std_note()}", f"rls_scale: {scales}"]
         if self.warnings:
             lines.append("")
             lines.extend(f"WARNING: {w}" for w in self.warnings)
         return "\n".join(lines)
+
+    def _std_note(self) -> str:
+        if not self.has_standard_error:
+            return (
+                "the EFRLS gives no standard error: sqrt(diag P) of its RLS matrix "
+                "(rls_scale) depends on P0 and the forgetting factor, not on the noise of "
+                "the data; std is null"
+            )
+        if self.method == "ftr":
+            return "std = std_cr: least-squares σ of each state equation, σ² = Σ|ε|²/(2n_f − n_p)"
+        return (
+            "std = std_cr: sqrt(diag P) of the filter covariance; it holds when the filter's "
+            "noise model describes the data (innovation tests: status 'inconsistent' otherwise)"
+        )
 
     def to_dict(self) -> dict:
         """One results.json entry (docs/schema/results.schema.json) with the recursive
@@ -183,18 +238,20 @@ class RecursiveResult(ResultSurface):
         meta = self.meta
         parameters = []
         for row in self._frame_rows():
-            parameters.append(
-                {
-                    "name": row["name"],
-                    "value": row["value"],
-                    "initial": row["initial"],
-                    "std": row["std"],
-                    "free": True,
-                    "unit": row["unit"],
-                    "last_filtered": row["last_filtered"],
-                    "last_filtered_std": row["last_filtered_std"],
-                }
-            )
+            entry = {
+                "name": row["name"],
+                "value": row["value"],
+                "initial": row["initial"],
+                "std": _finite_or_none(row["std"]),
+                "std_cr": _finite_or_none(row["std"]),
+                "free": True,
+                "unit": row["unit"],
+                "last_filtered": row["last_filtered"],
+                "last_filtered_std": _finite_or_none(row["last_filtered_std"]),
+            }
+            if not self.has_standard_error:
+                entry["rls_scale"] = row["rls_scale"]
+            parameters.append(entry)
         message = (
             f"{self.method}: one pass over {self.n_samples} samples; reported value = mean "
             f"over the last {self.n_report} history rows"
@@ -241,6 +298,8 @@ class RecursiveResult(ResultSurface):
                 "settings": {k: _plain(v) for k, v in self.settings.items()},
                 "warnings": list(self.warnings),
                 "nis_mean": float(np.mean(nis)) if nis.size else None,
+                "nis_expected": (len(meta.get("outputs", [])) or None) if nis.size else None,
+                "std_note": self._std_note(),
             },
         }
 
@@ -330,6 +389,10 @@ class RecursiveResult(ResultSurface):
             figures=["figures/parameter_histories.png"],
             files=[path.name, "parameter_histories.csv"],
         )
+
+
+def _finite_or_none(value: float) -> float | None:
+    return float(value) if np.isfinite(value) else None
 
 
 def _plain(value: Any) -> Any:
