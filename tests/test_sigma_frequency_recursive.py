@@ -286,3 +286,23 @@ def test_efrls_reports_no_standard_error(record):
         assert row["std"] is None and row["std_cr"] is None and row["rls_scale"] > 0
     assert "no standard error" in entry["recursive"]["std_note"]
     assert "no standard error" in result.summary()
+
+
+def test_a_constant_the_band_cannot_see_takes_no_column():
+    """On a grid at multiples of 1/T the transform of a constant is rounding noise (~1e-16·T):
+    with constants = True the fit must equal the one without the constant column, instead of
+    giving that column a coefficient of ~1e13 that moves the estimates."""
+    band = frequency_grid((0.1, 2.0), 1.0 / DURATION)
+    s = maneuver_spectra(*simulate(3), band)
+    assert np.max(np.abs(s.constant)) < 1e-12 * s.duration_s
+    start, free = np.array([-1.0, 1.0]), np.ones(2, bool)
+    with_constant = equation_error(scalar_system, start, free, [s], ["x"], ["x"], constants=True)
+    without = equation_error(scalar_system, start, free, [s], ["x"], ["x"], constants=False)
+    np.testing.assert_allclose(with_constant.theta, without.theta, rtol=1e-12)
+    np.testing.assert_allclose(with_constant.std, without.std, rtol=1e-12)
+    # off the 1/T grid the constant is seen and estimated: the fit differs
+    shifted = maneuver_spectra(*simulate(3), band + 0.013)
+    assert np.max(np.abs(shifted.constant)) > 1e-3
+    a = equation_error(scalar_system, start, free, [shifted], ["x"], ["x"], constants=True)
+    b = equation_error(scalar_system, start, free, [shifted], ["x"], ["x"], constants=False)
+    assert not np.allclose(a.theta, b.theta, rtol=1e-9)

@@ -268,6 +268,17 @@ def equation_error_structure(
     return determined
 
 
+# a maneuver's constant column is left out where the band cannot see a constant: the
+# transform of 1, (1 − e^{−jωT})/(jω), vanishes at multiples of 1/T (to rounding, ~1e-16·T);
+# a column of rounding noise would take a coefficient of ~1e13 and move the estimates
+INVISIBLE_CONSTANT = 1e-9
+
+
+def constant_visible(spectra: ManeuverSpectra) -> bool:
+    """Whether the band sees a constant of this maneuver: max |F{1}(ω)| > 1e-9·T."""
+    return bool(np.max(np.abs(spectra.constant)) > INVISIBLE_CONSTANT * spectra.duration_s)
+
+
 def equation_error(
     system_of: Callable[[np.ndarray], LinearSystem],
     theta_start: np.ndarray,
@@ -305,7 +316,7 @@ def equation_error(
         if boundary:
             # x(0) − x(T) e^{−jωT}: one column when e^{−jωT} is the same at every ω
             basis += [np.ones_like(s.constant)] + ([] if s.end_phase_constant else [-s.end_phase])
-        if constants:
+        if constants and constant_visible(s):
             basis += [s.constant]
         for b in basis:
             col = np.zeros(total_rows, dtype=complex)
@@ -366,9 +377,10 @@ def equation_error(
         if constants:
             row0 = 0
             for s in spectra:
-                col = np.zeros(total, dtype=complex)
-                col[row0 : row0 + s.frequencies_hz.size] = s.constant
-                columns.append(col)
+                if constant_visible(s):
+                    col = np.zeros(total, dtype=complex)
+                    col[row0 : row0 + s.frequencies_hz.size] = s.constant
+                    columns.append(col)
                 row0 += s.frequencies_hz.size
         fit = complex_least_squares(
             np.column_stack(columns), response, segments=segments, factors=factors
