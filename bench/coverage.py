@@ -4,7 +4,8 @@ For each family, ``--seeds`` noise realisations (seeds ``--seed`` … ``--seed +
 drawn from a simulator written here with scipy, independently of flightid's simulator:
 
 * a linear short-period model ẋ = A x + B δe (α, q; δe a 3-2-1-1 and a doublet), discretised
-  exactly for a zero-order-hold input (``scipy.signal.cont2discrete``);
+  exactly (``scipy.linalg.expm`` of the system augmented with the input and its slope) for an
+  input linear between samples;
 * with process noise ẋ = A x + B δe + F w (w unit white noise): the discrete process noise
   Q_d = ∫₀^Δt e^{Aτ} FFᵀ e^{Aᵀτ} dτ by Van Loan's matrix exponential (``scipy.linalg.expm``);
 * measurement noise white, or coloured (first-order autoregressive, ``scipy.signal.lfilter``);
@@ -104,22 +105,37 @@ def discrete_process_noise(a: np.ndarray, f_matrix: np.ndarray, dt: float) -> np
     return 0.5 * (q_d + q_d.T)
 
 
+def input_hold_matrices(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+    """(Φ, Γ₀, Γ₁) of the exact discretisation for an input linear between samples:
+    x_{k+1} = Φ x_k + Γ₀ u_k + Γ₁ (u_{k+1} − u_k)/Δt, from
+    expm([[A, B, 0], [0, 0, I], [0, 0, 0]] Δt) = [[Φ, Γ₀, Γ₁], …]."""
+    n, m = b.shape
+    block = np.zeros((n + 2 * m, n + 2 * m))
+    block[:n, :n] = a
+    block[:n, n : n + m] = b
+    block[n : n + m, n + m :] = np.eye(m)
+    e = scipy.linalg.expm(block * dt)
+    return e[:n, :n], e[:n, n : n + m], e[:n, n + m :]
+
+
 def simulate_states(
     values: dict[str, float],
     de: np.ndarray,
     rng: np.random.Generator | None = None,
     process_std: np.ndarray | None = None,
 ) -> np.ndarray:
-    """States (N, 2) from x_1 = 0: x_{k+1} = Φ x_k + Γ δe_k (+ w_k, Cov w = Q_d of
-    F = diag(process_std)), Φ, Γ the exact zero-order-hold discretisation."""
+    """States (N, 2) from x_1 = 0 for δe linear between samples (what flightid's simulator
+    and its Fourier transforms assume), exactly discretised; with process noise w_k,
+    Cov w = Q_d of F = diag(``process_std``), when given."""
     a, b = system_matrices(values)
-    phi, gamma, *_ = scipy.signal.cont2discrete((a, b, np.eye(2), np.zeros((2, 1))), DT_S, "zoh")
+    phi, gamma0, gamma1 = input_hold_matrices(a, b, DT_S)
     chol = None
     if process_std is not None:
         chol = np.linalg.cholesky(discrete_process_noise(a, np.diag(process_std), DT_S))
     x = np.zeros((de.size, 2))
     for k in range(de.size - 1):
-        x[k + 1] = phi @ x[k] + gamma[:, 0] * de[k]
+        # x_{k+1} = Φ x_k + Γ₀ δe_k + Γ₁ (δe_{k+1} − δe_k)/Δt
+        x[k + 1] = phi @ x[k] + gamma0[:, 0] * de[k] + gamma1[:, 0] * (de[k + 1] - de[k]) / DT_S
         if chol is not None:
             x[k + 1] += chol @ rng.standard_normal(2)
     return x
@@ -246,9 +262,7 @@ def output_error_draw(seed: int, pole: float = 0.0) -> Draw:
     from flightid.estimation import MNR, estimate
 
     t, de, z = _measured(seed, pole=pole)
-    result = estimate(
-        short_period_model(START), flight_data(t, de, z), MNR(), input_interpolation="zoh"
-    )
+    result = estimate(short_period_model(START), flight_data(t, de, z), MNR())
     return _from_estimate(result, NAMES)
 
 
@@ -272,12 +286,143 @@ def filter_error_draw(seed: int, noise_std=None, gradients: str = "analytic") ->
         flight_data(t, de, z),
         {"alpha": "F11", "q": "F22"},
         MNR(),
-        input_interpolation="zoh",
         gradients=gradients,
     )
     return _from_estimate(result, (*NAMES, "F11", "F22"))
 
 
+def _signals(seed: int, duration_s: float = 20.0, pole: float = 0.0):
+    """Noise-free states x, the elevator, and seeded noise for the regression families."""
+    rng = np.random.default_rng(seed)
+    t, de = elevator(duration_s)
+    x = simulate_states(TRUTH, de)
+    return rng, t, de, x
+
+
+#: equation-error response noise σ (rad/s²) on q̇ = Ma α + Mq q + Mde δe
+QDOT_NOISE_STD = 0.05
+EE_NAMES = ("Ma", "Mq", "Mde")
+
+
+def equation_error_draw(seed: int, pole: float = 0.0) -> Draw:
+    """Least squares of q̇ on (α, q, δe): regressors the noise-free simulated states,
+    the response q̇ = A₂ x + B₂ δe (closed form) plus white or AR(1) noise."""
+    from flightid.regression import least_squares
+
+    rng, t, de, x = _signals(seed)
+    a, b = system_matrices(TRUTH)
+    qdot = x @ a[1] + b[1, 0] * de
+    z = qdot + measurement_noise(rng, t.size, np.array([QDOT_NOISE_STD]), pole)[:, 0]
+    fit = least_squares(np.column_stack([x, de]), z, list(EE_NAMES))
+    return Draw(EE_NAMES, np.asarray(fit.estimates), _stated(fit, EE_NAMES, [0, 1, 2]))
+
+
+def stepwise_draw(seed: int) -> Draw:
+    """Stepwise regression of the same q̇ over (α, q, δe, α², α·δe, q·δe) with a constant
+    forced; the true terms are always selected here, spurious ones now and then."""
+    from flightid.regression import stepwise
+
+    rng, t, de, x = _signals(seed)
+    a, b = system_matrices(TRUTH)
+    z = x @ a[1] + b[1, 0] * de + QDOT_NOISE_STD * rng.standard_normal(t.size)
+    signals = {"alpha": x[:, 0], "q": x[:, 1], "de": de}
+    result = stepwise(z, ["alpha", "q", "de", "alpha^2", "alpha*de", "q*de"], signals)
+    fit = result.fit
+    index = [list(fit.names).index(n) for n in ("alpha", "q", "de")]
+    return Draw(EE_NAMES, np.asarray(fit.estimates)[index], _stated(fit, EE_NAMES, index))
+
+
+def _linear_system(theta: np.ndarray):
+    from flightid.frequency import LinearSystem
+
+    za, zde, ma, mq, mde = theta
+    a = np.array([[za, 1.0], [ma, mq]])
+    b = np.array([[zde], [mde]])
+    return LinearSystem(a, b, np.eye(2), np.zeros((2, 1)), np.zeros(2), np.zeros(2))
+
+
+def frequency_draw(seed: int, method: str, oversampling: int = 1) -> Draw:
+    """Frequency-domain equation or output error on 0.1–1.5 Hz of a 20 s record, frequency
+    step 1/T (independent frequencies) or 1/(oversampling·T); boundary values and constants
+    as nuisance parameters (the defaults)."""
+    from flightid.frequency import (
+        equation_error,
+        frequency_grid,
+        maneuver_spectra,
+        output_error,
+    )
+
+    t, de, z = _measured(seed, duration_s=20.0)
+    band = frequency_grid((0.1, 1.5), 1.0 / (t.size * DT_S * oversampling))
+    spectra = [maneuver_spectra(t, de, z, band)]
+    start = np.array([START[n] for n in NAMES])
+    fit_function = equation_error if method == "equation_error" else output_error
+    fit = fit_function(
+        _linear_system, start, np.ones(5, bool), spectra, ("alpha", "q"), ("alpha", "q")
+    )
+    return Draw(NAMES, np.asarray(fit.theta), _stated(fit, NAMES, list(range(5))))
+
+
+def recursive_draw(seed: int, method: str) -> Draw:
+    """EKF / UKF / EFRLS (parameters as constant augmented states, from 20 % off the truth,
+    P0 = 10 (EFRLS: 10³, λ = 1), no process noise on the states, R = the true noise
+    variances) or FTR (0.1 to
+    1.5 Hz in 0.05 Hz steps) over 20 s; the reported value and σ: mean of the last 10."""
+    from flightid.recursive import (
+        AugmentedModel,
+        ExtendedForgettingRLS,
+        ExtendedKalmanFilter,
+        FourierTransformRegression,
+        UnscentedKalmanFilter,
+        run_recursive,
+    )
+
+    t, de, z = _measured(seed, duration_s=20.0)
+    if method == "ftr":
+        frequencies = np.arange(0.1, 1.5 + 1e-9, 0.05)
+        estimator = FourierTransformRegression(2, 1, frequencies, update_every=50)
+        result = run_recursive(estimator, t, de[:, None], z)
+        names = ("A11", "B11", "A21", "A22", "B21")
+        index = [list(result.parameter_names).index(n) for n in names]
+        return Draw(names, np.asarray(result.values)[index], _stated(result, names, index))
+    augmented = AugmentedModel(short_period_model(START), [0.0, 0.0])
+    if method == "ekf":
+        estimator = ExtendedKalmanFilter(augmented, 10.0, 0.0, NOISE_STD**2)
+    elif method == "ukf":
+        estimator = UnscentedKalmanFilter(augmented, 10.0, 0.0, NOISE_STD**2)
+    else:
+        estimator = ExtendedForgettingRLS(augmented, 1.0e3, forgetting=1.0)
+    result = run_recursive(estimator, t, de[:, None], z)
+    index = [list(result.parameter_names).index(n) for n in NAMES]
+    return Draw(NAMES, np.asarray(result.values)[index], _stated(result, NAMES, index))
+
+
+_PREDICTED: dict[str, np.ndarray] = {}
+
+
+def design_draw(seed: int) -> Draw:
+    """The output-error estimate of the white-noise realisation against the σ predicted
+    before the flight: ``predict_accuracy`` at the truth for the same input and noise σ."""
+    if "std" not in _PREDICTED:
+        from flightid.design.information import predict_accuracy
+
+        t, de = elevator(10.0)
+        prediction = predict_accuracy(
+            short_period_model(TRUTH), flight_data(t, de, np.zeros((t.size, 2))), NOISE_STD
+        )
+        _PREDICTED["std"] = np.array([prediction.std_of(n) for n in NAMES])
+    draw = output_error_draw(seed)
+    return Draw(NAMES, draw.values, {"predicted": _PREDICTED["std"]})
+
+
+FTR_TRUTH = {
+    "A11": TRUTH["Za"],
+    "B11": TRUTH["Zde"],
+    "A21": TRUTH["Ma"],
+    "A22": TRUTH["Mq"],
+    "B21": TRUTH["Mde"],
+}
+EE_TRUTH = {n: TRUTH[n] for n in EE_NAMES}
 FAMILY_TRUTH = {
     "filter_error": {**TRUTH, "F11": PROCESS_STD[0], "F22": PROCESS_STD[1]},
 }
@@ -313,6 +458,39 @@ FAMILIES: dict[str, Family] = {
         lambda s: filter_error_draw(s, CONSTRAINED_NOISE_STD),
         FAMILY_TRUTH["filter_error"],
         "as filter_error, α measured without noise: diag(KC)_α = 1 active in part of the runs",
+    ),
+    "equation_error": Family(
+        equation_error_draw, EE_TRUTH, "least squares of q̇ on (α, q, δe), white residuals"
+    ),
+    "equation_error_coloured": Family(
+        lambda s: equation_error_draw(s, pole=0.9),
+        EE_TRUTH,
+        "least squares of q̇ on (α, q, δe), AR(1) residuals (pole 0.9)",
+    ),
+    "stepwise": Family(
+        stepwise_draw, EE_TRUTH, "stepwise over (α, q, δe, α², α·δe, q·δe), true terms"
+    ),
+    "frequency_equation_error": Family(
+        lambda s: frequency_draw(s, "equation_error"),
+        TRUTH,
+        "0.1–1.5 Hz, step 1/T, white noise on α and q (noisy regressors)",
+    ),
+    "frequency_output_error": Family(
+        lambda s: frequency_draw(s, "output_error"), TRUTH, "0.1–1.5 Hz, step 1/T, white noise"
+    ),
+    "frequency_output_error_x4": Family(
+        lambda s: frequency_draw(s, "output_error", oversampling=4),
+        TRUTH,
+        "0.1–1.5 Hz, step 1/(4T): a 4× oversampled grid",
+    ),
+    "ekf": Family(lambda s: recursive_draw(s, "ekf"), TRUTH, "augmented EKF, 20 s"),
+    "ukf": Family(lambda s: recursive_draw(s, "ukf"), TRUTH, "augmented UKF, 20 s"),
+    "efrls": Family(
+        lambda s: recursive_draw(s, "efrls"), TRUTH, "extended forgetting RLS, λ = 1, 20 s"
+    ),
+    "ftr": Family(lambda s: recursive_draw(s, "ftr"), FTR_TRUTH, "Fourier transform regression"),
+    "design": Family(
+        design_draw, TRUTH, "predicted Cramér–Rao σ (predict_accuracy) vs output-error spread"
     ),
 }
 QUICK = ("output_error_white",)
