@@ -24,7 +24,7 @@ default) — the study prints:
   the mean stated σ (goal 0.8–1.25);
 * ``bias``: (mean θ̂ − θ) / spread, to tell a biased estimate from a wrong σ.
 
-For the time-domain output-error and filter-error families a fourth σ, ``sandwich``, is the
+For the time-domain output-error families a fourth σ, ``sandwich``, is the
 coloured-residual covariance computed here from the result's sensitivities and residuals
 (``flightid.accuracy.coloured_covariance``, automatic lag). For ``design`` the σ is the
 Cramér–Rao σ predicted before the flight (``flightid.design.predict_accuracy`` at the truth)
@@ -227,12 +227,16 @@ def _stated(result, names: tuple[str, ...], index: list[int]) -> dict[str, np.nd
     return sigmas
 
 
-def _from_estimate(result, names: tuple[str, ...]) -> Draw:
-    """Draw of a time-domain ``Estimate``, with the coloured-residual sandwich added."""
+def _from_estimate(result, names: tuple[str, ...], sandwich: bool = True) -> Draw:
+    """Draw of a time-domain ``Estimate``; with the coloured-residual sandwich added for
+    output error (``sandwich``; not for filter error, whose innovations are white when the
+    model is right and whose pinned F elements have no column in the sensitivities)."""
     from flightid.accuracy.coloured import coloured_covariance
 
     index = [result.names.index(n) for n in names]
     draw = Draw(names, np.asarray(result.values, dtype=float)[index], _stated(result, names, index))
+    if not sandwich:
+        return draw
     free = [n for n, f in zip(result.names, result.free, strict=True) if f]
     covariance, _ = coloured_covariance(
         result.sensitivities,
@@ -288,7 +292,7 @@ def filter_error_draw(seed: int, noise_std=None, gradients: str = "analytic") ->
         MNR(),
         gradients=gradients,
     )
-    return _from_estimate(result, (*NAMES, "F11", "F22"))
+    return _from_estimate(result, (*NAMES, "F11", "F22"), sandwich=False)
 
 
 def _signals(seed: int, duration_s: float = 20.0, pole: float = 0.0):
