@@ -738,6 +738,37 @@ def _pinned_jacobian(outcome: _Outcome, model: StateSpaceModel) -> np.ndarray:
     return t
 
 
+def _pinned_weighting_covariance(outcome: _Outcome, model: StateSpaceModel) -> np.ndarray:
+    """The covariance (n_f × n_f, original free parameters) a pinned F element takes from the
+    estimated weighting R, which the delta method over θ alone leaves out.
+
+    A pinned element is solved from diag(KC)_i = 1 at the estimated R, so it moves with R̂
+    (for a directly measured state F_ii ≈ √(R_ii/Δt): half of R̂'s relative error). R̂ is the
+    innovations' covariance, R̂_i = (1/N) Σ_k e_ik², whose variance for Gaussian innovations
+    is 2 R_i²/N; its error is uncorrelated with θ̂'s to first order:
+
+        Cov_R = J_R diag(2 R²/N) J_Rᵀ,   J_R = ∂F_pin/∂R (finite differences of the
+        constraint solution, no filter pass)
+    """
+    problem = outcome.problem
+    original = list(np.flatnonzero(model.parameters.free_mask))
+    r_diag = np.asarray(outcome.r_diag, dtype=float)
+    base = problem.complete(outcome.full, r_diag)
+    pinned = [problem.noise_parameters[i] for i in problem.pinned]
+    jacobian = np.zeros((len(original), r_diag.size))
+    for i in range(r_diag.size):
+        step = 1e-6 * r_diag[i]
+        moved_r = r_diag.copy()
+        moved_r[i] += step
+        moved = problem.complete(outcome.full, moved_r)
+        for index in pinned:
+            # ∂F_pin/∂R_i ≈ (F_pin(R + δ e_i) − F_pin(R)) / δ
+            jacobian[original.index(index), i] = (moved[index] - base[index]) / step
+    # Var(R̂_i) = 2 R_i² / N
+    variance_r = 2.0 * r_diag**2 / problem.n_samples
+    return (jacobian * variance_r) @ jacobian.T
+
+
 def estimate_filter_error(
     model: StateSpaceModel,
     data: FlightData | Sequence[FlightData],
@@ -852,7 +883,8 @@ def estimate_filter_error(
     if outcome.pinned:
         # Cov = T Cov_r Tᵀ (delta method for the F elements solved from the constraint)
         t = _pinned_jacobian(outcome, model)
-        covariance = t @ covariance_r @ t.T
+        # the pinned elements also move with R̂: Cov = T Cov_r Tᵀ + J_R Cov(R̂) J_Rᵀ
+        covariance = t @ covariance_r @ t.T + _pinned_weighting_covariance(outcome, model)
         std_free = np.sqrt(np.maximum(np.diag(covariance), 0.0))
         m = np.linalg.pinv(covariance)
         g = np.zeros((last.n_samples, last.n_outputs, n_f))
