@@ -66,9 +66,7 @@ def carpet_plots(
         cr = [p[3] if p[3] is not None else (p[2] or 0.0) for p in pts]
         fig = Figure(figsize=(5.0, 3.4))
         ax = fig.add_subplot()
-        ax.errorbar(
-            xs, ys, yerr=sd, fmt="none", ecolor="0.65", elinewidth=4, label="±σ (default)"
-        )
+        ax.errorbar(xs, ys, yerr=sd, fmt="none", ecolor="0.65", elinewidth=4, label="±σ (default)")
         ax.errorbar(xs, ys, yerr=cr, fmt="o", capsize=3, label="estimate ±σ (Cramér–Rao)")
         unit = pts[0][4]
         ax.set_xlabel(column)

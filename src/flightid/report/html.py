@@ -401,7 +401,9 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
         ]
         rows.append(cells)
         classes.append("" if row["free"] else "fixed")
-    interval = f"{100 * confidence:g} % interval (σ default)" + (f" (×{factor:g})" if factor != 1 else "")
+    interval = f"{100 * confidence:g} % interval (σ default)" + (
+        f" (×{factor:g})" if factor != 1 else ""
+    )
     # the column of the σ the other outputs (terminal, results.json, estimates.csv) report
     coloured_default = est.std_kind == "coloured"
     headers = ["parameter", "unit", "estimate", "CR σ" if coloured_default else "CR σ (default)"]
