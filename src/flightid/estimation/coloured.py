@@ -220,7 +220,7 @@ class DefaultSigma:
     std: np.ndarray
     kind: str
     lag: int
-    residuals_white: bool
+    residuals_white: bool | None
 
 
 def _std_of(covariance: np.ndarray) -> np.ndarray:

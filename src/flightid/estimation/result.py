@@ -48,7 +48,7 @@ class Estimate(ResultSurface):
         std_cr: Cramér–Rao bounds √((M⁻¹)_jj), whatever the residuals.
         std_kind: ``"cramer_rao"`` or ``"coloured"``: which σ ``std`` is.
         residuals_white: every output's residual autocorrelation at lag 1 inside the
-            white-noise band ±1.96/√N (then ``std`` = ``std_cr``).
+            white-noise band ±1.96/√N (then ``std`` = ``std_cr``); None when not tested.
         coloured_lag: lag L of the coloured-residual correction (samples; 0 when white).
         covariance: M⁻¹ over the free parameters (n_f × n_f), the Cramér–Rao covariance.
         covariance_default: the covariance behind ``std`` (n_f × n_f): ``covariance`` when
@@ -120,7 +120,7 @@ class Estimate(ResultSurface):
     std_cr: np.ndarray | None = None
     covariance_default: np.ndarray | None = None
     std_kind: str = CRAMER_RAO
-    residuals_white: bool = True
+    residuals_white: bool | None = None
     coloured_lag: int = 0
 
     def __post_init__(self) -> None:
@@ -290,8 +290,12 @@ class Estimate(ResultSurface):
     def value(self, name: str) -> float:
         return float(self.values[self.names.index(name)])
 
-    def stddev(self, name: str) -> float:
-        return float(self.std[self.names.index(name)])
+    def stddev(self, name: str, std: str = "default") -> float:
+        """σ of the parameter ``name``: the default σ (``std="default"``) or the Cramér–Rao
+        bound (``std="cr"``)."""
+        check_method(std, ("default", "cr"), "std")
+        sigma = self.std if std == "default" else self.std_cr
+        return float(sigma[self.names.index(name)])
 
     def fit_error(self) -> np.ndarray:
         """RMS residual per output, in the outputs' units."""
@@ -345,7 +349,7 @@ class Estimate(ResultSurface):
             else None,
             "at_bound": list(self.at_bound),
             "std_kind": self.std_kind,
-            "residuals_white": bool(self.residuals_white),
+            "residuals_white": None if self.residuals_white is None else bool(self.residuals_white),
             "coloured_lag": int(self.coloured_lag),
             "cost_history": [float(c) for c in self.cost_history],
             "evaluation_history": [int(e) for e in self.evaluation_history],

@@ -77,7 +77,8 @@ class LeastSquaresResult(ResultSurface):
         std_cr: classical standard errors sqrt(diag(s²(XᵀX)⁻¹)) (white residuals).
         covariance_default: the covariance behind ``std``.
         std_kind: ``"cramer_rao"`` (classical) or ``"coloured"``: which σ ``std`` is.
-        residuals_white: the residuals' lag-1 autocorrelation inside ±1.96/√N.
+        residuals_white: the residuals' lag-1 autocorrelation inside ±1.96/√N (None: not
+            tested, ``coloured=False``).
         coloured_lag: lag L of the coloured-residual correction (samples; 0 when white).
     """
 
@@ -99,7 +100,7 @@ class LeastSquaresResult(ResultSurface):
     std_cr: np.ndarray | None = None
     covariance_default: np.ndarray | None = None
     std_kind: str = CRAMER_RAO
-    residuals_white: bool = True
+    residuals_white: bool | None = None
     coloured_lag: int = 0
 
     def __post_init__(self) -> None:
@@ -292,7 +293,7 @@ class LeastSquaresResult(ResultSurface):
                 )
             ],
             "std_kind": self.std_kind,
-            "residuals_white": bool(self.residuals_white),
+            "residuals_white": None if self.residuals_white is None else bool(self.residuals_white),
             "coloured_lag": int(self.coloured_lag),
             "r2": float(self.r2),
             "r2_adjusted": float(self.r2_adjusted),
@@ -398,9 +399,9 @@ def _default_sigma(
     (one output), R = 1, the bread (XᵀX)⁻¹; the classical covariance when white."""
     from flightid.estimation.coloured import DefaultSigma
 
-    classical = DefaultSigma(covariance, np.sqrt(np.diag(covariance)), CRAMER_RAO, 0, True)
     if not coloured:
-        return classical
+        # not tested: residuals_white None
+        return DefaultSigma(covariance, np.sqrt(np.diag(covariance)), CRAMER_RAO, 0, None)
     if maneuver_index is not None:
         maneuver_index = np.asarray(maneuver_index)
         if maneuver_index.shape != residuals.shape:
