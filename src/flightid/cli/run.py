@@ -314,8 +314,9 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
     )
     document = results_document(run.to_dict()["results"])
     document["stages"] = run.stages_dict()
-    if run.output_error is not None:
-        print_sigma_note(run.output_error.estimate)
+    output_error = getattr(run, "output_error", None)
+    if output_error is not None:
+        print_sigma_note(output_error.estimate)
 
     def show() -> None:
         print(run.summary())
