@@ -223,3 +223,20 @@ def test_terminal_note_says_how_much_the_cr_bounds_understate(coloured_estimate,
     assert f"{low:.2g}–{high:.2g}× the Cramér–Rao bounds (std_cr)" in err
     print_sigma_note(_estimate(0, phi=0.0))
     assert capsys.readouterr().err == ""
+
+
+# ------------------------------------------------------------------- long lags
+def test_long_lag_sandwich_equals_the_written_out_double_sum():
+    """L = 100 > 64 takes the FFT correlation (a loop over N·L products is hours at N = 10⁵
+    with a long lag); it must give the written-out double sum."""
+    from flightid.estimation.coloured import coloured_covariance
+
+    rng = np.random.default_rng(11)
+    n, lag = 300, 100
+    g = rng.normal(size=(n, 3))
+    nu = scipy.signal.lfilter([1.0], [1.0, -0.95], rng.normal(size=n))
+    got, used = coloured_covariance(
+        g[:, None, :], nu[:, None], np.ones(1), np.linalg.inv(g.T @ g), max_lag=lag
+    )
+    assert used == lag
+    np.testing.assert_allclose(got * n / (n - 3), _sandwich_written_out(g, nu, lag), rtol=1e-10)
