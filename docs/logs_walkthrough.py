@@ -69,7 +69,7 @@ def _estimate_rows(example: str, results: dict, parameters: dict, truth: dict) -
     rows = []
     for name, (truth_key, label) in parameters.items():
         estimate, bound = by_name[name]["value"], by_name[name]["std"]
-        # (estimate − truth) / CR bound: the error in standard deviations
+        # (estimate − truth) / σ: the error in standard deviations (σ: the default σ)
         z = (estimate - truth[truth_key]) / bound
         rows.append(
             f"| {example} | {label} | {truth[truth_key]:g} | {_significant(estimate, 6)} "
@@ -130,7 +130,7 @@ def run_walkthrough(folder: Path) -> dict:
             )
             key = "time_base_" + ("multirotor" if example == "multirotor" else "fixedwing")
             blocks[key] = _time_base(result)
-    head = "| example | parameter | truth | estimate | CR bound | (estimate − truth)/CR |"
+    head = "| example | parameter | truth | estimate | σ | (estimate − truth)/σ |"
     blocks["estimates"] = "\n".join([head, "|---|---|---|---|---|---|", *rows])
     head = "| example | command | status | segments | samples | iterations | wall time |"
     blocks["runs"] = "\n".join([head, "|---|---|---|---|---|---|---|", *runs])

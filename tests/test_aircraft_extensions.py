@@ -384,7 +384,7 @@ def test_without_alphadot_the_estimates_are_lumped(alphadot_data):
     assert est.converged
     # C_mq absorbs part of C_mα̇ (measured −15.17 ± 0.07): far outside its CR bound
     assert est.value("Cm_qhat") < -13.0
-    assert abs(est.value("Cm_qhat") + 12.5) > 10 * est.stddev("Cm_qhat")
+    assert abs(est.value("Cm_qhat") + 12.5) > 10 * est.stddev("Cm_qhat", std="cr")
 
 
 # ---------------------------------------------------------------------- thrust moment arm

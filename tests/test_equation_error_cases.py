@@ -87,7 +87,9 @@ def _check(coefficients: dict, expected: dict) -> None:
         assert [r["term"] for r in rows] == ["w", "q", "de"]
         theta, std = expected[response]
         np.testing.assert_allclose([r["value"] for r in rows], theta, rtol=1e-9)
-        np.testing.assert_allclose([r["std"] for r in rows], std, rtol=1e-6)
+        # the classical σ √diag(s²(XᵀX)⁻¹) (std_cr; std is the coloured-residual σ when the
+        # residuals are coloured)
+        np.testing.assert_allclose([r["std_cr"] for r in rows], std, rtol=1e-6)
 
 
 def test_ls_case_is_ordinary_least_squares_without_intercept(regressions, capsys):

@@ -79,7 +79,8 @@ def test_fpr_biases_regression_values():
     numbers are available here); the tolerance is 0.05 CR bounds."""
     est = _run("attas_fpr_biases").estimate
     values = dict(zip(est.names, est.values, strict=True))
-    std = dict(zip(est.names, est.std, strict=True))
+    # Cramér–Rao σ (std_cr): the reference's crbc, and the regression values' unit
+    std = dict(zip(est.names, est.std_cr, strict=True))
     expected = {
         "b_ax": 0.00923885,
         "b_ay": 0.000258748,
@@ -124,7 +125,8 @@ def test_f18_estimates_agree_with_sidpac(name, file):
     assert labels == FREE[name]
     est = _run(name).estimate
     values = dict(zip(est.names, est.values, strict=True))
-    std = dict(zip(est.names, est.std, strict=True))
+    # Cramér–Rao σ (std_cr): the reference's crbc, and the regression values' unit
+    std = dict(zip(est.names, est.std_cr, strict=True))
     for label, value, s in zip(labels, pc, sigma, strict=True):
         assert abs(values[label] - value) < 0.1 * s, (label, values[label], value, s)
         assert std[label] == pytest.approx(s, rel=0.01), (label, std[label], s)
@@ -213,7 +215,8 @@ def test_f18_dcmp_time_regenerated_and_regression_values():
     np.testing.assert_allclose(maneuver.time - raw_t[0], stored["t"].ravel(), rtol=0, atol=1e-9)
     est = run.estimate
     values = dict(zip(est.names, est.values, strict=True))
-    std = dict(zip(est.names, est.std, strict=True))
+    # Cramér–Rao σ (std_cr): the reference's crbc, and the regression values' unit
+    std = dict(zip(est.names, est.std_cr, strict=True))
     expected = {
         "ax_bias": -0.685336,
         "az_bias": -0.406982,

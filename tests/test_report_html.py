@@ -208,7 +208,11 @@ def test_page_warns_on_coloured_residuals_and_shows_the_prediction(walk_run, col
     page = render_html(run, render_figures(run, dpi=40))
     worst, ratio = coloured_sigma(est).worst
     assert f"understate the uncertainty by up to ×{ratio:.2g}" in page
-    assert f"<code>{worst}</code>" in page and "Use the corrected σ" in page
+    assert f"<code>{worst}</code>" in page
+    # both columns are kept; the default one (the σ every other output reports) is labelled
+    assert est.std_kind == "coloured"
+    assert "<th>coloured σ (default)</th>" in page and "<th>CR σ</th>" in page
+    assert "σ reported by default" in page
     assert "Prediction check on held-out maneuvers" in page
     rms = np.sqrt(np.mean((held.outputs - est.predicted) ** 2, axis=0))
     assert all(f"<td>{e:.4g}</td>" in page for e in rms)

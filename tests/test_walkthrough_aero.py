@@ -75,7 +75,7 @@ def test_raw_record_to_aerodynamic_model(tmp_path, capsys):
     # (attas_aero_regression_linear, CASES.md §6 steps 1–9), σ its CR bounds.
     new = {p["name"]: p["value"] for p in aero["parameters"]}
     old = {p["name"]: p["value"] for p in reference["parameters"]}
-    sigma = {p["name"]: p["std"] for p in reference["parameters"]}
+    sigma = {p["name"]: p["std_cr"] for p in reference["parameters"]}
     fit = {p["name"]: p["value"] for p in fpr["parameters"]}
     f_a, b_a, f_b, b_b = fit["f_α"], fit["b_α"], fit["f_β"], fit["b_β"]
     column = header.index("V [m/s]")
@@ -115,5 +115,5 @@ def test_raw_record_to_aerodynamic_model(tmp_path, capsys):
     # derivatives the calibration leaves alone (measured ≤ 0.38 σ)
     assert max(raw_distance[n] for n in ("Clp", "Clda", "Cmde", "Cnp", "Cndr")) < 0.5
     # the CR bounds are those of the fixed-bias pipeline within 10 % (measured 0.90–1.004)
-    ratio = [p["std"] / sigma[p["name"]] for p in aero["parameters"]]
+    ratio = [p["std_cr"] / sigma[p["name"]] for p in aero["parameters"]]
     assert 0.85 < min(ratio) and max(ratio) < 1.1

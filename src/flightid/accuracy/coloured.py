@@ -1,159 +1,16 @@
 """Cramér–Rao bounds corrected for coloured (autocorrelated) residuals.
 
-The plain bound C = M⁻¹ assumes white residuals. Output-error residuals from flight data are
-coloured (unmodelled dynamics, turbulence), and then C is optimistic. The correction used by
-flight-test tools (Morelli & Klein, *Aircraft System Identification*, 2nd ed., §6.4: the
-"residual autocorrelation" method) replaces the information matrix in the middle of a
-sandwich by the covariance of the score under the estimated residual autocorrelation:
-
-    Cov(θ̂) = M⁻¹ [ Σ_i Σ_j G_iᵀ R⁻¹ R̂_ν(i − j) R⁻¹ G_j ] M⁻¹
-    R̂_ν(k) = (1/N) Σ_i ν_i ν_{i+k}ᵀ          (n_o × n_o, k ≥ 0;  R̂_ν(−k) = R̂_ν(k)ᵀ)
-
-With A_i = R⁻¹ G_i the double sum is S_0 + Σ_{k=1}^{L} (S_k + S_kᵀ), S_k = Σ_i A_iᵀ R̂_ν(k) A_{i+k}.
-
-Truncation. The sum runs over |i − j| ≤ L. Far lags are estimated from few products and only
-add noise, so they are left out. ``max_lag="auto"`` (the default) keeps the lags before the
-first lag at which every output's normalised residual autocorrelation R̂_ν,kk(k)/R̂_ν,kk(0)
-lies inside the white-noise band ±1.96/√N; white residuals therefore give L = 0 and
-Cov = M⁻¹ R̂_ν(0)-weighted, i.e. the plain bound (scaled by s² when R is not R̂). An integer
-``max_lag`` fixes L. Products never pair samples of different maneuvers.
+The computation lives at the estimation layer (``flightid.estimation.coloured``), where every
+time-domain estimate uses it for its default σ; the names are kept here for the accuracy
+assessment and the report.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from flightid.errors import InputError
+from flightid.estimation.coloured import (
+    automatic_lag,
+    coloured_covariance,
+    residual_autocovariance,
+)
 
 __all__ = ["automatic_lag", "coloured_covariance", "residual_autocovariance"]
-
-
-def _segments(maneuver_index: np.ndarray | None, n: int) -> list[slice]:
-    if maneuver_index is None:
-        return [slice(0, n)]
-    index = np.asarray(maneuver_index)
-    edges = np.flatnonzero(np.diff(index) != 0) + 1
-    bounds = np.concatenate([[0], edges, [n]])
-    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-
-
-def residual_autocovariance(
-    residuals: np.ndarray, max_lag: int, maneuver_index: np.ndarray | None = None
-) -> np.ndarray:
-    """R̂_ν(k) = (1/N) Σ_i ν_i ν_{i+k}ᵀ for k = 0 … max_lag: (max_lag + 1, n_o, n_o).
-
-    Args:
-        residuals: ν (N, n_o), output units.
-        max_lag: largest lag, samples.
-        maneuver_index: (N,) maneuver of each sample; products stay within a maneuver.
-    """
-    nu = np.asarray(residuals, dtype=float)
-    n, n_o = nu.shape
-    gamma = np.zeros((max_lag + 1, n_o, n_o))
-    for segment in _segments(maneuver_index, n):
-        part = nu[segment]
-        m = part.shape[0]
-        lags = min(max_lag, m - 1) + 1
-        if lags <= 32:
-            for k in range(lags):
-                # R̂_ν(k) += Σ_i ν_i ν_{i+k}ᵀ over this maneuver
-                gamma[k] += part[: m - k].T @ part[k:]
-        else:
-            # the same sums for all lags at once: Σ_i ν_i,o ν_{i+k},q = IFFT(conj(F_o) F_q)[k]
-            size = 1 << int(np.ceil(np.log2(2 * m)))
-            spectrum = np.fft.rfft(part, n=size, axis=0)
-            cross = np.fft.irfft(
-                np.conj(spectrum)[:, :, None] * spectrum[:, None, :], n=size, axis=0
-            )
-            gamma[:lags] += cross[:lags]
-    return gamma / n
-
-
-def automatic_lag(
-    residuals: np.ndarray, maneuver_index: np.ndarray | None = None, cap: int | None = None
-) -> int:
-    """L = (first lag where all outputs' |ρ(k)| < 1.96/√N) − 1; at most ``cap`` (default N/2)."""
-    nu = np.asarray(residuals, dtype=float)
-    n = nu.shape[0]
-    cap = n // 2 if cap is None else min(cap, n - 1)
-    gamma = residual_autocovariance(nu, cap, maneuver_index)
-    variance = np.diag(gamma[0]).copy()
-    variance[variance <= 0] = np.inf
-    # ρ_kk(k) = R̂_ν,kk(k) / R̂_ν,kk(0)
-    rho = np.einsum("kii->ki", gamma) / variance[None, :]
-    band = 1.96 / np.sqrt(n)
-    quiet = np.all(np.abs(rho[1:]) < band, axis=1)
-    if not quiet.any():
-        return cap
-    return int(np.argmax(quiet))  # first quiet lag k = argmax + 1, so L = k − 1 = argmax
-
-
-def coloured_covariance(
-    sensitivities: np.ndarray,
-    residuals: np.ndarray,
-    r_diag: np.ndarray,
-    covariance: np.ndarray,
-    max_lag: int | str = "auto",
-    maneuver_index: np.ndarray | None = None,
-) -> tuple[np.ndarray, int]:
-    """Sandwich covariance of θ̂ under autocorrelated residuals, and the lag L used.
-
-    Args:
-        sensitivities: G at θ̂ (N, n_o, n_f).
-        residuals: ν at θ̂ (N, n_o).
-        r_diag: the R used in the cost (n_o,).
-        covariance: M⁻¹ (n_f × n_f); undetermined parameters (inf) stay inf.
-        max_lag: ``"auto"`` or an integer L ≥ 0 (samples).
-        maneuver_index: (N,) maneuver numbers.
-    Returns:
-        (covariance (n_f × n_f), L).
-    """
-    g = np.asarray(sensitivities, dtype=float)
-    nu = np.asarray(residuals, dtype=float)
-    n = nu.shape[0]
-    if g.shape[:2] != nu.shape:
-        raise InputError(
-            f"sensitivities: expected shape ({n}, {nu.shape[1]}, n_f) to match the residuals, "
-            f"got {g.shape}"
-        )
-    if isinstance(max_lag, str):
-        if max_lag != "auto":
-            raise InputError(f"max_lag: expected 'auto' or an integer ≥ 0, got {max_lag!r}")
-        lag = automatic_lag(nu, maneuver_index)
-    else:
-        lag = int(max_lag)
-        if lag < 0 or lag != max_lag:
-            raise InputError(f"max_lag: expected 'auto' or an integer ≥ 0, got {max_lag!r}")
-        lag = min(lag, n - 1)
-    covariance = np.asarray(covariance, dtype=float)
-    ok = np.isfinite(np.diag(covariance))
-    result = np.full(covariance.shape, np.inf)
-    if not ok.any():
-        return result, lag
-    c = covariance[np.ix_(ok, ok)]
-    # A_i = R⁻¹ G_i
-    a = g[:, :, ok] / np.asarray(r_diag, dtype=float)[None, :, None]
-    gamma = residual_autocovariance(nu, lag, maneuver_index)
-    n_o = a.shape[1]
-    middle = np.zeros((int(ok.sum()),) * 2)
-    for segment in _segments(maneuver_index, n):
-        # output-major copy (n_o, m, n_f): the rows of one output at lags k … m−1 are one
-        # contiguous block, so R̂_ν(k) A_{i+k} for all i is a single matrix product
-        part = np.ascontiguousarray(a[segment].transpose(1, 0, 2))
-        m, n_p = part.shape[1], part.shape[2]
-        # H_i = Σ_{k=0}^{L} R̂_ν(k) A_{i+k}   (terms with i + k beyond the maneuver left out)
-        h = (gamma[0] @ part.reshape(n_o, m * n_p)).reshape(n_o, m, n_p)
-        forward = np.zeros_like(h)  # the k ≥ 1 terms of H_i
-        for k in range(1, min(lag, m - 1) + 1):
-            shifted = gamma[k] @ part[:, k:, :].reshape(n_o, (m - k) * n_p)
-            forward[:, : m - k, :] += shifted.reshape(n_o, m - k, n_p)
-        # S_0 = Σ_i A_iᵀ R̂_ν(0) A_i,  Σ_{k≥1} S_k = Σ_i A_iᵀ Σ_{k≥1} R̂_ν(k) A_{i+k}
-        flat = part.reshape(n_o * m, n_p)
-        s_0 = flat.T @ h.reshape(n_o * m, n_p)
-        s_forward = flat.T @ forward.reshape(n_o * m, n_p)
-        # S_0 + Σ_{k=1}^{L} (S_k + S_kᵀ)
-        middle += s_0 + s_forward + s_forward.T
-    # Cov = M⁻¹ [Σ_i Σ_j G_iᵀ R⁻¹ R̂_ν(i − j) R⁻¹ G_j] M⁻¹
-    sandwich = c @ middle @ c
-    result[np.ix_(ok, ok)] = 0.5 * (sandwich + sandwich.T)
-    return result, lag

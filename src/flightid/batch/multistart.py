@@ -66,7 +66,8 @@ class Cluster:
         members: start indices, best (lowest −ln L) first.
         neg_log_likelihood: the best member's −ln L (up to a constant: ½ J + ½ N ln det R).
         values: the best member's estimates, free parameters (parameter units).
-        std: their Cramér–Rao σ (parameter units).
+        std: their default σ (``Estimate.std``: coloured-residual σ where the residuals are
+            coloured, else Cramér–Rao; parameter units).
     """
 
     members: tuple[int, ...]

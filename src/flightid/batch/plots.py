@@ -2,7 +2,9 @@
 
 One PNG per parameter, ``DIR/plots/<parameter>_vs_<column>.png``: the estimates of the cases
 that finished (``status`` not ``failed``) at the case's value of the chosen column, with error
-bars of ±σ (Cramér–Rao) and, where the run has it, ±σ coloured as a second, wider bar. An
+bars of ±σ, the default σ (the coloured-residual σ where the residuals are coloured, the
+Cramér–Rao bound where they are white) as a wide grey bar and the Cramér–Rao σ as a narrow
+capped bar inside it. An
 engineer reads the envelope from them: a derivative should vary smoothly with the flight
 condition; a point off the trend with a small σ is worth a look. Rendered with matplotlib's
 Agg backend (no display needed).
@@ -43,7 +45,7 @@ def carpet_plots(
         if isinstance(x, bool) or not isinstance(x, (int, float)) or value is None:
             continue
         points.setdefault(r["parameter"], []).append(
-            (float(x), float(value), r.get("std"), r.get("coloured_std"), r.get("unit") or "")
+            (float(x), float(value), r.get("std"), r.get("std_cr"), r.get("unit") or "")
         )
     if not points:
         raise BatchError(f"--plot-against {column!r}: no finished case has a number in this column")
@@ -60,20 +62,12 @@ def carpet_plots(
         xs = [p[0] for p in pts]
         ys = [p[1] for p in pts]
         sd = [p[2] if p[2] is not None else 0.0 for p in pts]
-        col = [p[3] for p in pts]
+        # a record without the Cramér–Rao σ apart: its default σ is the Cramér–Rao σ
+        cr = [p[3] if p[3] is not None else (p[2] or 0.0) for p in pts]
         fig = Figure(figsize=(5.0, 3.4))
         ax = fig.add_subplot()
-        if any(c is not None for c in col):
-            ax.errorbar(
-                xs,
-                ys,
-                yerr=[c if c is not None else 0.0 for c in col],
-                fmt="none",
-                ecolor="0.65",
-                elinewidth=4,
-                label="±σ coloured",
-            )
-        ax.errorbar(xs, ys, yerr=sd, fmt="o", capsize=3, label="estimate ±σ (Cramér–Rao)")
+        ax.errorbar(xs, ys, yerr=sd, fmt="none", ecolor="0.65", elinewidth=4, label="±σ (default)")
+        ax.errorbar(xs, ys, yerr=cr, fmt="o", capsize=3, label="estimate ±σ (Cramér–Rao)")
         unit = pts[0][4]
         ax.set_xlabel(column)
         ax.set_ylabel(f"{name} ({unit})" if unit else name)

@@ -41,6 +41,7 @@ FIXED_COLUMNS = (
     "unit",
     "value",
     "std",
+    "std_cr",
     "coloured_std",
     "free",
     "converged",
@@ -73,7 +74,14 @@ def table_rows(records: Sequence[dict[str, Any]]) -> tuple[list[str], list[dict[
             "error": record.get("error"),
         }
         parameters = record.get("rows") or [
-            {"parameter": None, "unit": None, "value": None, "std": None, "coloured_std": None}
+            {
+                "parameter": None,
+                "unit": None,
+                "value": None,
+                "std": None,
+                "std_cr": None,
+                "coloured_std": None,
+            }
         ]
         for p in parameters:
             row = dict(base)
@@ -82,6 +90,7 @@ def table_rows(records: Sequence[dict[str, Any]]) -> tuple[list[str], list[dict[
                 unit=p.get("unit"),
                 value=p.get("value"),
                 std=p.get("std"),
+                std_cr=p.get("std_cr"),
                 coloured_std=p.get("coloured_std"),
                 free=p.get("free"),
             )

@@ -39,7 +39,7 @@ from flightid.batch.plan import BatchCase
 __all__ = ["RECORD_FILE", "CaseTask", "read_record", "run_task"]
 
 RECORD_FILE = "batch.json"
-RECORD_VERSION = 1
+RECORD_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,8 @@ def _finite(value: float) -> float | None:
 
 
 def _rows(run) -> tuple[list[dict[str, Any]], str | None]:
-    """Per parameter: name, unit, value, σ (Cramér–Rao), coloured σ (free parameters)."""
+    """Per parameter: name, unit, value, the default σ, the Cramér–Rao σ, the coloured σ (free
+    parameters)."""
     est = run.estimate
     coloured: dict[str, float] = {}
     note = None
@@ -113,6 +114,7 @@ def _rows(run) -> tuple[list[dict[str, Any]], str | None]:
                 "unit": units[i],
                 "value": _finite(float(est.values[i])),
                 "std": _finite(float(est.std[i])) if free else None,
+                "std_cr": _finite(float(est.std_cr[i])) if free else None,
                 "coloured_std": _finite(coloured[name]) if name in coloured else None,
                 "free": free,
             }

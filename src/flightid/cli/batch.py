@@ -8,8 +8,9 @@ process per core by default, ``--workers N`` of them, or a running scheduler
 Writes into DIR:
 
 * ``estimates.csv`` and ``estimates.parquet``: one row per case and parameter (columns
-  ``case``, the flight-condition columns, ``parameter``, ``unit``, ``value``, ``std``,
-  ``coloured_std``, ``free``, ``converged``, ``status``, ``error``; ``flightid.batch.table``);
+  ``case``, the flight-condition columns, ``parameter``, ``unit``, ``value``, ``std`` (the
+  default σ), ``std_cr`` (Cramér–Rao), ``coloured_std``, ``free``, ``converged``,
+  ``status``, ``error``; ``flightid.batch.table``);
 * ``cases/<name>/``: each case's report as ``flightid run --out`` writes it, plus
   ``batch.json`` (its record and fingerprint) and ``case.toml`` (the text that ran);
 * ``plots/*.png`` with ``--plot-against``; ``index.html`` linking every report.

@@ -174,6 +174,17 @@ def print_note(text: str) -> None:
     print(f"flightid: note: {text}", file=sys.stderr)
 
 
+def print_sigma_note(estimate) -> None:
+    """When the default σ is the coloured-residual σ: one ``flightid: note:`` line on stderr
+    saying so and by how much the Cramér–Rao bounds understate it (``--quiet`` too: it
+    concerns every number shown)."""
+    from flightid.report.text import sigma_note
+
+    text = sigma_note(estimate)
+    if text is not None:
+        print_note(text)
+
+
 def print_summary(result) -> None:
     """The estimates (and accuracy, predictions) as text on stdout."""
     print(result.estimate.summary())
@@ -241,6 +252,7 @@ def run(args: argparse.Namespace) -> int:
                 engine.close()
         from flightid.report.html import write_files
 
+        print_sigma_note(result.estimate)
         answer_then_files(
             args,
             lambda: results_document([result.to_dict()]),
@@ -302,6 +314,9 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
     )
     document = results_document(run.to_dict()["results"])
     document["stages"] = run.stages_dict()
+    output_error = getattr(run, "output_error", None)
+    if output_error is not None:
+        print_sigma_note(output_error.estimate)
 
     def show() -> None:
         print(run.summary())

@@ -22,6 +22,7 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError, InputTypeError, describe
+from flightid.estimation.coloured import default_sigma
 from flightid.estimation.confirm import Confirmation, confirm_convergence
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import information_matrix, undetermined_parameters
@@ -304,8 +305,15 @@ def estimate(
 
     # every solver keeps θ in its bounds; the projection only guards round-off at a bound
     values = problem.full_theta(problem.project(outcome.theta))
+    std_cr = np.full(values.shape, np.nan)
+    std_cr[problem.free_index] = std_free
+    residuals = problem.residuals(outcome.outputs)[: problem.n_data]
+    # the default σ: Cramér–Rao for white residuals, coloured-residual σ otherwise
+    sigma = default_sigma(
+        g[: problem.n_data], residuals, objective.r_diag, covariance, problem.maneuver_index
+    )
     std = np.full(values.shape, np.nan)
-    std[problem.free_index] = std_free
+    std[problem.free_index] = sigma.std
     estimated_model = model.with_parameters(model.parameters.with_values(values))
     return Estimate(
         names=tuple(model.parameters.names),
@@ -313,7 +321,12 @@ def estimate(
         initial=problem.theta_start_full,
         free=problem.free_mask,
         std=std,
+        std_cr=std_cr,
+        std_kind=sigma.kind,
+        residuals_white=sigma.residuals_white,
+        coloured_lag=sigma.lag,
         covariance=covariance,
+        covariance_default=sigma.covariance,
         information_matrix=m,
         sensitivities=g[: problem.n_data],
         r_diag=objective.r_diag,
@@ -336,7 +349,7 @@ def estimate(
             if weights is None
             else problem.model_outputs(outcome.theta)
         ),
-        residuals=problem.residuals(outcome.outputs)[: problem.n_data],
+        residuals=residuals,
         maneuver_index=problem.maneuver_index,
         output_names=tuple(model.outputs),
         # the outputs' units from the data's channel units (the first maneuver that has one)

@@ -53,6 +53,7 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError, InputTypeError, describe
+from flightid.estimation.coloured import default_sigma
 from flightid.estimation.confirm import confirm_convergence
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.driver import _covariance, check_call_options
@@ -894,8 +895,20 @@ def estimate_filter_error(
     if undetermined:
         names = [last.free_names[j] for j in undetermined]
         message += f"; the information matrix is singular: {names} cannot be determined"
+    residuals = last.residuals(outputs)
+    # the default σ from the innovations: Cramér–Rao when white, coloured-residual otherwise
+    sigma = default_sigma(
+        outcome.sensitivities, residuals, r_diag, covariance_r, last.maneuver_index
+    )
+    covariance_default = sigma.covariance
+    if outcome.pinned:
+        # Cov = T Cov_r Tᵀ for the default covariance as for the Cramér–Rao one
+        covariance_default = t @ covariance_default @ t.T
+    std_cr = np.full(full.shape, np.nan)
+    std_cr[free_mask] = std_free
     std = np.full(full.shape, np.nan)
-    std[free_mask] = std_free
+    std[free_mask] = np.sqrt(np.maximum(np.diag(covariance_default), 0.0))
+    std[free_mask] = np.where(np.isfinite(std_free), std[free_mask], std_free)
     estimated_model = model.with_parameters(model.parameters.with_values(full))
     accuracy = outcome.accuracy_evaluations
     return Estimate(
@@ -904,7 +917,12 @@ def estimate_filter_error(
         initial=model.parameters.values,
         free=free_mask,
         std=std,
+        std_cr=std_cr,
+        std_kind=sigma.kind,
+        residuals_white=sigma.residuals_white,
+        coloured_lag=sigma.lag,
         covariance=covariance,
+        covariance_default=covariance_default,
         information_matrix=m,
         sensitivities=g,
         r_diag=np.asarray(r_diag, dtype=float),
@@ -922,7 +940,7 @@ def estimate_filter_error(
         time=last.time,
         measured=last.measured,
         predicted=outputs,
-        residuals=last.residuals(outputs),
+        residuals=residuals,
         maneuver_index=last.maneuver_index,
         output_names=tuple(model.outputs),
         output_units=tuple(

@@ -1,9 +1,15 @@
-"""``Estimate``: the frozen result of an output-error estimation.
+"""``Estimate``: the frozen result of an output-error (or filter-error) estimation.
 
 Cramér–Rao bounds [RP-1153 3.47–3.49]: with M = Σ_i G_iᵀ R⁻¹ G_i at θ̂ (sensitivities by
 central differences, computed once after the optimizer stops and counted separately in
-``accuracy_evaluations``), σ_j = √((M⁻¹)_jj). If M is singular the undetermined parameters
-get σ = inf and the status message says which; they are never reported as NaN estimates.
+``accuracy_evaluations``), σ_CR,j = √((M⁻¹)_jj) (``std_cr``). If M is singular the
+undetermined parameters get σ = inf and the status message says which; they are never
+reported as NaN estimates.
+
+The default σ (``std``) is the one the residuals support (``flightid.estimation.coloured``):
+the Cramér–Rao bound when the residuals are white, the coloured-residual σ when they are
+autocorrelated — there the Cramér–Rao bound, which assumes white residuals, understates the
+uncertainty (by 1.5–5× on flight data). ``std_kind`` says which one ``std`` is.
 """
 
 from __future__ import annotations
@@ -13,6 +19,8 @@ from functools import cached_property
 
 import numpy as np
 
+from flightid.errors import InputError
+from flightid.estimation.coloured import COLOURED, CRAMER_RAO
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
 from flightid.results import ResultSurface, check_method
@@ -34,8 +42,17 @@ class Estimate(ResultSurface):
         values: estimated values (fixed ones unchanged).
         initial: start values.
         free: mask of the estimated parameters.
-        std: Cramér–Rao bounds (1σ); NaN for fixed parameters, inf where undetermined.
-        covariance: M⁻¹ over the free parameters (n_f × n_f).
+        std: the default σ (1σ): ``std_cr`` when the residuals are white, the
+            coloured-residual σ when they are not (``std_kind``); NaN for fixed parameters,
+            inf where undetermined.
+        std_cr: Cramér–Rao bounds √((M⁻¹)_jj), whatever the residuals.
+        std_kind: ``"cramer_rao"`` or ``"coloured"``: which σ ``std`` is.
+        residuals_white: every output's residual autocorrelation at lag 1 inside the
+            white-noise band ±1.96/√N (then ``std`` = ``std_cr``); None when not tested.
+        coloured_lag: lag L of the coloured-residual correction (samples; 0 when white).
+        covariance: M⁻¹ over the free parameters (n_f × n_f), the Cramér–Rao covariance.
+        covariance_default: the covariance behind ``std`` (n_f × n_f): ``covariance`` when
+            the residuals are white, the coloured-residual sandwich otherwise.
         information_matrix: M at θ̂ (n_f × n_f).
         sensitivities: G at θ̂, (N, n_o, n_f).
         r_diag: noise variances R used at the end (n_o,).
@@ -104,14 +121,30 @@ class Estimate(ResultSurface):
     at_bound: tuple[str, ...] = ()
     noise_update_passes: tuple[int, ...] = ()
     weights: np.ndarray | None = None
+    std_cr: np.ndarray | None = None
+    covariance_default: np.ndarray | None = None
+    std_kind: str = CRAMER_RAO
+    residuals_white: bool | None = None
+    coloured_lag: int = 0
 
     def __post_init__(self) -> None:
+        # without a separate default σ, the default is the Cramér–Rao σ
+        if self.std_cr is None:
+            object.__setattr__(self, "std_cr", self.std)
+        if self.covariance_default is None:
+            object.__setattr__(self, "covariance_default", self.covariance)
+        if self.std_kind not in (CRAMER_RAO, COLOURED):
+            raise InputError(
+                f"std_kind: expected {CRAMER_RAO!r} or {COLOURED!r}, got {self.std_kind!r}"
+            )
         for name in (
             "values",
             "initial",
             "free",
             "std",
+            "std_cr",
             "covariance",
+            "covariance_default",
             "information_matrix",
             "sensitivities",
             "r_diag",
@@ -155,6 +188,15 @@ class Estimate(ResultSurface):
         return corr
 
     @property
+    def sigma_ratio(self) -> np.ndarray:
+        """std / std_cr of the free parameters (n_f,): how much the Cramér–Rao bounds
+        understate the default σ (1 for white residuals; NaN where either is not finite)."""
+        free = np.asarray(self.free, dtype=bool)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.asarray(self.std, dtype=float)[free] / np.asarray(self.std_cr)[free]
+        return np.where(np.isfinite(ratio), ratio, np.nan)
+
+    @property
     def n_data(self) -> int:
         """N·n_o, the number of scalar measurements (less those of weight 0)."""
         if self.weights is None:
@@ -185,8 +227,9 @@ class Estimate(ResultSurface):
         *,
         kind: str = "individual",
         distribution: str = "t",
+        std: str = "default",
     ) -> np.ndarray:
-        """Confidence intervals of the free parameters from the Cramér–Rao bounds.
+        """Confidence intervals of the free parameters from the default σ or the CR bounds.
 
         The quadratic approximation of the likelihood region (``flightid.accuracy``, the
         functions ``residual_variance_factor``, ``contour_level`` and ``ellipsoid_intervals``
@@ -198,6 +241,11 @@ class Estimate(ResultSurface):
             simultaneous: Δ = n_p s² F_c(n_p, N·n_o − n_p)  or s² χ²_c(n_p)   [5.20–5.25]
             interval_j = θ̂_j ± √(Δ·(M⁻¹)_jj)                                  [5.24–5.27]
 
+        With coloured residuals the default (``std="default"``) replaces s²M⁻¹ by the
+        coloured-residual covariance C_col, which carries the residual level itself:
+        interval_j = θ̂_j ± √((Δ/s²)·C_col,jj) — θ̂_j ± t·σ_j for individual intervals, the
+        same as ``AccuracyResult.ci_cr_coloured``.
+
         Args:
             level: confidence level c, e.g. 0.95.
             method: ``"cr"`` (the only one an estimate holds; ``flightid.accuracy.assess``
@@ -205,6 +253,8 @@ class Estimate(ResultSurface):
             kind: ``"individual"`` or ``"simultaneous"``.
             distribution: ``"t"`` (Student t / F quantiles with N·n_o − n_p degrees of
                 freedom, default) or ``"normal"`` (χ², the large-sample limit).
+            std: ``"default"`` (the σ in ``std``: coloured-residual when the residuals are
+                coloured) or ``"cr"`` (the Cramér–Rao bounds, ``std_cr``).
 
         Returns:
             (n_f, 2) array [lower, upper] in the parameters' units, rows as in
@@ -214,10 +264,14 @@ class Estimate(ResultSurface):
         from flightid.accuracy.levels import contour_level, residual_variance_factor
 
         check_method(method, ("cr",))
+        check_method(std, ("default", "cr"), "std")
         n_free = len(self.free_names)
         s2 = residual_variance_factor(self.cost, self.n_data, n_free)
         delta = contour_level(level, self.n_data, n_free, s2, kind, distribution)
         center = np.asarray(self.values, dtype=float)[np.asarray(self.free, dtype=bool)]
+        if std == "default" and self.std_kind == COLOURED:
+            # the coloured covariance carries the residual level itself: level Δ / s²
+            return ellipsoid_intervals(center, self.covariance_default, delta / s2)
         return ellipsoid_intervals(center, self.covariance, delta)
 
     def _frame_rows(self) -> list[dict]:
@@ -233,6 +287,7 @@ class Estimate(ResultSurface):
                     "name": name,
                     "value": float(self.values[i]),
                     "std": float(self.std[i]) if free else np.nan,
+                    "std_cr": float(self.std_cr[i]) if free else np.nan,
                     "lower": float(lower),
                     "upper": float(upper),
                     "initial": float(self.initial[i]),
@@ -245,8 +300,12 @@ class Estimate(ResultSurface):
     def value(self, name: str) -> float:
         return float(self.values[self.names.index(name)])
 
-    def stddev(self, name: str) -> float:
-        return float(self.std[self.names.index(name)])
+    def stddev(self, name: str, std: str = "default") -> float:
+        """σ of the parameter ``name``: the default σ (``std="default"``) or the Cramér–Rao
+        bound (``std="cr"``)."""
+        check_method(std, ("default", "cr"), "std")
+        sigma = self.std if std == "default" else self.std_cr
+        return float(sigma[self.names.index(name)])
 
     def fit_error(self) -> np.ndarray:
         """RMS residual per output, in the outputs' units."""
@@ -254,7 +313,8 @@ class Estimate(ResultSurface):
 
     # ------------------------------------------------------------------ reports
     def summary(self) -> str:
-        """A readable table of the estimates with their Cramér–Rao bounds."""
+        """A readable table of the estimates with their default σ (and the Cramér–Rao
+        bounds beside it when the residuals are coloured)."""
         from flightid.report.text import estimate_summary
 
         return estimate_summary(self)
@@ -263,13 +323,14 @@ class Estimate(ResultSurface):
         """The JSON contract: method, converged, status, cost, iterations, evaluations, ..."""
         parameters = []
         for i, name in enumerate(self.names):
-            std = float(self.std[i])
+            std, std_cr = float(self.std[i]), float(self.std_cr[i])
             parameters.append(
                 {
                     "name": name,
                     "value": float(self.values[i]),
                     "initial": float(self.initial[i]),
                     "std": std if (self.free[i] and np.isfinite(std)) else None,
+                    "std_cr": std_cr if (self.free[i] and np.isfinite(std_cr)) else None,
                     "free": bool(self.free[i]),
                     "unit": self.parameter_units[i],
                 }
@@ -297,6 +358,9 @@ class Estimate(ResultSurface):
             if np.isfinite(self.optimality_sigma)
             else None,
             "at_bound": list(self.at_bound),
+            "std_kind": self.std_kind,
+            "residuals_white": None if self.residuals_white is None else bool(self.residuals_white),
+            "coloured_lag": int(self.coloured_lag),
             "cost_history": [float(c) for c in self.cost_history],
             "evaluation_history": [int(e) for e in self.evaluation_history],
             "noise_update_passes": [int(p) for p in self.noise_update_passes],

@@ -348,7 +348,7 @@ def _accuracy(result: Estimate) -> tuple[float, dict[str, float]]:
         value = float(result.values[i])
         errors[name] = abs(value - true) / abs(true) if true != 0 else abs(value)
         if result.free[i]:
-            sigma = float(result.std[i])
+            sigma = float(result.std_cr[i])
             inside.append(math.isfinite(sigma) and abs(value - true) <= 3.0 * sigma)
     return (float(np.mean(inside)) if inside else math.nan), errors
 
@@ -365,7 +365,7 @@ def comparison_table(run: dict) -> str:
     ]
     for i, name in enumerate(result.names):
         true = SIMULATION_VALUES[name]
-        sigma = float(result.std[i])
+        sigma = float(result.std_cr[i])
         ratio = abs(result.values[i] - true) / sigma if sigma > 0 else math.inf
         lines.append(
             f"{name:<15}{true:>12.5g}{result.values[i]:>12.5g}{sigma:>11.3g}"

@@ -17,6 +17,17 @@ Statistics (N samples, n_p parameters):
     F_overall = ((TSS − RSS)/(n_p − k0)) / s²
     PSE       = RSS/N + σ²_max n_p / N                  predicted squared error (METHOD §5)
 
+Default σ: the classical standard errors assume white residuals. Equation-error residuals of
+flight data are usually coloured (model error, not measurement noise), and then s²(XᵀX)⁻¹ is
+optimistic. ``std`` is therefore the σ the residuals support (``flightid.estimation.coloured``,
+the residual-autocorrelation sandwich with G_i = x_iᵀ, R = 1):
+
+    Cov_col(θ̂) = (XᵀX)⁻¹ [ Σ_i Σ_j x_i R̂_ν(i − j) x_jᵀ ] (XᵀX)⁻¹ · N/(N − n_p)
+
+when the residuals are autocorrelated at lag 1 (automatic lag L > 0), and the classical
+s²(XᵀX)⁻¹ when they are white (L = 0). The classical σ stays beside it as ``std_cr``; the t,
+partial F and p statistics (the stepwise tests of term significance) use the classical σ.
+
 Collinearity: the condition number is that of X with its columns scaled to unit length
 (so it does not depend on units), and the variance inflation factor of column j is
 VIF_j = 1/(1 − R_j²), R_j² from regressing column j on the other columns (with the constant);
@@ -33,6 +44,7 @@ import numpy as np
 from scipy import stats
 
 from flightid.errors import InputError, describe
+from flightid.estimation.coloured import COLOURED, CRAMER_RAO, default_sigma
 from flightid.results import ResultSurface, check_method, finite_or_none, t_intervals
 
 __all__ = ["LeastSquaresResult", "least_squares", "LeastSquaresError"]
@@ -52,8 +64,9 @@ class LeastSquaresResult(ResultSurface):
     Attributes:
         names: regressor names, one per column of X.
         estimates: θ̂ (n_p,).
-        std: standard errors sqrt(diag(s²(XᵀX)⁻¹)).
-        covariance: s² (XᵀX)⁻¹ (n_p, n_p).
+        std: the default standard errors: ``std_cr`` when the residuals are white, the
+            coloured-residual σ when they are not (``std_kind``; module docstring).
+        covariance: s² (XᵀX)⁻¹ (n_p, n_p), the classical covariance.
         residuals: z − X θ̂ (N,).
         fitted: X θ̂ (N,).
         rss, tss: residual and total sums of squares.
@@ -61,6 +74,12 @@ class LeastSquaresResult(ResultSurface):
         has_constant: whether a column is constant (R², F are then about the mean).
         sigma2_max: the σ²_max used in PSE.
         units: unit of each estimate (``""`` where unknown; ``()`` when not given).
+        std_cr: classical standard errors sqrt(diag(s²(XᵀX)⁻¹)) (white residuals).
+        covariance_default: the covariance behind ``std``.
+        std_kind: ``"cramer_rao"`` (classical) or ``"coloured"``: which σ ``std`` is.
+        residuals_white: the residuals' lag-1 autocorrelation inside ±1.96/√N (None: not
+            tested, ``coloured=False``).
+        coloured_lag: lag L of the coloured-residual correction (samples; 0 when white).
     """
 
     names: tuple[str, ...]
@@ -78,6 +97,29 @@ class LeastSquaresResult(ResultSurface):
     condition_number: float
     vif: np.ndarray = field(repr=False)
     units: tuple[str, ...] = ()
+    std_cr: np.ndarray | None = None
+    covariance_default: np.ndarray | None = None
+    std_kind: str = CRAMER_RAO
+    residuals_white: bool | None = None
+    coloured_lag: int = 0
+
+    def __post_init__(self) -> None:
+        # without a separate default σ, the default is the classical σ
+        if self.std_cr is None:
+            object.__setattr__(self, "std_cr", self.std)
+        if self.covariance_default is None:
+            object.__setattr__(self, "covariance_default", self.covariance)
+        if self.std_kind not in (CRAMER_RAO, COLOURED):
+            raise LeastSquaresError(
+                f"std_kind: expected {CRAMER_RAO!r} or {COLOURED!r}, got {self.std_kind!r}"
+            )
+
+    @property
+    def sigma_ratio(self) -> np.ndarray:
+        """std / std_cr (n_p,): how much the classical σ understates the default σ."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.asarray(self.std, dtype=float) / np.asarray(self.std_cr, dtype=float)
+        return np.where(np.isfinite(ratio), ratio, np.nan)
 
     # ----------------------------------------------------------------- statistics
     @property
@@ -114,9 +156,9 @@ class LeastSquaresResult(ResultSurface):
 
     @cached_property
     def t_values(self) -> np.ndarray:
-        """t_j = θ̂_j / std_j."""
+        """t_j = θ̂_j / std_cr,j: the classical t statistic (white residuals)."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            return self.estimates / self.std
+            return self.estimates / self.std_cr
 
     @cached_property
     def partial_f(self) -> np.ndarray:
@@ -151,19 +193,24 @@ class LeastSquaresResult(ResultSurface):
         """The rows of ``conf_int``: the regressors, in order."""
         return list(self.names)
 
-    def conf_int(self, level: float = 0.95, method: str = "t") -> np.ndarray:
-        """Individual confidence intervals θ̂_j ± q·std_j of the estimates.
+    def conf_int(
+        self, level: float = 0.95, method: str = "t", *, std: str = "default"
+    ) -> np.ndarray:
+        """Individual confidence intervals θ̂_j ± q·σ_j of the estimates.
 
         Args:
             level: confidence level c, e.g. 0.95.
             method: ``"t"`` (q = t_{(1+c)/2}(N − n_p), exact for Gaussian residuals, default)
                 or ``"normal"`` (q = z_{(1+c)/2}, the large-sample limit).
+            std: ``"default"`` (σ = ``std``) or ``"cr"`` (the classical σ, ``std_cr``).
 
         Returns:
             (n_p, 2) array [lower, upper], rows as in ``conf_int_names``.
         """
         check_method(method, ("t", "normal"))
-        return t_intervals(self.estimates, self.std, level, self.dof, method)
+        check_method(std, ("default", "cr"), "std")
+        sigma = self.std if std == "default" else self.std_cr
+        return t_intervals(self.estimates, sigma, level, self.dof, method)
 
     def _frame_rows(self) -> list[dict]:
         intervals = self.conf_int() if self.dof > 0 else np.full((len(self.names), 2), np.nan)
@@ -173,6 +220,7 @@ class LeastSquaresResult(ResultSurface):
                 "name": name,
                 "value": float(self.estimates[j]),
                 "std": float(self.std[j]),
+                "std_cr": float(self.std_cr[j]),
                 "t": float(self.t_values[j]),
                 "partial_f": float(self.partial_f[j]),
                 "p": float(self.p_values[j]),
@@ -195,6 +243,7 @@ class LeastSquaresResult(ResultSurface):
             f"s² = {self.s2:.6g}   s = {np.sqrt(self.s2):.6g}   F = {self.f_overall:.6g}   "
             f"PSE = {self.pse:.6g} (σ²_max = {self.sigma2_max:.4g})",
             f"condition number (unit-length columns) = {self.condition_number:.4g}",
+            *self._sigma_lines(),
             "-" * 78,
             f"{'term':<16s}{'estimate':>14s}{'std err':>13s}{'t':>10s}{'partial F':>12s}"
             f"{'p':>8s}{'VIF':>9s}",
@@ -216,13 +265,36 @@ class LeastSquaresResult(ResultSurface):
         lines.append("=" * 78)
         return "\n".join(lines)
 
+    def _sigma_lines(self) -> list[str]:
+        """What ``std err`` is, when it is not the classical σ."""
+        if self.std_kind != COLOURED:
+            return []
+        ratio = self.sigma_ratio[np.isfinite(self.sigma_ratio)]
+        span = f", {ratio.min():.2g}–{ratio.max():.2g}× the classical σ" if ratio.size else ""
+        return [
+            f"std err: coloured-residual σ (residuals autocorrelated to lag "
+            f"{self.coloured_lag}){span}",
+            "(std_cr); t, partial F and p use the classical σ",
+        ]
+
     def to_dict(self) -> dict:
         """Plain-Python dictionary (JSON-ready)."""
         return {
             "parameters": [
-                {"name": n, "value": float(v), "std": finite_or_none(s), "unit": self.unit_map[n]}
-                for n, v, s in zip(self.names, self.estimates, self.std, strict=True)
+                {
+                    "name": n,
+                    "value": float(v),
+                    "std": finite_or_none(s),
+                    "std_cr": finite_or_none(c),
+                    "unit": self.unit_map[n],
+                }
+                for n, v, s, c in zip(
+                    self.names, self.estimates, self.std, self.std_cr, strict=True
+                )
             ],
+            "std_kind": self.std_kind,
+            "residuals_white": None if self.residuals_white is None else bool(self.residuals_white),
+            "coloured_lag": int(self.coloured_lag),
             "r2": float(self.r2),
             "r2_adjusted": float(self.r2_adjusted),
             "s2": float(self.s2),
@@ -315,6 +387,38 @@ def checked_regression_inputs(
     return X, z, names, units, norms
 
 
+def _default_sigma(
+    X: np.ndarray,
+    residuals: np.ndarray,
+    xtx_inv: np.ndarray,
+    covariance: np.ndarray,
+    coloured: bool,
+    maneuver_index: np.ndarray | None,
+):
+    """The default σ of a fit (``flightid.estimation.coloured.default_sigma``): G_i = x_iᵀ
+    (one output), R = 1, the bread (XᵀX)⁻¹; the classical covariance when white."""
+    from flightid.estimation.coloured import DefaultSigma
+
+    if not coloured:
+        # not tested: residuals_white None
+        return DefaultSigma(covariance, np.sqrt(np.diag(covariance)), CRAMER_RAO, 0, None)
+    if maneuver_index is not None:
+        maneuver_index = np.asarray(maneuver_index)
+        if maneuver_index.shape != residuals.shape:
+            raise LeastSquaresError(
+                f"maneuver_index: expected one entry per sample ({residuals.shape[0]}), got "
+                f"shape {maneuver_index.shape}"
+            )
+    # Cov_col = (XᵀX)⁻¹ [Σ_i Σ_j x_i R̂_ν(i − j) x_jᵀ] (XᵀX)⁻¹ · N/(N − n_p)
+    sigma = default_sigma(X[:, None, :], residuals[:, None], np.ones(1), xtx_inv, maneuver_index)
+    if sigma.kind == CRAMER_RAO:
+        # white: the classical s²(XᵀX)⁻¹ itself (the sandwich at L = 0 differs only by round-off)
+        return DefaultSigma(
+            covariance, np.sqrt(np.diag(covariance)), CRAMER_RAO, 0, sigma.residuals_white
+        )
+    return sigma
+
+
 def least_squares(
     X: np.ndarray,
     z: np.ndarray,
@@ -323,6 +427,8 @@ def least_squares(
     sigma2_max: float | None = None,
     rcond: float = 1e-12,
     units: Mapping[str, str] | None = None,
+    coloured: bool = True,
+    maneuver_index: np.ndarray | None = None,
 ) -> LeastSquaresResult:
     """Fit z ≈ X θ by least squares and compute the regression statistics.
 
@@ -336,6 +442,11 @@ def least_squares(
         rcond: X is rejected as rank deficient when its smallest singular value (of the
             unit-length-scaled columns) is below ``rcond`` times the largest.
         units: {regressor name: unit of its estimate} for reports (any subset of ``names``).
+        coloured: compute the coloured-residual σ (module docstring) and report it as
+            ``std`` when the residuals are coloured; False gives the classical σ only (the
+            stepwise search, which needs only the classical statistics of many fits).
+        maneuver_index: (N,) maneuver of each sample when the rows are several maneuvers
+            end to end: residual products never pair samples of different maneuvers.
 
     Returns:
         A frozen ``LeastSquaresResult``.
@@ -374,11 +485,17 @@ def least_squares(
         raise LeastSquaresError(
             f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}"
         )
+    sigma = _default_sigma(X, residuals, xtx_inv, covariance, coloured, maneuver_index)
     return LeastSquaresResult(
         names=names,
         estimates=_readonly(theta),
-        std=_readonly(std),
+        std=_readonly(sigma.std),
+        std_cr=_readonly(std),
         covariance=_readonly(covariance),
+        covariance_default=_readonly(sigma.covariance),
+        std_kind=sigma.kind,
+        residuals_white=sigma.residuals_white,
+        coloured_lag=sigma.lag,
         residuals=_readonly(residuals),
         fitted=_readonly(fitted),
         rss=rss,

@@ -105,10 +105,10 @@ class PipelineResult:
     estimate: object  # flightid.estimation.Estimate
 
     def comparison(self) -> str:
-        """Table: regression estimate ± std next to ML estimate ± Cramér–Rao bound."""
+        """Table: regression estimate ± std next to ML estimate ± its default σ."""
         est = self.estimate
         lines = [
-            f"{'parameter':<16s}{'regression':>14s}{'std':>11s}{'ML':>14s}{'CR bound':>11s}",
+            f"{'parameter':<16s}{'regression':>14s}{'std':>11s}{'ML':>14s}{'ML σ':>11s}",
         ]
         for coef, entries in self.structure.terms.items():
             fit = self.regression[coef].fit

@@ -205,6 +205,7 @@ def stepwise(
     select: Literal["pse", "final"] = "pse",
     max_steps: int = 100,
     response: str = "z",
+    maneuver_index: np.ndarray | None = None,
 ) -> StepwiseResult:
     """Modified stepwise regression of ``z`` over candidate terms (see the module docstring).
 
@@ -219,6 +220,8 @@ def stepwise(
         select: "pse" (model of minimum PSE along the path) or "final".
         max_steps: limit on entries plus removals.
         response: name of z, for reports.
+        maneuver_index: (N,) maneuver of each sample when z joins several maneuvers: the
+            selected model's coloured-residual σ never pairs samples of different maneuvers.
     """
     z = _check_settings(z, f_enter, f_remove, select)
     forced_labels, labels, columns = _term_columns(z, forced, candidates, signals)
@@ -226,6 +229,15 @@ def stepwise(
     search = _Search(z, columns, labels, forced_labels, s2max)
     search.run(max_steps, f_enter, f_remove)
     names, chosen = search.selected(select, f_remove)
+    # the selected model again, with its default σ (coloured-residual σ when coloured)
+    chosen = least_squares(
+        np.column_stack([columns[t] for t in names]),
+        z,
+        tuple(names),
+        sigma2_max=s2max,
+        units=dict(zip(chosen.names, chosen.units, strict=True)) if chosen.units else None,
+        maneuver_index=maneuver_index,
+    )
     return StepwiseResult(
         response=response,
         candidates=tuple(labels),
@@ -333,7 +345,8 @@ class _Search:
 
     def _fit(self, terms: Sequence[str]) -> LeastSquaresResult:
         X = np.column_stack([self.columns[t] for t in terms])
-        return least_squares(X, self.z, tuple(terms), sigma2_max=self.s2max)
+        # the search needs only the classical statistics (partial F, PSE) of many fits
+        return least_squares(X, self.z, tuple(terms), sigma2_max=self.s2max, coloured=False)
 
     def _ordered(self, terms: set[str]) -> tuple[str, ...]:
         return tuple(x for x in self.labels if x in terms)

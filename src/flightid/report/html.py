@@ -8,8 +8,9 @@
                              flightid.report.jsonout)
     out_dir/time_histories.csv  every sample: maneuver, role, time, inputs, measured,
                              predicted, residual (``flightid.report.histories``)
-    out_dir/estimates.csv    name, unit, value, CR bound, interval, start, free (and, with an
-                             accuracy assessment, the profile and search limits)
+    out_dir/estimates.csv    name, unit, value, std (the default σ), std_cr (the Cramér–Rao
+                             bound), std_kind, interval, start, free (and, with an accuracy
+                             assessment, the profile and search limits)
     out_dir/figures/*.png    per maneuver inputs, measured vs predicted outputs and residuals;
                              the same for each held-out maneuver; residual autocorrelation;
                              cost history
@@ -22,9 +23,10 @@
                              history with the R re-estimations, the correlation matrix, and
                              the accuracy assessment when the run has one
 
-Intervals: θ̂_j ± k·z_{(1+c)/2}·σ_j with σ_j the Cramér–Rao bound, c the confidence level and
-k the ``bound_factor`` of the case (1 by default; flight-test practice often uses 3–5 because
-CR bounds of real data are optimistic). The report only reads results.
+Intervals: θ̂_j ± k·z_{(1+c)/2}·σ_j with σ_j the estimate's default σ (the Cramér–Rao bound
+for white residuals, the coloured-residual σ otherwise: ``Estimate.std_kind``), c the
+confidence level and k the ``bound_factor`` of the case (1 by default). The report only reads
+results.
 """
 
 from __future__ import annotations
@@ -199,7 +201,9 @@ def _estimate_rows(run) -> list[dict]:
                 "name": name,
                 "unit": units[i],
                 "value": value,
-                "cr_bound": std if free else None,
+                "std": std if free else None,
+                "std_cr": float(est.std_cr[i]) if free else None,
+                "std_kind": est.std_kind if free else None,
                 "relative_percent": 100 * std / abs(value) if free and value != 0 else None,
                 "lower": value - half[i] if free else None,
                 "upper": value + half[i] if free else None,
@@ -351,7 +355,9 @@ def _coloured_warning(coloured) -> str:
             f"autocorrelated (correlation outside the white-noise band up to lag "
             f"{coloured.lag} samples), and the Cramér–Rao bounds understate the uncertainty "
             f"by up to ×{ratio:.2g} (parameter <code>{html.escape(name)}</code>). "
-            "<b>Use the corrected σ</b> (column “coloured σ”).</div>"
+            "The σ reported by default (column “coloured σ (default)”, <code>std</code> in "
+            "results.json and estimates.csv, the terminal) is the corrected one; the "
+            "Cramér–Rao σ is kept as <code>std_cr</code>.</div>"
         )
     return (
         f"<div class='note'>The residuals are coloured (lag {coloured.lag} samples), but the "
@@ -378,7 +384,7 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
             html.escape(row["name"]),
             _unit(unit),
             _fmt(row["value"]),
-            _fmt(row["cr_bound"], 3),
+            _fmt(row["std_cr"], 3),
         ]
         if scaled:
             cells.append(_fmt(std_cr, 3))
@@ -395,12 +401,16 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
         ]
         rows.append(cells)
         classes.append("" if row["free"] else "fixed")
-    interval = f"{100 * confidence:g} % CR interval" + (f" (×{factor:g})" if factor != 1 else "")
-    headers = ["parameter", "unit", "estimate", "CR σ"]
+    interval = f"{100 * confidence:g} % interval (σ default)" + (
+        f" (×{factor:g})" if factor != 1 else ""
+    )
+    # the column of the σ the other outputs (terminal, results.json, estimates.csv) report
+    coloured_default = est.std_kind == "coloured"
+    headers = ["parameter", "unit", "estimate", "CR σ" if coloured_default else "CR σ (default)"]
     if scaled:
         headers.append("s·σ (CR)")
     headers += [
-        "coloured σ",
+        "coloured σ (default)" if coloured_default else "coloured σ",
         "coloured / CR",
         "σ/|θ| %",
         f"{interval} low",
@@ -409,8 +419,11 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
         "",
     ]
     note = (
-        "<p class='small'>Estimate, σ, intervals and start in the parameter's unit. CR σ: "
-        "Cramér–Rao bound √((M⁻¹)ⱼⱼ). Coloured σ: the sandwich covariance "
+        "<p class='small'>Estimate, σ, intervals and start in the parameter's unit. "
+        "(default): the σ reported as <code>std</code> in results.json, estimates.csv and "
+        "the terminal, and the one the intervals use — the coloured σ when the residuals are "
+        "coloured, the CR σ when they are white. CR σ: "
+        "Cramér–Rao bound √((M⁻¹)ⱼⱼ) (<code>std_cr</code>). Coloured σ: the sandwich covariance "
         "M⁻¹[ΣᵢΣⱼ GᵢᵀR⁻¹R̂ν(i−j)R⁻¹Gⱼ]M⁻¹ with the residual autocorrelation up to lag "
         f"L = {coloured.lag} (<code>flightid.accuracy.coloured_covariance</code>), compared "
         f"with s·σ (s² = J/(N·n_o − n_p) = {coloured.s2:.4g}).</p>"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["estimate_summary", "format_table"]
+__all__ = ["estimate_summary", "format_table", "sigma_note", "sigma_range"]
 
 
 def format_table(headers: list[str], rows: list[list[str]]) -> str:
@@ -21,28 +21,78 @@ def format_table(headers: list[str], rows: list[list[str]]) -> str:
     return "\n".join([line(headers), rule, *(line(r) for r in rows)])
 
 
-def estimate_summary(result) -> str:
-    """Estimates, Cramér–Rao bounds, relative bounds, start values; cost and accounting."""
+def sigma_range(result) -> tuple[float, float] | None:
+    """(smallest, largest) finite std / std_cr over the free parameters, or None."""
+    ratio = np.asarray(getattr(result, "sigma_ratio", ()), dtype=float)
+    ratio = ratio[np.isfinite(ratio)]
+    if ratio.size == 0:
+        return None
+    return float(ratio.min()), float(ratio.max())
+
+
+def sigma_note(result) -> str | None:
+    """One line saying that (and by how much) the Cramér–Rao bounds understate the σ, for a
+    result whose default σ is the coloured-residual σ; None when the residuals are white."""
+    if getattr(result, "std_kind", "cramer_rao") != "coloured":
+        return None
+    band = 1.96 / np.sqrt(max(int(np.shape(result.residuals)[0]), 1))
+    text = (
+        f"residuals are coloured (autocorrelated to lag L = {result.coloured_lag} samples, "
+        f"white-noise band ±{band:.2g}); σ shown are the coloured-residual σ"
+    )
+    span = sigma_range(result)
+    if span is not None:
+        low, high = span
+        times = f"{low:.2g}×" if f"{low:.2g}" == f"{high:.2g}" else f"{low:.2g}–{high:.2g}×"
+        text += f", {times} the Cramér–Rao bounds (std_cr)"
+    return text
+
+
+def _parameter_rows(result, coloured: bool) -> list[list[str]]:
+    """One row per parameter: name, estimate, σ, rel. %, [CR σ], start, remark."""
     rows = []
     for i, name in enumerate(result.names):
         value = result.values[i]
+        extra = ["-"] if coloured else []
         if name in getattr(result, "at_bound", ()):
-            rows.append([name, f"{value:.6g}", "-", "-", f"{result.initial[i]:.6g}", "at bound"])
+            rows.append(
+                [name, f"{value:.6g}", "-", "-", *extra, f"{result.initial[i]:.6g}", "at bound"]
+            )
         elif result.free[i]:
             std = result.std[i]
             relative = abs(std / value) * 100 if value != 0 and np.isfinite(std) else np.inf
+            cr = [f"{result.std_cr[i]:.3g}"] if coloured else []
             rows.append(
                 [
                     name,
                     f"{value:.6g}",
                     f"{std:.3g}",
                     f"{relative:.2f}" if np.isfinite(relative) else "-",
+                    *cr,
                     f"{result.initial[i]:.6g}",
                     "",
                 ]
             )
         else:
-            rows.append([name, f"{value:.6g}", "-", "-", f"{result.initial[i]:.6g}", "fixed"])
+            rows.append(
+                [name, f"{value:.6g}", "-", "-", *extra, f"{result.initial[i]:.6g}", "fixed"]
+            )
+    return rows
+
+
+def estimate_summary(result) -> str:
+    """Estimates, default σ (and Cramér–Rao bounds beside it when the residuals are coloured),
+    relative σ, start values; cost and accounting."""
+    coloured = getattr(result, "std_kind", "cramer_rao") == "coloured"
+    rows = _parameter_rows(result, coloured)
+    if coloured:
+        sigma_line = (
+            f"σ: coloured-residual σ (residual autocorrelation to lag L = "
+            f"{result.coloured_lag} samples); CR σ: the Cramér–Rao bounds (std_cr), which "
+            "assume white residuals"
+        )
+    else:
+        sigma_line = "σ: Cramér–Rao bounds (the residuals are white at lag 1)"
     head = [
         f"flightid output-error estimate — {result.model.name}",
         f"solver {result.solver}, noise policy {result.noise_policy}, integration {result.method}",
@@ -53,9 +103,10 @@ def estimate_summary(result) -> str:
         f"wall time {result.wall_time_s:.3g} s",
         f"optimality: the next Gauss–Newton step is {result.optimality_sigma:.2g} σ long "
         "(central differences)",
+        sigma_line,
         "",
     ]
-    headers = ["parameter", "estimate", "CR bound", "rel. %", "start", ""]
+    headers = ["parameter", "estimate", "σ", "rel. %", *(["CR σ"] if coloured else []), "start", ""]
     # units (Parameter.unit, the outputs' channel units) in a column when any is known
     units = tuple(getattr(result, "parameter_units", ()))
     if any(units):
