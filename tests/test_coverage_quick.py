@@ -1,4 +1,4 @@
-"""The fast subset of the measured-coverage study (bench/coverage.py): its independent
+"""The fast subset of the measured-coverage study (bench/sigma_coverage.py): its independent
 simulator against scipy, and the stated σ of the estimators that should already be honest
 against the spread of seeded Monte Carlo estimates."""
 
@@ -12,12 +12,12 @@ import scipy.integrate
 import scipy.linalg
 import scipy.signal
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "coverage.py"
+BENCH = Path(__file__).resolve().parents[1] / "bench" / "sigma_coverage.py"
 
 
 @pytest.fixture(scope="module")
 def study():
-    # loaded under another name: "coverage" would shadow the coverage package
+    # a script of bench/, loaded by path
     spec = importlib.util.spec_from_file_location("bench_coverage_study", BENCH)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module

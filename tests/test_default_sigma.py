@@ -229,7 +229,7 @@ def test_terminal_note_says_how_much_the_cr_bounds_understate(coloured_estimate,
 def test_long_lag_sandwich_equals_the_written_out_double_sum():
     """L = 100 > 64 takes the FFT correlation (a loop over N·L products is hours at N = 10⁵
     with a long lag); it must give the written-out double sum."""
-    from flightid.estimation.coloured import coloured_covariance
+    from flightid.coloured import coloured_covariance
 
     rng = np.random.default_rng(11)
     n, lag = 300, 100

@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from flightid.coloured import default_sigma
 from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError, InputTypeError, describe
-from flightid.estimation.coloured import default_sigma
 from flightid.estimation.confirm import Confirmation, confirm_convergence
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import information_matrix, undetermined_parameters

@@ -51,9 +51,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flightid.coloured import default_sigma
 from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError, InputTypeError, describe
-from flightid.estimation.coloured import default_sigma
 from flightid.estimation.confirm import confirm_convergence
 from flightid.estimation.convergence import Convergence
 from flightid.estimation.driver import _covariance, check_call_options
@@ -885,7 +885,8 @@ def estimate_filter_error(
         # Cov = T Cov_r Tᵀ (delta method for the F elements solved from the constraint)
         t = _pinned_jacobian(outcome, model)
         # the pinned elements also move with R̂: Cov = T Cov_r Tᵀ + J_R Cov(R̂) J_Rᵀ
-        covariance = t @ covariance_r @ t.T + _pinned_weighting_covariance(outcome, model)
+        covariance_weighting = _pinned_weighting_covariance(outcome, model)
+        covariance = t @ covariance_r @ t.T + covariance_weighting
         std_free = np.sqrt(np.maximum(np.diag(covariance), 0.0))
         m = np.linalg.pinv(covariance)
         g = np.zeros((last.n_samples, last.n_outputs, n_f))
@@ -902,8 +903,9 @@ def estimate_filter_error(
     )
     covariance_default = sigma.covariance
     if outcome.pinned:
-        # Cov = T Cov_r Tᵀ for the default covariance as for the Cramér–Rao one
-        covariance_default = t @ covariance_default @ t.T
+        # Cov = T Cov_r Tᵀ + J_R Cov(R̂) J_Rᵀ for the default covariance as for the
+        # Cramér–Rao one (the pinned elements move with R̂ whatever the residuals' colour)
+        covariance_default = t @ covariance_default @ t.T + covariance_weighting
     std_cr = np.full(full.shape, np.nan)
     std_cr[free_mask] = std_free
     std = np.full(full.shape, np.nan)

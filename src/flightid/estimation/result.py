@@ -6,7 +6,7 @@ central differences, computed once after the optimizer stops and counted separat
 undetermined parameters get σ = inf and the status message says which; they are never
 reported as NaN estimates.
 
-The default σ (``std``) is the one the residuals support (``flightid.estimation.coloured``):
+The default σ (``std``) is the one the residuals support (``flightid.coloured``):
 the Cramér–Rao bound when the residuals are white, the coloured-residual σ when they are
 autocorrelated — there the Cramér–Rao bound, which assumes white residuals, understates the
 uncertainty (by 1.5–5× on flight data). ``std_kind`` says which one ``std`` is.
@@ -19,8 +19,8 @@ from functools import cached_property
 
 import numpy as np
 
+from flightid.coloured import COLOURED, CRAMER_RAO
 from flightid.errors import InputError
-from flightid.estimation.coloured import COLOURED, CRAMER_RAO
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
 from flightid.results import ResultSurface, check_method

@@ -16,8 +16,10 @@ from __future__ import annotations
 import linecache
 import re
 import warnings
+import weakref
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from flightid.errors import CompileWarning
 
@@ -121,8 +123,23 @@ def compile_failure_message(model_name: str, exc: BaseException) -> str:
     )
 
 
-def warn_pure_python(model_name: str, exc: BaseException, stacklevel: int = 2) -> None:
-    """Warn (``CompileWarning``) that the model runs in pure Python, and why."""
-    warnings.warn(
-        compile_failure_message(model_name, exc), CompileWarning, stacklevel=stacklevel + 1
-    )
+# the fall-back messages already given, per model function: a run builds the same model's
+# kernels several times (estimate, confirmation, accuracy), and one line says it all
+_WARNED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def warn_pure_python(
+    model_name: str, exc: BaseException, stacklevel: int = 2, function: Any = None
+) -> None:
+    """Warn (``CompileWarning``) that the model runs in pure Python, and why — once for the
+    same model ``function`` (its f) and reason."""
+    message = compile_failure_message(model_name, exc)
+    if function is not None:
+        try:
+            given = _WARNED.setdefault(function, set())
+        except TypeError:  # not weakly referable: warn every time
+            given = set()
+        if message in given:
+            return
+        given.add(message)
+    warnings.warn(message, CompileWarning, stacklevel=stacklevel + 1)

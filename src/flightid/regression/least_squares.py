@@ -19,7 +19,7 @@ Statistics (N samples, n_p parameters):
 
 Default σ: the classical standard errors assume white residuals. Equation-error residuals of
 flight data are usually coloured (model error, not measurement noise), and then s²(XᵀX)⁻¹ is
-optimistic. ``std`` is therefore the σ the residuals support (``flightid.estimation.coloured``,
+optimistic. ``std`` is therefore the σ the residuals support (``flightid.coloured``,
 the residual-autocorrelation sandwich with G_i = x_iᵀ, R = 1):
 
     Cov_col(θ̂) = (XᵀX)⁻¹ [ Σ_i Σ_j x_i R̂_ν(i − j) x_jᵀ ] (XᵀX)⁻¹ · N/(N − n_p)
@@ -43,8 +43,8 @@ from functools import cached_property
 import numpy as np
 from scipy import stats
 
+from flightid.coloured import COLOURED, CRAMER_RAO, default_sigma
 from flightid.errors import InputError, describe
-from flightid.estimation.coloured import COLOURED, CRAMER_RAO, default_sigma
 from flightid.results import ResultSurface, check_method, finite_or_none, t_intervals
 
 __all__ = ["LeastSquaresResult", "least_squares", "LeastSquaresError"]
@@ -395,9 +395,9 @@ def _default_sigma(
     coloured: bool,
     maneuver_index: np.ndarray | None,
 ):
-    """The default σ of a fit (``flightid.estimation.coloured.default_sigma``): G_i = x_iᵀ
+    """The default σ of a fit (``flightid.coloured.default_sigma``): G_i = x_iᵀ
     (one output), R = 1, the bread (XᵀX)⁻¹; the classical covariance when white."""
-    from flightid.estimation.coloured import DefaultSigma
+    from flightid.coloured import DefaultSigma
 
     if not coloured:
         # not tested: residuals_white None

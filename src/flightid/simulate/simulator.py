@@ -382,7 +382,7 @@ class Simulator:
                     ),
                     exc,
                 )
-                warn_pure_python(self.model.name, cause, stacklevel=4)
+                warn_pure_python(self.model.name, cause, stacklevel=4, function=self.model.f)
                 return make_kernel(
                     self.model.f_out,
                     self.model.h_out,

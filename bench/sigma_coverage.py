@@ -32,7 +32,7 @@ against the spread of the output-error estimates of the same realisations.
 
 Usage::
 
-    python bench/coverage.py [--family NAME ...] [--seeds N] [--seed S] [--quick]
+    python bench/sigma_coverage.py [--family NAME ...] [--seeds N] [--seed S] [--quick]
 
 ``--quick`` runs the fast subset (``QUICK``) with 60 seeds unless ``--seeds`` says otherwise;
 it is the subset ``tests/test_coverage_quick.py`` asserts. The tables are the same on every
@@ -42,23 +42,14 @@ machine for the same options (seeded, serial).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import scipy.linalg
 import scipy.signal
-
-ROOT = Path(__file__).resolve().parents[1]
-# run as a script, this file's folder is sys.path[0], where it would shadow the ``coverage``
-# package that numba imports: take the folder out
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-if str(ROOT / "src") not in sys.path:
-    sys.path.insert(0, str(ROOT / "src"))
 
 # ---------------------------------------------------------------- the independent simulator
 
