@@ -306,3 +306,18 @@ def test_a_constant_the_band_cannot_see_takes_no_column():
     a = equation_error(scalar_system, start, free, [shifted], ["x"], ["x"], constants=True)
     b = equation_error(scalar_system, start, free, [shifted], ["x"], ["x"], constants=False)
     assert not np.allclose(a.theta, b.theta, rtol=1e-9)
+
+
+def test_output_error_sigma_is_never_below_the_grid_corrected_bound():
+    """The reported σ is the larger of the coloured σ and the Cramér–Rao σ, parameter by
+    parameter: with white residuals the all-lag sandwich alone scatters below the bound."""
+    truth = np.array([A_TRUE, B_TRUE])
+    below = 0
+    for seed in range(8):
+        band = frequency_grid((0.1, 2.0), 1.0 / DURATION)
+        s = maneuver_spectra(*simulate(seed), band)
+        fit = output_error(scalar_system, truth, np.ones(2, bool), [s], ["x"], ["x"])
+        np.testing.assert_array_equal(fit.std, np.fmax(fit.std_cr, fit.std_coloured))
+        below += int(np.sum(fit.std_coloured < fit.std_cr))
+    # the case the rule is for occurs on these white-noise records
+    assert below > 0
