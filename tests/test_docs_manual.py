@@ -16,7 +16,6 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = sorted((ROOT / "docs").glob("*.md")) + sorted((ROOT / "docs" / "api").glob("*.md"))
 PAGES.append(ROOT / "README.md")
-PAGES.remove(ROOT / "docs" / "benchmarks.md")  # rewritten in the next commit
 
 # What a user cannot follow, each with why (case-sensitive: docs/cases.md is a user page).
 FORBIDDEN = {
