@@ -78,3 +78,21 @@ def test_each_forbidden_reference_is_caught(line: str) -> None:
 )
 def test_ordinary_prose_passes(line: str) -> None:
     assert not offending_lines(line), line
+
+
+def test_every_guide_in_the_nav_is_linked_from_the_home_page() -> None:
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    guides = set(re.findall(r":\s*([a-z_]+\.md)\s*$", nav, flags=re.MULTILINE)) - {"index.md"}
+    home = (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
+    missing = sorted(guide for guide in guides if f"]({guide}" not in home)
+    assert guides and not missing, f"docs/index.md does not link {missing}"
+
+
+def test_every_api_page_is_in_the_nav_and_the_api_index() -> None:
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    api_index = (ROOT / "docs" / "api" / "index.md").read_text(encoding="utf-8")
+    for page in sorted((ROOT / "docs" / "api").glob("*.md")):
+        if page.name == "index.md":
+            continue
+        assert f"api/{page.name}" in nav, f"mkdocs.yml nav lacks api/{page.name}"
+        assert f"]({page.name})" in api_index, f"docs/api/index.md lacks {page.name}"
