@@ -96,3 +96,28 @@ def test_every_api_page_is_in_the_nav_and_the_api_index() -> None:
             continue
         assert f"api/{page.name}" in nav, f"mkdocs.yml nav lacks api/{page.name}"
         assert f"]({page.name})" in api_index, f"docs/api/index.md lacks {page.name}"
+
+
+def test_every_python_name_on_the_sidpac_fvsysid_page_exists() -> None:
+    import importlib
+
+    page = (ROOT / "docs" / "from_sidpac_fvsysid.md").read_text(encoding="utf-8")
+    names = set(re.findall(r"`(flightid(?:\.[A-Za-z_]\w*)+)", page))
+    assert len(names) >= 15, names
+    missing = []
+    for name in sorted(names):
+        parts = name.split(".")
+        for split in range(len(parts), 0, -1):
+            try:
+                target = importlib.import_module(".".join(parts[:split]))
+            except ImportError:
+                continue
+            try:
+                for attribute in parts[split:]:
+                    target = getattr(target, attribute)
+            except AttributeError:
+                missing.append(name)
+            break
+        else:
+            missing.append(name)
+    assert not missing, f"not in flightid: {missing}"
