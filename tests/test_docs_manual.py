@@ -121,3 +121,22 @@ def test_every_python_name_on_the_sidpac_fvsysid_page_exists() -> None:
         else:
             missing.append(name)
     assert not missing, f"not in flightid: {missing}"
+
+
+@pytest.mark.slow
+def test_standard_case_tables_in_cases_md_match_what_the_script_prints() -> None:
+    import os
+    import subprocess
+    import sys
+
+    data_dir = Path(os.environ.get("FLIGHTID_DATA", ROOT.parent / "shared" / "data"))
+    if not (data_dir / "fvsysid" / "hfb320_1_10.asc").is_file():
+        pytest.skip(f"the FVSysID/SIDPAC data are not in {data_dir}")
+    script = ROOT / "docs" / "standard_cases.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--data-dir", str(data_dir), "--check"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
