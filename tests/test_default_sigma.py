@@ -225,6 +225,26 @@ def test_terminal_note_says_how_much_the_cr_bounds_understate(coloured_estimate,
     assert capsys.readouterr().err == ""
 
 
+def test_strongly_coloured_residuals_add_that_the_coloured_sigma_may_be_optimistic():
+    from types import SimpleNamespace
+
+    from flightid.report.text import STRONGLY_COLOURED, sigma_note
+
+    def result(ratio_high: float):
+        return SimpleNamespace(
+            std_kind="coloured",
+            coloured_lag=12,
+            residuals=np.zeros((400, 2)),
+            sigma_ratio=np.array([1.2, ratio_high]),
+        )
+
+    mild = sigma_note(result(0.99 * STRONGLY_COLOURED))
+    strong = sigma_note(result(1.01 * STRONGLY_COLOURED))
+    assert "turbulence" not in mild and "\n" not in mild
+    assert "even the coloured σ can be too small" in strong and "filter error" in strong
+    assert "\n" not in strong
+
+
 # ------------------------------------------------------------------- long lags
 def test_long_lag_sandwich_equals_the_written_out_double_sum():
     """L = 100 > 64 takes the FFT correlation (a loop over N·L products is hours at N = 10⁵

@@ -30,6 +30,12 @@ def sigma_range(result) -> tuple[float, float] | None:
     return float(ratio.min()), float(ratio.max())
 
 
+# std/std_cr from which the note adds that the coloured σ itself may be optimistic: the
+# measured airplane-in-turbulence study (bench/sigma_coverage.py, airplane_turbulence) had
+# std/std_cr of about 3 and a coloured σ still up to 2.5× below the spread
+STRONGLY_COLOURED = 2.0
+
+
 def sigma_note(result) -> str | None:
     """One line saying that (and by how much) the Cramér–Rao bounds understate the σ, for a
     result whose default σ is the coloured-residual σ; None when the residuals are white."""
@@ -45,6 +51,13 @@ def sigma_note(result) -> str | None:
         low, high = span
         times = f"{low:.2g}×" if f"{low:.2g}" == f"{high:.2g}" else f"{low:.2g}–{high:.2g}×"
         text += f", {times} the Cramér–Rao bounds (std_cr)"
+        if high >= STRONGLY_COLOURED:
+            text += (
+                "; residuals this coloured come from turbulence or a model term the model "
+                "lacks, where even the coloured σ can be too small (in a simulated airplane "
+                "in turbulence up to 2.5×: docs/accuracy.md, Measured coverage): model the "
+                "turbulence (filter error method) or the missing term"
+            )
     return text
 
 
