@@ -10,6 +10,13 @@ drawn from a simulator written here with scipy, independently of flightid's simu
   Q_d = ∫₀^Δt e^{Aτ} FFᵀ e^{Aᵀτ} dτ by Van Loan's matrix exponential (``scipy.linalg.expm``);
 * measurement noise white, or coloured (first-order autoregressive, ``scipy.signal.lfilter``);
 * for equation error, the regression z = X θ + v on the simulated (noise-free) states.
+* for the ``airplane_*`` families, a nonlinear longitudinal airplane (body-axis rigid-body
+  equations, linear aerodynamic coefficients) integrated by its own RK4 (four steps per
+  sample), flown through a first-order Dryden vertical gust (the exactly sampled output of
+  σ_w √(2V/(πL)) / (s + V/L)), white noise on V, α, q and θ; estimated with flightid models
+  of the calm-air equations (output error), of the equations with the gust as a state
+  (filter error, process noise on the gust's shaping filter) or with white process noise on
+  the w equation.
 
 Each realisation is estimated from start values 20 % off the truth (or, for the linear
 closed-form families, from no start at all), and for every free parameter and every σ the
