@@ -10,6 +10,13 @@ drawn from a simulator written here with scipy, independently of flightid's simu
   Q_d = ∫₀^Δt e^{Aτ} FFᵀ e^{Aᵀτ} dτ by Van Loan's matrix exponential (``scipy.linalg.expm``);
 * measurement noise white, or coloured (first-order autoregressive, ``scipy.signal.lfilter``);
 * for equation error, the regression z = X θ + v on the simulated (noise-free) states.
+* for the ``airplane_*`` families, a nonlinear longitudinal airplane (body-axis rigid-body
+  equations, linear aerodynamic coefficients) integrated by its own RK4 (four steps per
+  sample), flown through a first-order Dryden vertical gust (the exactly sampled output of
+  σ_w √(2V/(πL)) / (s + V/L)), white noise on V, α, q and θ; estimated with flightid models
+  of the calm-air equations (output error), of the equations with the gust as a state
+  (filter error, process noise on the gust's shaping filter) or with white process noise on
+  the w equation.
 
 Each realisation is estimated from start values 20 % off the truth (or, for the linear
 closed-form families, from no start at all), and for every free parameter and every σ the
@@ -68,10 +75,11 @@ def system_matrices(values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
-def elevator(duration_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """(t, δe): a 3-2-1-1 of 0.4 s pulses (amplitude 0.03 rad) at 1 s and a doublet of 1 s
-    pulses (0.02 rad) at 6 s, zero elsewhere; held constant over each sample interval."""
-    t = np.arange(int(round(duration_s / DT_S))) * DT_S
+def elevator(duration_s: float, dt: float = DT_S) -> tuple[np.ndarray, np.ndarray]:
+    """(t, δe) sampled every ``dt`` (s): a 3-2-1-1 of 0.4 s pulses (amplitude 0.03 rad) at
+    1 s and a doublet of 1 s pulses (0.02 rad) at 6 s, zero elsewhere; held constant over
+    each sample interval."""
+    t = np.arange(int(round(duration_s / dt))) * dt
     de = np.zeros_like(t)
     start, width = 1.0, 0.4
     for pulses, sign in ((3, 1), (2, -1), (1, 1), (1, -1)):
@@ -410,6 +418,287 @@ def design_draw(seed: int) -> Draw:
     return Draw(NAMES, draw.values, {"predicted": _PREDICTED["std"]})
 
 
+# ------------------------------------------------------- a nonlinear airplane in turbulence
+#
+# Longitudinal rigid-body equations in body axes (p = r = v = φ = 0):
+#   u̇ = −q w − g sinθ + X/m,   ẇ = q u + g cosθ + Z/m,   q̇ = M/I_y,   θ̇ = q,
+# X = q̄ S CX, Z = q̄ S CZ, M = q̄ S c̄ Cm, q̄ = ½ ρ V_a², with the air-relative velocity
+# (u, w − w_g) of a vertical gust w_g: α_a = atan((w − w_g)/u), V_a = √(u² + (w − w_g)²), and
+#   CX = CX0 + CXa α_a,   CZ = CZ0 + CZa α_a + CZq q c̄/(2V_a) + CZde δe,
+#   Cm = Cm0 + Cma α_a + Cmq q c̄/(2V_a) + Cmde δe.
+
+#: a light airplane: mass (kg), pitch inertia (kg m²), wing area (m²), chord (m), air density
+#: (kg/m³), gravity (m/s²)
+AIRPLANE_MASS_KG = 1000.0
+AIRPLANE_IYY_KGM2 = 1500.0
+AIRPLANE_AREA_M2 = 16.0
+AIRPLANE_CHORD_M = 1.5
+AIR_DENSITY_KGM3 = 1.225
+GRAVITY_MS2 = 9.81
+#: trim: level flight at 50 m/s, α = θ = 0.05 rad, δe = 0 (CX0, CZ0, Cm0 chosen for it)
+TRIM_SPEED_MS = 50.0
+TRIM_ALPHA_RAD = 0.05
+_TRIM_QBAR_S_N = 0.5 * AIR_DENSITY_KGM3 * TRIM_SPEED_MS**2 * AIRPLANE_AREA_M2
+#: held fixed at the truth in the estimates (the phugoid is barely excited in 15 s)
+AIRPLANE_FIXED = {"CXa": 0.30, "CZq": -5.0}
+AIRPLANE_FIXED["CX0"] = (
+    AIRPLANE_MASS_KG * GRAVITY_MS2 * np.sin(TRIM_ALPHA_RAD) / _TRIM_QBAR_S_N
+    - AIRPLANE_FIXED["CXa"] * TRIM_ALPHA_RAD
+)
+AIRPLANE_TRUTH = {"CZa": -4.8, "CZde": -0.35, "Cma": -0.7, "Cmq": -10.0, "Cmde": -1.1}
+# trim: Z/m = −g cosθ, M = 0 at α = θ = α₀, q = 0, δe = 0
+AIRPLANE_TRUTH["CZ0"] = (
+    -AIRPLANE_MASS_KG * GRAVITY_MS2 * np.cos(TRIM_ALPHA_RAD) / _TRIM_QBAR_S_N
+    - AIRPLANE_TRUTH["CZa"] * TRIM_ALPHA_RAD
+)
+AIRPLANE_TRUTH["Cm0"] = -AIRPLANE_TRUTH["Cma"] * TRIM_ALPHA_RAD
+AIRPLANE_NAMES = ("CZ0", "CZa", "CZde", "Cm0", "Cma", "Cmq", "Cmde")
+#: body-axis trim state (u m/s, w m/s, q rad/s, θ rad)
+AIRPLANE_X0 = (
+    TRIM_SPEED_MS * np.cos(TRIM_ALPHA_RAD),
+    TRIM_SPEED_MS * np.sin(TRIM_ALPHA_RAD),
+    0.0,
+    TRIM_ALPHA_RAD,
+)
+AIRPLANE_DT_S = 0.04
+AIRPLANE_DURATION_S = 15.0
+#: Dryden vertical gust: σ_w (m/s), scale length L_w (m)
+GUST_STD_MS = 0.5
+GUST_LENGTH_M = 100.0
+#: measurement noise σ of (V m/s, α rad, q rad/s, θ rad)
+AIRPLANE_NOISE_STD = np.array([0.2, 2.0e-3, 5.0e-3, 3.0e-3])
+AIRPLANE_SUBSTEPS = 4
+
+
+def airplane_derivative(
+    x: np.ndarray, de: float, w_gust: float, values: dict[str, float]
+) -> np.ndarray:
+    """d(u, w, q, θ)/dt of the airplane in a vertical gust ``w_gust`` (m/s, body z)."""
+    u, w, q, theta = x
+    w_air = w - w_gust
+    # α_a = atan((w − w_g)/u), V_a = √(u² + (w − w_g)²)
+    alpha = np.arctan2(w_air, u)
+    speed = np.hypot(u, w_air)
+    qbar_s = 0.5 * AIR_DENSITY_KGM3 * speed**2 * AIRPLANE_AREA_M2
+    q_hat = q * AIRPLANE_CHORD_M / (2.0 * speed)
+    c_x = AIRPLANE_FIXED["CX0"] + AIRPLANE_FIXED["CXa"] * alpha
+    c_z = values["CZ0"] + values["CZa"] * alpha + AIRPLANE_FIXED["CZq"] * q_hat
+    c_z += values["CZde"] * de
+    c_m = values["Cm0"] + values["Cma"] * alpha + values["Cmq"] * q_hat + values["Cmde"] * de
+    return np.array(
+        [
+            # u̇ = −q w − g sinθ + X/m
+            -q * w - GRAVITY_MS2 * np.sin(theta) + qbar_s * c_x / AIRPLANE_MASS_KG,
+            # ẇ = q u + g cosθ + Z/m
+            q * u + GRAVITY_MS2 * np.cos(theta) + qbar_s * c_z / AIRPLANE_MASS_KG,
+            # q̇ = M/I_y
+            qbar_s * AIRPLANE_CHORD_M * c_m / AIRPLANE_IYY_KGM2,
+            q,
+        ]
+    )
+
+
+def dryden_vertical_gust(rng: np.random.Generator, n: int, dt: float) -> np.ndarray:
+    """w_g (m/s) at the n samples: the output of the Dryden filter σ_w √(2V/(πL)) / (s + V/L)
+    driven by white noise, sampled exactly (a first-order Gauss–Markov process of variance
+    σ_w² and time constant L/V): w_{k+1} = e^{−VΔt/L} w_k + σ_w √(1 − e^{−2VΔt/L}) ξ_k,
+    from w_0 = 0."""
+    decay = np.exp(-TRIM_SPEED_MS * dt / GUST_LENGTH_M)
+    drive = GUST_STD_MS * np.sqrt(1.0 - decay**2) * rng.standard_normal(n)
+    gust = np.zeros(n)
+    for k in range(n - 1):
+        gust[k + 1] = decay * gust[k] + drive[k]
+    return gust
+
+
+def simulate_airplane(
+    values: dict[str, float], de: np.ndarray, gust: np.ndarray | None = None
+) -> np.ndarray:
+    """Outputs (N, 4) = (V m/s, α rad, q rad/s, θ rad) of the inertial motion, by classical
+    RK4 with ``AIRPLANE_SUBSTEPS`` steps per sample, δe linear and the gust held between
+    samples."""
+    n = de.size
+    gust = np.zeros(n) if gust is None else gust
+    h = AIRPLANE_DT_S / AIRPLANE_SUBSTEPS
+    x = np.array(AIRPLANE_X0, dtype=float)
+    states = np.empty((n, 4))
+    states[0] = x
+    for k in range(n - 1):
+        for j in range(AIRPLANE_SUBSTEPS):
+            # δe at the substep's start, middle and end, linear between samples
+            s0, s1 = j / AIRPLANE_SUBSTEPS, (j + 1) / AIRPLANE_SUBSTEPS
+            d0, dm, d1 = (de[k] + s * (de[k + 1] - de[k]) for s in (s0, (s0 + s1) / 2, s1))
+            k1 = airplane_derivative(x, d0, gust[k], values)
+            k2 = airplane_derivative(x + 0.5 * h * k1, dm, gust[k], values)
+            k3 = airplane_derivative(x + 0.5 * h * k2, dm, gust[k], values)
+            k4 = airplane_derivative(x + h * k3, d1, gust[k], values)
+            x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        states[k + 1] = x
+    u, w, q, theta = states.T
+    return np.column_stack([np.hypot(u, w), np.arctan2(w, u), q, theta])
+
+
+_CX0, _CXA, _CZQ = AIRPLANE_FIXED["CX0"], AIRPLANE_FIXED["CXa"], AIRPLANE_FIXED["CZq"]
+
+
+def _f_airplane(t, x, u, theta):
+    # θ = (CZ0, CZa, CZde, Cm0, Cma, Cmq, Cmde); x = (u, w, q, θ); u = (δe,)
+    speed = np.sqrt(x[0] ** 2 + x[1] ** 2)
+    alpha = np.arctan(x[1] / x[0])
+    qbar_s = 0.5 * AIR_DENSITY_KGM3 * speed * speed * AIRPLANE_AREA_M2
+    q_hat = x[2] * AIRPLANE_CHORD_M / (2.0 * speed)
+    c_x = _CX0 + _CXA * alpha
+    c_z = theta[0] + theta[1] * alpha + _CZQ * q_hat + theta[2] * u[0]
+    c_m = theta[3] + theta[4] * alpha + theta[5] * q_hat + theta[6] * u[0]
+    dx = np.empty(4)
+    dx[0] = -x[2] * x[1] - GRAVITY_MS2 * np.sin(x[3]) + qbar_s * c_x / AIRPLANE_MASS_KG
+    dx[1] = x[2] * x[0] + GRAVITY_MS2 * np.cos(x[3]) + qbar_s * c_z / AIRPLANE_MASS_KG
+    dx[2] = qbar_s * AIRPLANE_CHORD_M * c_m / AIRPLANE_IYY_KGM2
+    dx[3] = x[2]
+    return dx
+
+
+def _h_airplane(t, x, u, theta):
+    y = np.empty(4)
+    y[0] = np.sqrt(x[0] ** 2 + x[1] ** 2)
+    y[1] = np.arctan(x[1] / x[0])
+    y[2] = x[2]
+    y[3] = x[3]
+    return y
+
+
+def airplane_model(values: dict[str, float], process_noise: dict[str, float] | None = None):
+    """flightid's model of the same airplane without turbulence (x0 = trim, known;
+    CX0, CXa, CZq fixed at the truth); process-noise elements appended when given."""
+    from flightid.model.parameters import Parameter, Parameters
+    from flightid.model.statespace import StateSpaceModel
+
+    parameters = [Parameter(n, values[n]) for n in AIRPLANE_NAMES]
+    parameters += [Parameter(n, v) for n, v in (process_noise or {}).items()]
+    return StateSpaceModel(
+        ("u", "w", "q", "theta"),
+        ("de",),
+        ("V", "alpha", "q", "theta"),
+        _f_airplane,
+        _h_airplane,
+        Parameters(parameters),
+        x0=AIRPLANE_X0,
+        function_parameters=AIRPLANE_NAMES,
+    )
+
+
+def airplane_data(t: np.ndarray, de: np.ndarray, z: np.ndarray):
+    from flightid.data.flightdata import FlightData
+
+    return FlightData(
+        t, {"de": de}, {k: z[:, i] for i, k in enumerate(("V", "alpha", "q", "theta"))}
+    )
+
+
+AIRPLANE_START = {n: 1.2 * v for n, v in AIRPLANE_TRUTH.items()}
+
+
+def _airplane_measured(seed: int, turbulence: bool = True):
+    """(t, δe, z) of realisation ``seed``: the airplane through Dryden turbulence (or calm
+    air) plus white measurement noise."""
+    rng = np.random.default_rng(seed)
+    t, de = elevator(AIRPLANE_DURATION_S, AIRPLANE_DT_S)
+    gust = dryden_vertical_gust(rng, t.size, AIRPLANE_DT_S) if turbulence else None
+    y = simulate_airplane(AIRPLANE_TRUTH, de, gust)
+    return t, de, y + rng.standard_normal(y.shape) * AIRPLANE_NOISE_STD
+
+
+def airplane_output_error_draw(seed: int, turbulence: bool = True) -> Draw:
+    """Output error (MNR, R estimated) with the calm-air model, from 20 % off the truth."""
+    from flightid.estimation import MNR, estimate
+
+    t, de, z = _airplane_measured(seed, turbulence)
+    result = estimate(airplane_model(AIRPLANE_START), airplane_data(t, de, z), MNR())
+    return _from_estimate(result, AIRPLANE_NAMES, sandwich=False)
+
+
+_GUST_BREAK_RAD_S = TRIM_SPEED_MS / GUST_LENGTH_M
+
+
+def _f_airplane_gust(t, x, u, theta):
+    # x = (u, w, q, θ, w_g): the rigid body at the air-relative velocity (u, w − w_g), and
+    # the Dryden shaping filter ẇ_g = −(V/L) w_g (+ its process noise)
+    w_air = x[1] - x[4]
+    speed = np.sqrt(x[0] ** 2 + w_air**2)
+    alpha = np.arctan(w_air / x[0])
+    qbar_s = 0.5 * AIR_DENSITY_KGM3 * speed * speed * AIRPLANE_AREA_M2
+    q_hat = x[2] * AIRPLANE_CHORD_M / (2.0 * speed)
+    c_x = _CX0 + _CXA * alpha
+    c_z = theta[0] + theta[1] * alpha + _CZQ * q_hat + theta[2] * u[0]
+    c_m = theta[3] + theta[4] * alpha + theta[5] * q_hat + theta[6] * u[0]
+    dx = np.empty(5)
+    dx[0] = -x[2] * x[1] - GRAVITY_MS2 * np.sin(x[3]) + qbar_s * c_x / AIRPLANE_MASS_KG
+    dx[1] = x[2] * x[0] + GRAVITY_MS2 * np.cos(x[3]) + qbar_s * c_z / AIRPLANE_MASS_KG
+    dx[2] = qbar_s * AIRPLANE_CHORD_M * c_m / AIRPLANE_IYY_KGM2
+    dx[3] = x[2]
+    dx[4] = -_GUST_BREAK_RAD_S * x[4]
+    return dx
+
+
+def _h_airplane_gust(t, x, u, theta):
+    y = np.empty(4)
+    y[0] = np.sqrt(x[0] ** 2 + x[1] ** 2)
+    y[1] = np.arctan(x[1] / x[0])
+    y[2] = x[2]
+    y[3] = x[3]
+    return y
+
+
+def airplane_gust_model(values: dict[str, float], gust_intensity: float):
+    """The airplane with the vertical gust w_g as a fifth state (its shaping filter, the
+    first-order Dryden filter); its process noise ``Fg`` (m/s/√s, truth σ_w √(2V/L)) is
+    estimated by filter error."""
+    from flightid.model.parameters import Parameter, Parameters
+    from flightid.model.statespace import StateSpaceModel
+
+    parameters = [Parameter(n, values[n]) for n in AIRPLANE_NAMES]
+    parameters.append(Parameter("Fg", gust_intensity))
+    return StateSpaceModel(
+        ("u", "w", "q", "theta", "wg"),
+        ("de",),
+        ("V", "alpha", "q", "theta"),
+        _f_airplane_gust,
+        _h_airplane_gust,
+        Parameters(parameters),
+        x0=(*AIRPLANE_X0, 0.0),
+        function_parameters=AIRPLANE_NAMES,
+    )
+
+
+#: the gust state's process noise that gives w_g the variance σ_w²: F = σ_w √(2V/L)
+GUST_INTENSITY = GUST_STD_MS * np.sqrt(2.0 * _GUST_BREAK_RAD_S)
+
+
+def airplane_filter_error_draw(seed: int) -> Draw:
+    """Filter error (fixed-point relaxation, MNR, gradients by differences) of the airplane
+    with the gust state, from 20 % off the truth and Fg 1.2× its truth."""
+    from flightid.estimation import MNR
+    from flightid.estimation.filter_error import estimate_filter_error
+
+    t, de, z = _airplane_measured(seed)
+    model = airplane_gust_model(AIRPLANE_START, 1.2 * GUST_INTENSITY)
+    result = estimate_filter_error(model, airplane_data(t, de, z), {"wg": "Fg"}, MNR())
+    return _from_estimate(result, (*AIRPLANE_NAMES, "Fg"), sandwich=False)
+
+
+def airplane_filter_error_w_draw(seed: int) -> Draw:
+    """Filter error with the calm-air model and white process noise ``Fw`` on the w (α)
+    equation only: a process-noise model that does not match the turbulence (coloured, and
+    entering the pitching moment too), from 20 % off the truth and Fw = 0.1 m/s/√s."""
+    from flightid.estimation import MNR
+    from flightid.estimation.filter_error import estimate_filter_error
+
+    t, de, z = _airplane_measured(seed)
+    model = airplane_model(AIRPLANE_START, {"Fw": 0.1})
+    result = estimate_filter_error(model, airplane_data(t, de, z), {"w": "Fw"}, MNR())
+    return _from_estimate(result, AIRPLANE_NAMES, sandwich=False)
+
+
 FTR_TRUTH = {
     "A11": TRUTH["Za"],
     "B11": TRUTH["Zde"],
@@ -484,6 +773,26 @@ FAMILIES: dict[str, Family] = {
         lambda s: recursive_draw(s, "efrls"), TRUTH, "extended forgetting RLS, λ = 1, 20 s"
     ),
     "ftr": Family(lambda s: recursive_draw(s, "ftr"), FTR_TRUTH, "Fourier transform regression"),
+    "airplane_calm": Family(
+        lambda s: airplane_output_error_draw(s, turbulence=False),
+        AIRPLANE_TRUTH,
+        "nonlinear longitudinal airplane (RK4), calm air, output error, 15 s at 25 Hz",
+    ),
+    "airplane_turbulence": Family(
+        airplane_output_error_draw,
+        AIRPLANE_TRUTH,
+        "as airplane_calm in Dryden turbulence (σ_w 0.5 m/s, L 100 m), output error",
+    ),
+    "airplane_turbulence_fem": Family(
+        airplane_filter_error_draw,
+        {**AIRPLANE_TRUTH, "Fg": GUST_INTENSITY},
+        "as airplane_turbulence, filter error, the gust a state (Dryden filter, noise Fg)",
+    ),
+    "airplane_turbulence_fem_w": Family(
+        airplane_filter_error_w_draw,
+        AIRPLANE_TRUTH,
+        "as airplane_turbulence, filter error, calm-air model, white noise on w only",
+    ),
     "design": Family(
         design_draw, TRUTH, "predicted Cramér–Rao σ (predict_accuracy) vs output-error spread"
     ),
