@@ -60,6 +60,8 @@ def test_pinned_process_noise_sigma_includes_the_weighting_error():
     )
     assert result.converged, result.message
     assert "solved from" in result.message  # the constraint is active: F11 is pinned
+    # a pinned element's σ carries R̂'s error: no caveat for it
+    assert "may be up to about 1.3× too small" not in result.message
     r = float(result.r_diag[0])
     f_hat = result.value("F11")
     # the constraint by hand: F = √(R (1/Δt − 2a))
@@ -78,6 +80,8 @@ def test_free_process_noise_sigma_is_the_cramer_rao_bound_of_the_sensitivities()
     )
     assert result.converged, result.message
     assert "solved from" not in result.message
+    # a free element's bound takes R as known: measured somewhat optimistic, and said so
+    assert "process-noise parameters ['F11'] may be up to about 1.3× too small" in result.message
     g = np.asarray(result.sensitivities)  # (N, n_o, n_f)
     r = np.asarray(result.r_diag)
     m = np.einsum("kip,i,kiq->pq", g, 1.0 / r, g)
