@@ -329,3 +329,32 @@ def test_weak_direction_without_a_pair_is_named_by_its_condition():
 
 def test_trust_section_is_empty_without_findings(clean_estimate):
     assert _trust_section(SimpleNamespace(outliers=None, identifiability=None)) == ""
+
+
+def test_only_serious_findings_are_terminal_warnings():
+    """A direction named by its condition alone, and a pair below |ρ| = 0.999 whose profile
+    agrees with the quadratic interval, stay in the report; a pair at |ρ| ≥ 0.999, or one
+    whose profile departs from the quadratic interval, is a warning."""
+    from flightid.accuracy.identifiability import (
+        WARN_CORRELATION,
+        IdentifiabilityReport,
+        ProfiledParameter,
+        WeakCombination,
+    )
+
+    def pair(rho: float) -> WeakCombination:
+        return WeakCombination(("a", "b"), (0.7, 0.7), (0.7, -0.7), 1e5, (("a", "b", rho),))
+
+    def profiled(name: str, lower: float) -> ProfiledParameter:
+        # quadratic interval 1 ± 0.2; profile [lower, 1.2]
+        return ProfiledParameter(name, 1.0, 0.1, 0.1, (0.8, 1.2), (lower, 1.2), 0.1)
+
+    condition_only = WeakCombination(("a", "b", "c"), (0.58, 0.58, 0.58), condition=1e6)
+    agreeing = (profiled("a", 0.8), profiled("b", 0.8))
+    quiet = IdentifiabilityReport((condition_only, pair(0.995)), agreeing)
+    assert len(quiet.messages()) == 2 and quiet.warning_messages() == []
+    strong = IdentifiabilityReport((pair(WARN_CORRELATION),), agreeing)
+    assert len(strong.warning_messages()) == 1
+    departing = IdentifiabilityReport((pair(0.995),), (profiled("a", 0.5), profiled("b", 0.8)))
+    assert len(departing.warning_messages()) == 1
+    assert "the quadratic approximation fails" in departing.warning_messages()[0]
