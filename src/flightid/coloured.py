@@ -40,8 +40,10 @@ __all__ = [
     "DefaultSigma",
     "automatic_lag",
     "coloured_covariance",
+    "complete_default_sigma",
     "default_sigma",
     "residual_autocovariance",
+    "sigma_ratio",
 ]
 
 # the names of the two kinds of default σ
@@ -260,6 +262,27 @@ class DefaultSigma:
     kind: str
     lag: int
     residuals_white: bool | None
+
+
+def complete_default_sigma(result, error: type[Exception]) -> None:
+    """Complete a frozen result's default-σ fields (``std_cr``, ``covariance_default``,
+    ``std_kind``) in its ``__post_init__``: a result made without a separate default σ has
+    its plain σ as the default (``std_cr = std``, ``covariance_default = covariance``); a
+    ``std_kind`` other than ``"coloured"`` or ``"cramer_rao"`` raises ``error``."""
+    if result.std_cr is None:
+        object.__setattr__(result, "std_cr", result.std)
+    if result.covariance_default is None:
+        object.__setattr__(result, "covariance_default", result.covariance)
+    if result.std_kind not in (CRAMER_RAO, COLOURED):
+        raise error(f"std_kind: expected {CRAMER_RAO!r} or {COLOURED!r}, got {result.std_kind!r}")
+
+
+def sigma_ratio(std: np.ndarray, std_cr: np.ndarray) -> np.ndarray:
+    """std / std_cr, NaN where either is not finite: how much the Cramér–Rao (classical) σ
+    understates the default σ."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.asarray(std, dtype=float) / np.asarray(std_cr, dtype=float)
+    return np.where(np.isfinite(ratio), ratio, np.nan)
 
 
 def _std_of(covariance: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ from functools import cached_property
 
 import numpy as np
 
-from flightid.coloured import COLOURED, CRAMER_RAO
+from flightid.coloured import COLOURED, CRAMER_RAO, complete_default_sigma, sigma_ratio
 from flightid.errors import InputError
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
@@ -129,14 +129,7 @@ class Estimate(ResultSurface):
 
     def __post_init__(self) -> None:
         # without a separate default σ, the default is the Cramér–Rao σ
-        if self.std_cr is None:
-            object.__setattr__(self, "std_cr", self.std)
-        if self.covariance_default is None:
-            object.__setattr__(self, "covariance_default", self.covariance)
-        if self.std_kind not in (CRAMER_RAO, COLOURED):
-            raise InputError(
-                f"std_kind: expected {CRAMER_RAO!r} or {COLOURED!r}, got {self.std_kind!r}"
-            )
+        complete_default_sigma(self, InputError)
         for name in (
             "values",
             "initial",
@@ -192,9 +185,7 @@ class Estimate(ResultSurface):
         """std / std_cr of the free parameters (n_f,): how much the Cramér–Rao bounds
         understate the default σ (1 for white residuals; NaN where either is not finite)."""
         free = np.asarray(self.free, dtype=bool)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.asarray(self.std, dtype=float)[free] / np.asarray(self.std_cr)[free]
-        return np.where(np.isfinite(ratio), ratio, np.nan)
+        return sigma_ratio(np.asarray(self.std)[free], np.asarray(self.std_cr)[free])
 
     @property
     def n_data(self) -> int:

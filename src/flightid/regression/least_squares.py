@@ -43,7 +43,13 @@ from functools import cached_property
 import numpy as np
 from scipy import stats
 
-from flightid.coloured import COLOURED, CRAMER_RAO, default_sigma
+from flightid.coloured import (
+    COLOURED,
+    CRAMER_RAO,
+    complete_default_sigma,
+    default_sigma,
+    sigma_ratio,
+)
 from flightid.errors import InputError, describe
 from flightid.results import ResultSurface, check_method, finite_or_none, t_intervals
 
@@ -105,21 +111,12 @@ class LeastSquaresResult(ResultSurface):
 
     def __post_init__(self) -> None:
         # without a separate default σ, the default is the classical σ
-        if self.std_cr is None:
-            object.__setattr__(self, "std_cr", self.std)
-        if self.covariance_default is None:
-            object.__setattr__(self, "covariance_default", self.covariance)
-        if self.std_kind not in (CRAMER_RAO, COLOURED):
-            raise LeastSquaresError(
-                f"std_kind: expected {CRAMER_RAO!r} or {COLOURED!r}, got {self.std_kind!r}"
-            )
+        complete_default_sigma(self, LeastSquaresError)
 
     @property
     def sigma_ratio(self) -> np.ndarray:
         """std / std_cr (n_p,): how much the classical σ understates the default σ."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.asarray(self.std, dtype=float) / np.asarray(self.std_cr, dtype=float)
-        return np.where(np.isfinite(ratio), ratio, np.nan)
+        return sigma_ratio(self.std, self.std_cr)
 
     # ----------------------------------------------------------------- statistics
     @property
