@@ -287,7 +287,7 @@ def _unit(unit: str | None) -> str:
 
 
 def _provenance(run, generated_utc: str) -> list[list[str]]:
-    from flightid import __version__
+    from flightid._version import __version__
 
     case = run.case
     digest = getattr(run, "case_sha256", "") or "— (the case was not read from a file)"

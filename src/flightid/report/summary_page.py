@@ -54,7 +54,7 @@ def write_summary_page(
         files: data files to link, relative to ``directory`` or absolute inside it.
         title: the page's heading; default the summary's first line (its title line).
     """
-    from flightid import __version__
+    from flightid._version import __version__
 
     directory = Path(directory)
     if title is None:
