@@ -28,8 +28,8 @@ _STYLE = (
 def write_results_json(directory: str | Path, entry: dict) -> Path:
     """Write ``directory/results.json`` — the layout-1 document
     (``flightid.results.results_document``) with the one ``entry``, strict JSON
-    (``flightid.report.jsonout``), UTF-8 — and return its path."""
-    from flightid.report.jsonout import dumps
+    (``flightid.jsonout``), UTF-8 — and return its path."""
+    from flightid.jsonout import dumps
     from flightid.results import results_document
 
     path = Path(directory) / "results.json"
