@@ -160,7 +160,8 @@ def main(argv: list[str] | None = None) -> int:
     import cloudpickle
 
     import coverage_study
-    from flightid.batch.engine import DaskEngine, SerialEngine
+    from flightid.batch.engine import DaskEngine
+    from flightid.parallel import SerialEngine
 
     # the study's task function travels by value (the workers need not import bench/)
     cloudpickle.register_pickle_by_value(coverage_study)

@@ -75,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from flightid.batch import run_batch
-    from flightid.batch.engine import DaskEngine, SerialEngine
+    from flightid.batch.engine import DaskEngine
+    from flightid.parallel import SerialEngine
 
     cases = _cases(args.cases, args.repeat, args.figures)
     print(

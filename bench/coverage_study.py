@@ -214,7 +214,7 @@ def make_figures(directory: Path) -> list[Path]:
 def study(cases: list[str], n: int, seed: int, engine=None, quiet: bool = False) -> dict:
     """Coverage rows per case: realisations ``seed … seed + n − 1`` as tasks on ``engine``
     (None: in this process), rows in realisation order; prints the tables unless ``quiet``."""
-    from flightid.batch.engine import map_ordered
+    from flightid.parallel import map_ordered
 
     report = {}
     workers = getattr(engine, "workers", 1)

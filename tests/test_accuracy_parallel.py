@@ -19,8 +19,8 @@ import pytest
 from flightid.accuracy import assess, region_contour
 from flightid.accuracy.profile import profile_limits
 from flightid.accuracy.search import CHUNK, random_search
-from flightid.batch.engine import SerialEngine, map_ordered
 from flightid.errors import InputError, TaskError
+from flightid.parallel import SerialEngine, map_ordered
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "examples" / "cases" / "attas_short_period.toml"
@@ -169,17 +169,17 @@ def test_flightid_run_workers_2_prints_the_serial_profile_limits(capsys, monkeyp
     pytest.importorskip("distributed", reason="dask[distributed] not installed (flightid[dask])")
     import json
 
-    import flightid.batch.engine as engines
+    import flightid.accuracy.profile as profile_module
     from flightid.cli.main import main
 
     used = []
-    original = engines.map_ordered
+    original = profile_module.map_ordered
 
     def spy(engine, *args, **kwargs):
         used.append(type(engine).__name__)
         return original(engine, *args, **kwargs)
 
-    monkeypatch.setattr(engines, "map_ordered", spy)
+    monkeypatch.setattr(profile_module, "map_ordered", spy)
     outputs = []
     for workers in ("1", "2"):
         assert main(["run", str(CASE), "--accuracy", "profile", "--json", "--quiet",

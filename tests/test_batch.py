@@ -17,11 +17,12 @@ import numpy as np
 import pytest
 
 from flightid.batch import BatchCase, BatchError, expand_template, plan_cases, run_batch
-from flightid.batch.engine import SerialEngine, make_engine
+from flightid.batch.engine import make_engine
 from flightid.batch.table import FIXED_COLUMNS
 from flightid.cases import load_case, run_case
 from flightid.cases.spec import parse_case
 from flightid.cli.main import main
+from flightid.parallel import SerialEngine
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ROOT / "examples" / "cases"

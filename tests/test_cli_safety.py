@@ -30,11 +30,11 @@ import pytest
 import flightid.cases as cli_run
 import flightid.report.folder as folder_module
 import flightid.report.html as html_module
+from flightid import jsonout
 from flightid.cases import load_case, run_case
 from flightid.cases.run import Prediction
 from flightid.cli.main import main
 from flightid.errors import InputError
-from flightid.report import jsonout
 from flightid.report.folder import RUN_MARKER, OutputError, ResultFolder, write_manifest
 from flightid.report.html import write_files, write_report
 

@@ -22,15 +22,11 @@ from scipy import stats
 
 from conftest import PENDULUM_TRUE, pendulum_data, pendulum_model
 from flightid.accuracy import assess
-from flightid.accuracy.levels import (
-    beale_factor,
-    check_level,
-    contour_level,
-    residual_variance_factor,
-)
+from flightid.accuracy.levels import beale_factor
 from flightid.accuracy.nonlinearity import beale_nonlinearity
 from flightid.errors import InputError
 from flightid.estimation.problem import OutputErrorProblem
+from flightid.results import check_level, contour_level, residual_variance_factor
 from flightid.simulate import simulate
 from test_accuracy_models import exp_estimate, exp_model, linear_estimate
 

@@ -16,7 +16,8 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from flightid import results as _results
+from flightid._version import __version__
 
 # public name -> module that defines it
 _LAZY_EXPORTS: dict[str, str] = {
@@ -40,6 +41,25 @@ if TYPE_CHECKING:  # static tools see the eager imports (re-exported through __a
     from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate  # noqa: F401
     from flightid.model import Parameter, Parameters, StateSpaceModel  # noqa: F401
     from flightid.simulate import Simulator, simulate  # noqa: F401
+
+
+def _result_summary(result: Any) -> str:
+    """``Estimate.summary()`` / ``AccuracyResult.summary()``: the report layer's text."""
+    from flightid.report.text import summary_of
+
+    return summary_of(result)
+
+
+def _result_figure(result: Any) -> Any:
+    """``plot()`` of every result: the report layer's figure."""
+    from flightid.report.result_figures import figure_of
+
+    return figure_of(result)
+
+
+# the results' summaries and figures are drawn by flightid.report, a layer above the results:
+# handed in here (this package runs before any of its modules), imported on first use
+_results.set_renderers(summary=_result_summary, figure=_result_figure)
 
 
 def __getattr__(name: str) -> Any:

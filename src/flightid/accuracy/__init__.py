@@ -10,19 +10,15 @@ Entry point: ``assess(estimate, data, level=0.95, methods=("cr", "profile"))``; 
 from flightid.accuracy.assess import METHODS, assess, problem_for, region_contour
 from flightid.accuracy.coloured import coloured_covariance
 from flightid.accuracy.contour import Contour, polish_minimum
-from flightid.accuracy.intervals import (
-    AccuracyWarning,
-    correlation_matrix,
-    correlation_warnings,
-    ellipsoid_intervals,
-)
-from flightid.accuracy.levels import beale_factor, contour_level, residual_variance_factor
+from flightid.accuracy.intervals import AccuracyWarning, correlation_matrix, correlation_warnings
+from flightid.accuracy.levels import beale_factor
 from flightid.accuracy.nonlinearity import Nonlinearity, beale_nonlinearity
 from flightid.accuracy.profile import ProfileCurve, ProfileLimits, profile_curve, profile_limits
 from flightid.accuracy.result import AccuracyResult, accuracy_json
 from flightid.accuracy.search import SearchLimits, random_search
 from flightid.accuracy.slices import CostSlice, cost_slice
 from flightid.accuracy.whiteness import Whiteness, estimate_whiteness, residual_whiteness
+from flightid.results import contour_level, ellipsoid_intervals, residual_variance_factor
 
 __all__ = [
     "METHODS",

@@ -28,19 +28,7 @@ import numpy as np
 
 from flightid.accuracy.coloured import coloured_covariance
 from flightid.accuracy.contour import Contour, polish_minimum
-from flightid.accuracy.intervals import (
-    correlation_matrix,
-    correlation_warnings,
-    ellipsoid_intervals,
-    emit,
-)
-from flightid.accuracy.levels import (
-    DISTRIBUTIONS,
-    KINDS,
-    check_level,
-    contour_level,
-    residual_variance_factor,
-)
+from flightid.accuracy.intervals import correlation_matrix, correlation_warnings, emit
 from flightid.accuracy.nonlinearity import beale_nonlinearity
 from flightid.accuracy.profile import profile_limits
 from flightid.accuracy.result import AccuracyResult
@@ -49,6 +37,14 @@ from flightid.data.flightdata import FlightData
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.estimation.result import Estimate
+from flightid.results import (
+    DISTRIBUTIONS,
+    KINDS,
+    check_level,
+    contour_level,
+    ellipsoid_intervals,
+    residual_variance_factor,
+)
 
 __all__ = ["METHODS", "assess", "problem_for", "region_contour"]
 

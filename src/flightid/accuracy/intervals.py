@@ -1,8 +1,9 @@
-"""Intervals from the information matrix, the correlation matrix, and their warnings.
+"""The correlation matrix of the information-matrix intervals, and their warnings.
 
 With C = M⁻¹ (M = Σ_i G_iᵀ R⁻¹ G_i at θ̂, the Cramér–Rao bound [3.47–3.49]) and a contour
-level Δ (``levels.contour_level``), the quadratic approximation of the confidence region is the
-ellipsoid (θ − θ̂)ᵀ M (θ − θ̂) ≤ Δ; its extent along parameter j is
+level Δ (``flightid.results.contour_level``), the quadratic approximation of the confidence
+region is the ellipsoid (θ − θ̂)ᵀ M (θ − θ̂) ≤ Δ; its extent along parameter j
+(``flightid.results.ellipsoid_intervals``) is
 
     θ̂_j ± √(Δ · C_jj)                                                  [5.24–5.27]
 
@@ -21,7 +22,6 @@ __all__ = [
     "AccuracyWarning",
     "correlation_matrix",
     "correlation_warnings",
-    "ellipsoid_intervals",
     "emit",
 ]
 
@@ -36,22 +36,6 @@ def emit(messages: list[str], stacklevel: int = 3) -> None:
     """Issue each message as an ``AccuracyWarning``."""
     for message in messages:
         warnings.warn(message, AccuracyWarning, stacklevel=stacklevel)
-
-
-def ellipsoid_intervals(center: np.ndarray, covariance: np.ndarray, delta: float) -> np.ndarray:
-    """Projection of {(θ − θ̂)ᵀ C⁻¹ (θ − θ̂) ≤ Δ} on each axis: (n_f, 2) [lo, hi].
-
-    Args:
-        center: θ̂ (n_f,).
-        covariance: C = M⁻¹ (n_f × n_f); inf on the diagonal for undetermined parameters.
-        delta: the contour level Δ (units of J).
-    """
-    center = np.asarray(center, dtype=float)
-    variance = np.diag(np.asarray(covariance, dtype=float)).copy()
-    variance[~np.isfinite(variance)] = np.inf
-    # half-width_j = √(Δ · C_jj)                                          [5.24–5.26]
-    half = np.sqrt(delta * np.maximum(variance, 0.0))
-    return np.column_stack([center - half, center + half])
 
 
 def correlation_matrix(covariance: np.ndarray) -> np.ndarray:

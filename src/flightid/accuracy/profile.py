@@ -33,6 +33,7 @@ import numpy as np
 
 from flightid.accuracy.contour import Contour
 from flightid.estimation.gauss_newton import gauss_newton_step
+from flightid.parallel import Shared, map_ordered
 
 __all__ = ["ProfileCurve", "ProfileLimits", "profile_curve", "profile_limits"]
 
@@ -236,8 +237,6 @@ def profile_limits(
     statuses: list[tuple[str, str]] = [("skipped", "skipped")] * n
     evaluations = np.zeros(n, dtype=int)
     points: list = [None] * n
-    from flightid.batch.engine import Shared, map_ordered
-
     shared = Shared(contour)
     tasks = [
         _ProfileTask(
@@ -264,7 +263,7 @@ def profile_limits(
 @dataclass(frozen=True)
 class _ProfileTask:
     """One parameter's profile limits (picklable: Dask ships the contour with cloudpickle,
-    loaded once per worker: ``flightid.batch.engine.Shared``)."""
+    loaded once per worker: ``flightid.parallel.Shared``)."""
 
     shared: Any
     covariance: np.ndarray

@@ -10,7 +10,15 @@ from flightid.accuracy.nonlinearity import Nonlinearity
 from flightid.accuracy.profile import ProfileLimits
 from flightid.accuracy.search import SearchLimits
 from flightid.errors import InputError
-from flightid.results import ResultSurface, check_method, finite_or_none
+from flightid.results import (
+    ResultSurface,
+    check_level,
+    check_method,
+    contour_level,
+    ellipsoid_intervals,
+    finite_or_none,
+    render_summary,
+)
 
 __all__ = ["AccuracyResult", "accuracy_json", "INTERVAL_METHODS"]
 
@@ -118,9 +126,6 @@ class AccuracyResult(ResultSurface):
             (n_f, 2) array in the parameters' units, rows as in ``conf_int_names``; an open
             side is ±inf.
         """
-        from flightid.accuracy.intervals import ellipsoid_intervals
-        from flightid.accuracy.levels import check_level, contour_level
-
         check_method(method, INTERVAL_METHODS)
         table = getattr(self, f"ci_{method}")
         if table is None:
@@ -213,47 +218,8 @@ class AccuracyResult(ResultSurface):
         return float(table[j, 0]), float(table[j, 1])
 
     def summary(self) -> str:
-        """A table of the intervals beside each other."""
-        from flightid.report.text import format_table
-
-        def cell(pair) -> str:
-            lo, hi = pair
-            return f"[{lo:.4g}, {hi:.4g}]"
-
-        units = self.unit_map
-        show_units = any(units.values())
-        headers = ["parameter", *(["unit"] if show_units else [])]
-        headers += ["estimate", "s·σ (CR)", "σ coloured", f"CR {self.level:g}"]
-        headers += ["CR Beale"]
-        if self.profile is not None:
-            headers.append("profile")
-        if self.search is not None:
-            headers.append("search")
-        rows = []
-        for j, name in enumerate(self.names):
-            row = [
-                name,
-                *([units[name]] if show_units else []),
-                f"{self.center[j]:.6g}",
-                f"{self.std_scaled[j]:.3g}",
-                f"{self.std_coloured[j]:.3g}",
-                cell(self.ci_cr[j]),
-                cell(self.ci_cr_beale[j]),
-            ]
-            if self.profile is not None:
-                row.append(cell(self.profile.intervals[j]))
-            if self.search is not None:
-                row.append(cell(self.search.intervals[j]))
-            rows.append(row)
-        lines = [
-            f"{self.kind} {self.level:g} intervals ({self.distribution}); s² = {self.s2:.4g}, "
-            f"Δ = {self.delta:.4g}, Beale Δ = {self.delta_beale:.4g}, "
-            f"N_φ = {self.nonlinearity.n_phi:.3g}, coloured-residual lag L = {self.coloured_lag}",
-            format_table(headers, rows),
-            "evaluations: " + ", ".join(f"{k} {v}" for k, v in self.evaluations.items()),
-        ]
-        lines += [f"warning: {w}" for w in self.warnings]
-        return "\n".join(lines)
+        """A table of the intervals beside each other (``flightid.report.text``)."""
+        return render_summary(self)
 
 
 def _pair(values) -> list:

@@ -49,6 +49,7 @@ import numpy as np
 
 from flightid.accuracy.contour import Contour
 from flightid.accuracy.progress import Progress
+from flightid.parallel import Shared, map_ordered
 
 __all__ = ["CHUNK", "MAX_WAVES", "SearchLimits", "random_search"]
 
@@ -202,7 +203,7 @@ class _Outcome:
 
 @dataclass(frozen=True)
 class _GlobalChunk:
-    shared: Any  # flightid.batch.engine.Shared of the Contour (loaded once per worker)
+    shared: Any  # flightid.parallel.Shared of the Contour (loaded once per worker)
     geometry: _Geometry
     size: int
     stream: np.random.SeedSequence
@@ -211,7 +212,7 @@ class _GlobalChunk:
 
 @dataclass(frozen=True)
 class _Refinement:
-    shared: Any  # flightid.batch.engine.Shared of the Contour
+    shared: Any  # flightid.parallel.Shared of the Contour
     geometry: _Geometry
     target: tuple[int, int]  # (j, side): side 0 lower, 1 upper
     values: np.ndarray  # the merged extremes the task starts from
@@ -329,8 +330,6 @@ def random_search(
     Raises:
         TaskError: a task failed (named in the message).
     """
-    from flightid.batch.engine import Shared, map_ordered
-
     n = contour.n_free
     shared = Shared(contour)
     covariance = np.asarray(covariance, dtype=float)

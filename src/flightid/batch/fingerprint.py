@@ -41,9 +41,8 @@ def code_digest() -> str:
     """SHA-256 of the flightid package's Python sources (the code that computes a result):
     a changed solver, model builder or report changes every fingerprint, also where the
     version string stays the same (a development checkout). Computed once per process."""
-    import flightid
-
-    root = Path(flightid.__file__).resolve().parent
+    # the flightid package folder: this module lives in flightid/batch/
+    root = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode("utf-8") + b"\0")
@@ -83,7 +82,7 @@ def fingerprint(case: BatchCase, data_dir: str | Path | None, accuracy: str | No
         data_dir: the ``--data-dir`` override (None: the case's own).
         accuracy: the ``--accuracy`` option (None: the case's ``accuracy.methods``).
     """
-    from flightid import __version__
+    from flightid._version import __version__
 
     document = {
         "text": case.text,

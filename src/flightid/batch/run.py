@@ -27,10 +27,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from flightid.batch.engine import DaskEngine, SerialEngine, make_engine
+from flightid.batch.engine import DaskEngine, make_engine
 from flightid.batch.fingerprint import fingerprint
 from flightid.batch.plan import BatchCase, BatchError, plan_cases
 from flightid.batch.task import CaseTask, read_record, run_task
+from flightid.parallel import SerialEngine
 
 try:  # POSIX
     import fcntl

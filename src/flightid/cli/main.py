@@ -33,7 +33,7 @@ import threading
 import traceback
 import warnings
 
-from flightid import __version__
+from flightid._version import __version__
 from flightid.errors import FlightIdWarning, error_line
 
 # Sub-command modules, in the order they appear in --help.

@@ -78,7 +78,7 @@ def _emit(run, as_json: bool) -> int:
     from flightid.paper.examples12 import comparison_table
 
     if as_json:
-        from flightid.report.jsonout import dumps
+        from flightid.jsonout import dumps
 
         sys.stdout.write(dumps(run.to_dict()) + "\n")
     else:

@@ -27,7 +27,7 @@ once (``flightid.report.folder``), after the summary has been printed; a folder 
 holds a run is replaced (whole) only with ``--overwrite``, and only when flightid wrote every
 file in it (its manifest ``.flightid-run``). The current folder, the home folder and a folder
 holding the case file, its data or its model module are refused. All JSON is strict: NaN and
-±inf become null and are listed under ``"nonfinite"`` (``flightid.report.jsonout``).
+±inf become null and are listed under ``"nonfinite"`` (``flightid.jsonout``).
 """
 
 from __future__ import annotations
@@ -205,7 +205,7 @@ def answer_then_files(
     with a result folder, ``write(directory) -> Path`` fills it and a progress line
     ("``written`` written to …") names the main file. Also used by ``flightid design``."""
     from flightid.cases.run import stderr_progress
-    from flightid.report.jsonout import dumps
+    from flightid.jsonout import dumps
 
     if args.json:
         print(dumps(document()))
@@ -303,7 +303,7 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
 
     from flightid.cases.run import stderr_progress
     from flightid.cases.stages import run_stages
-    from flightid.report.jsonout import dumps
+    from flightid.jsonout import dumps
     from flightid.results import results_document
 
     run = run_stages(

@@ -194,7 +194,7 @@ class DesignResult:
         return pandas.DataFrame(rows).set_index("name")
 
     def to_json(self, indent: int | None = 2) -> str:
-        from flightid.report.jsonout import dumps
+        from flightid.jsonout import dumps
 
         return dumps(self.to_dict(), indent=indent)
 

@@ -23,7 +23,14 @@ from flightid.coloured import COLOURED, CRAMER_RAO, complete_default_sigma, sigm
 from flightid.errors import InputError
 from flightid.model.parameters import Parameters
 from flightid.model.statespace import StateSpaceModel
-from flightid.results import ResultSurface, check_method
+from flightid.results import (
+    ResultSurface,
+    check_method,
+    contour_level,
+    ellipsoid_intervals,
+    render_summary,
+    residual_variance_factor,
+)
 
 __all__ = ["Estimate"]
 
@@ -251,9 +258,6 @@ class Estimate(ResultSurface):
             (n_f, 2) array [lower, upper] in the parameters' units, rows as in
             ``conf_int_names``; an undetermined parameter (σ = inf) gets (-inf, inf).
         """
-        from flightid.accuracy.intervals import ellipsoid_intervals
-        from flightid.accuracy.levels import contour_level, residual_variance_factor
-
         check_method(method, ("cr",))
         check_method(std, ("default", "cr"), "std")
         n_free = len(self.free_names)
@@ -306,9 +310,7 @@ class Estimate(ResultSurface):
     def summary(self) -> str:
         """A readable table of the estimates with their default σ (and the Cramér–Rao
         bounds beside it when the residuals are coloured)."""
-        from flightid.report.text import estimate_summary
-
-        return estimate_summary(self)
+        return render_summary(self)
 
     def to_dict(self) -> dict:
         """The JSON contract: method, converged, status, cost, iterations, evaluations, ..."""
@@ -360,8 +362,8 @@ class Estimate(ResultSurface):
 
     def to_json(self, indent: int | None = 2) -> str:
         """Strict JSON of ``to_dict()``: a non-finite number becomes null, listed under
-        ``"nonfinite"`` (``flightid.report.jsonout``)."""
-        from flightid.report.jsonout import dumps
+        ``"nonfinite"`` (``flightid.jsonout``)."""
+        from flightid.jsonout import dumps
 
         return dumps(self.to_dict(), indent=indent)
 

@@ -412,7 +412,7 @@ def cli_main(args) -> int:
         for path in plot_example3(run, args.plot):
             print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
-        from flightid.report.jsonout import dumps  # strict JSON: NaN / inf become null
+        from flightid.jsonout import dumps  # strict JSON: NaN / inf become null
 
         sys.stdout.write(dumps(example3_json(args.case, seed, run, accuracy)) + "\n")
     else:

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightid.accuracy.coloured import coloured_covariance, residual_autocovariance
-from flightid.accuracy.levels import residual_variance_factor
 from flightid.errors import InputError
+from flightid.results import residual_variance_factor
 
 __all__ = [
     "COLOURED_RATIO_WARNING",

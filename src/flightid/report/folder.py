@@ -672,6 +672,6 @@ class ResultFolder:
 
 
 def _version() -> str:
-    from flightid import __version__
+    from flightid._version import __version__
 
     return __version__

@@ -134,7 +134,7 @@ def results_file_document(run) -> dict:
 def write_results_and_histories(run, directory: Path) -> None:
     """Write results.json (strict JSON, ``results_file_document``) and time_histories.csv
     into ``directory``."""
-    from flightid.report.jsonout import dumps
+    from flightid.jsonout import dumps
 
     directory = Path(directory)
     (directory / "results.json").write_text(

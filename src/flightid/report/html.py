@@ -5,7 +5,7 @@
     out_dir/results.json     {"schema_version": "1", "results": [entry], "time_histories":
                              {...}} (the JSON contract, see flightid.cli.run and
                              docs/schema/results.schema.json; strict JSON, see
-                             flightid.report.jsonout)
+                             flightid.jsonout)
     out_dir/time_histories.csv  every sample: maneuver, role, time, inputs, measured,
                              predicted, residual (``flightid.report.histories``)
     out_dir/estimates.csv    name, unit, value, std (the default σ), std_cr (the Cramér–Rao
@@ -287,7 +287,7 @@ def _unit(unit: str | None) -> str:
 
 
 def _provenance(run, generated_utc: str) -> list[list[str]]:
-    from flightid import __version__
+    from flightid._version import __version__
 
     case = run.case
     digest = getattr(run, "case_sha256", "") or "— (the case was not read from a file)"
@@ -757,7 +757,7 @@ def write_files(run, directory: Path) -> Path:
     model, reconstructed_<maneuver>.csv: ``flightid.compat.reconstruct``) into ``directory``
     (which exists); returns the HTML path. ``write_report`` calls this on a temporary folder.
 
-    results.json is strict JSON (``flightid.report.jsonout``: NaN / ±inf become null, listed
+    results.json is strict JSON (``flightid.jsonout``: NaN / ±inf become null, listed
     under ``"nonfinite"``). The figures are written to ``figures/`` and embedded in
     report.html (base64 PNG), so the page stands alone. ``[output] figures = false`` skips the
     figures (folder and page), ``report = false`` the HTML page.

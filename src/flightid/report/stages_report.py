@@ -92,7 +92,7 @@ def _whiteness_rows(whiteness: Whiteness) -> list[list[str]]:
 
 def render_stages_html(run, figures: dict[int, tuple[str, bytes]] | None = None) -> str:
     """The page as one HTML string; ``figures`` maps a stage index to its (file, PNG)."""
-    from flightid import __version__
+    from flightid._version import __version__
 
     case = run.case
     entries = {e["name"]: e for e in run.stages_dict()}

@@ -28,8 +28,8 @@ _STYLE = (
 def write_results_json(directory: str | Path, entry: dict) -> Path:
     """Write ``directory/results.json`` — the layout-1 document
     (``flightid.results.results_document``) with the one ``entry``, strict JSON
-    (``flightid.report.jsonout``), UTF-8 — and return its path."""
-    from flightid.report.jsonout import dumps
+    (``flightid.jsonout``), UTF-8 — and return its path."""
+    from flightid.jsonout import dumps
     from flightid.results import results_document
 
     path = Path(directory) / "results.json"
@@ -54,7 +54,7 @@ def write_summary_page(
         files: data files to link, relative to ``directory`` or absolute inside it.
         title: the page's heading; default the summary's first line (its title line).
     """
-    from flightid import __version__
+    from flightid._version import __version__
 
     directory = Path(directory)
     if title is None:

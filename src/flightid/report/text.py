@@ -1,10 +1,19 @@
-"""Text summaries of estimation results."""
+"""Text summaries of estimation and accuracy results."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["estimate_summary", "format_table", "sigma_note", "sigma_range"]
+from flightid.errors import InputTypeError, describe
+
+__all__ = [
+    "accuracy_summary",
+    "estimate_summary",
+    "format_table",
+    "sigma_note",
+    "sigma_range",
+    "summary_of",
+]
 
 
 def format_table(headers: list[str], rows: list[list[str]]) -> str:
@@ -136,3 +145,62 @@ def estimate_summary(result) -> str:
         ["output", *(["unit"] if show else []), "R (variance)", "fit RMS"], noise_rows
     )
     return "\n".join(head) + table + "\n\n" + noise
+
+
+def accuracy_summary(result) -> str:
+    """The intervals of an ``AccuracyResult`` beside each other: estimate, s·σ, coloured σ,
+    the Cramér–Rao, Beale (and, when run, profile and search) intervals; Δ, s², N_φ and the
+    evaluations above and below the table."""
+
+    def cell(pair) -> str:
+        lo, hi = pair
+        return f"[{lo:.4g}, {hi:.4g}]"
+
+    units = result.unit_map
+    show_units = any(units.values())
+    headers = ["parameter", *(["unit"] if show_units else [])]
+    headers += ["estimate", "s·σ (CR)", "σ coloured", f"CR {result.level:g}"]
+    headers += ["CR Beale"]
+    if result.profile is not None:
+        headers.append("profile")
+    if result.search is not None:
+        headers.append("search")
+    rows = []
+    for j, name in enumerate(result.names):
+        row = [
+            name,
+            *([units[name]] if show_units else []),
+            f"{result.center[j]:.6g}",
+            f"{result.std_scaled[j]:.3g}",
+            f"{result.std_coloured[j]:.3g}",
+            cell(result.ci_cr[j]),
+            cell(result.ci_cr_beale[j]),
+        ]
+        if result.profile is not None:
+            row.append(cell(result.profile.intervals[j]))
+        if result.search is not None:
+            row.append(cell(result.search.intervals[j]))
+        rows.append(row)
+    lines = [
+        f"{result.kind} {result.level:g} intervals ({result.distribution}); s² = {result.s2:.4g}, "
+        f"Δ = {result.delta:.4g}, Beale Δ = {result.delta_beale:.4g}, "
+        f"N_φ = {result.nonlinearity.n_phi:.3g}, coloured-residual lag L = {result.coloured_lag}",
+        format_table(headers, rows),
+        "evaluations: " + ", ".join(f"{k} {v}" for k, v in result.evaluations.items()),
+    ]
+    lines += [f"warning: {w}" for w in result.warnings]
+    return "\n".join(lines)
+
+
+def summary_of(result) -> str:
+    """The text summary of an ``Estimate`` or an ``AccuracyResult`` (their ``summary()``)."""
+    from flightid.accuracy.result import AccuracyResult
+    from flightid.estimation.result import Estimate
+
+    if isinstance(result, Estimate):
+        return estimate_summary(result)
+    if isinstance(result, AccuracyResult):
+        return accuracy_summary(result)
+    raise InputTypeError(
+        f"result: expected an Estimate or an AccuracyResult, got {describe(result)}"
+    )

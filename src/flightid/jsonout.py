@@ -1,4 +1,5 @@
-"""Strict JSON for every document flightid writes (results.json, ``--json`` output).
+"""Strict JSON for every document flightid writes (results.json, ``--json`` output), in the
+shared core so that every result can write its own JSON.
 
 JSON (RFC 8259) has no NaN or infinity; Python's ``json`` writes them as ``NaN`` /
 ``Infinity`` unless told not to, and such files are rejected by strict readers. Here every
