@@ -386,18 +386,7 @@ _AERO_STEP = {
         ),
         (
             None,
-            [
-                {
-                    "kind": "aero_coefficients",
-                    "mass": {"value": 1.0, "unit": "m"},
-                    "Ix": 1,
-                    "Iy": 1,
-                    "Iz": 1,
-                    "S": 1,
-                    "cbar": 1,
-                    "b": 1,
-                }
-            ],
+            [{**_AERO_STEP, "mass": {"value": 1.0, "unit": "m"}}],
             None,
             PreprocessError,
             "mass: expected a value in kg",
