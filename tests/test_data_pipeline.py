@@ -310,6 +310,19 @@ def test_the_reconstruction_writer_output_is_read_with_greek_names(tmp_path):
 # ------------------------------------------------------------------ errors
 
 
+# an aero_coefficients step with unit mass, inertia and geometry
+_AERO_STEP = {
+    "kind": "aero_coefficients",
+    "mass": 1,
+    "Ix": 1,
+    "Iy": 1,
+    "Iz": 1,
+    "S": 1,
+    "cbar": 1,
+    "b": 1,
+}
+
+
 @pytest.mark.parametrize(
     ("signals", "steps", "constants", "error", "words"),
     [
@@ -373,36 +386,14 @@ def test_the_reconstruction_writer_output_is_read_with_greek_names(tmp_path):
         ),
         (
             None,
-            [
-                {
-                    "kind": "aero_coefficients",
-                    "mass": {"value": 1.0, "unit": "m"},
-                    "Ix": 1,
-                    "Iy": 1,
-                    "Iz": 1,
-                    "S": 1,
-                    "cbar": 1,
-                    "b": 1,
-                }
-            ],
+            [{**_AERO_STEP, "mass": {"value": 1.0, "unit": "m"}}],
             None,
             PreprocessError,
             "mass: expected a value in kg",
         ),
         (
             None,
-            [
-                {
-                    "kind": "aero_coefficients",
-                    "mass": 1,
-                    "Ix": 1,
-                    "Iy": 1,
-                    "Iz": 1,
-                    "S": 1,
-                    "cbar": -1,
-                    "b": 1,
-                }
-            ],
+            [{**_AERO_STEP, "cbar": -1}],
             None,
             PreprocessError,
             "cbar_m: expected a positive number",
@@ -418,6 +409,66 @@ def test_the_reconstruction_writer_output_is_read_with_greek_names(tmp_path):
         ({"pi": "1 + 1"}, None, None, ChannelError, "identifiers other than 't' and 'pi'"),
         ({"y": "sinh(2)"}, None, None, ChannelError, "unknown function 'sinh'"),
         (None, None, {"t": 1.0}, PreprocessError, "other than 't' and 'pi'"),
+        ([1], None, None, PreprocessError, r"signals: expected a table of name = channel"),
+        (
+            None,
+            "x",
+            None,
+            PreprocessError,
+            r"steps: expected an array of tables \[\[data.steps\]\]",
+        ),
+        (
+            None,
+            [{"kind": "remove_bias", "biases": {}}],
+            None,
+            PreprocessError,
+            r"steps\[0\] \(remove_bias\).biases: expected a table signal = bias",
+        ),
+        (
+            None,
+            [{"kind": "transfer_air_data", "sensor": [0, 0, 0], "signals": [1]}],
+            None,
+            PreprocessError,
+            r"\(transfer_air_data\).signals: expected a table role = signal, got \[1\]",
+        ),
+        (
+            None,
+            [{"kind": "remove_bias", "biases": {"p": 0.1}, "names": [1]}],
+            None,
+            PreprocessError,
+            r"\(remove_bias\).names: expected a table role = name, got \[1\]",
+        ),
+        (
+            None,
+            [{"kind": "remove_bias", "biases": {"p": 0.1}, "names": {"q": "pc"}}],
+            None,
+            PreprocessError,
+            r"\(remove_bias\).names: unknown role\(s\) \['q'\]; roles: \['p'\]",
+        ),
+        (
+            None,
+            [
+                {"kind": "transfer_air_data", "sensor": [0, 0, 0]},
+                {"kind": "transfer_air_data", "sensor": [1, 0, 0]},
+            ],
+            None,
+            PreprocessError,
+            r"steps\[1\] \(transfer_air_data\).names.V: 'V_cg' is already made by steps\[0\]",
+        ),
+        (
+            None,
+            [{"kind": "transfer_air_data", "sensor": [0, 0, 0]}],
+            {"V_cg": 1.0},
+            PreprocessError,
+            "constants.V_cg: the name is also a signal",
+        ),
+        (
+            {"T": {"column": 1, "unit": "lbf", "to": "lbf"}},
+            [{**_AERO_STEP, "engines": [{"thrust": "T", "position": [0, 0, 0]}]}],
+            None,
+            PreprocessError,
+            "engines: the thrust signal 'T' is in 'lbf', expected N",
+        ),
     ],
 )
 def test_bad_pipelines_are_named_errors_without_data(signals, steps, constants, error, words):

@@ -81,6 +81,15 @@ def test_v5_struct_fields_are_columns_by_name(v5_structs):
     np.testing.assert_array_equal(other.column("p"), -P)
 
 
+def test_v5_file_without_matrix_or_vectors_is_refused(tmp_path):
+    from scipy.io import savemat
+
+    path = tmp_path / "scalars.mat"
+    savemat(str(path), {"mass": 1.5, "title": "run 3"})
+    with pytest.raises(DataFileError, match=r"scalars.mat: no numeric matrix or vectors found$"):
+        read_table(path)
+
+
 def test_v5_nested_struct_by_dotted_name(v5_structs):
     table = read_table(v5_structs, variable="flight.ail_1")
     np.testing.assert_array_equal(table.column("delta_a"), DA)

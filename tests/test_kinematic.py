@@ -319,6 +319,10 @@ def test_biases_scale_factors_and_delay_recovered_within_three_sigma():
         ({"wind": ("W_X",)}, "wind: expected names from ['W_N', 'W_E', 'W_D']"),
         ({"wind": "W_N"}, "wind: expected a list"),
         ({"outputs": ("V", "x_N")}, "'x_N' is not an integrated state"),
+        ({"outputs": ()}, "outputs: expected at least one output"),
+        ({"g": True}, "g: expected a number (L/s²), got True"),
+        ({"g": float("nan")}, "g: expected a positive finite number (L/s²), got nan"),
+        ({"scale_reference": {"α": "1"}}, "scale_reference.α: expected a number, got '1'"),
     ],
 )
 def test_named_errors(arguments, message):

@@ -445,6 +445,41 @@ def test_bad_settings_and_samples_are_named():
         ekf.feed(0.2, [np.nan], [0.0, 0.0])
 
 
+_FTR_F = np.arange(0.1, 1.6, 0.1)  # 15 frequencies, Hz
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ((True, 1, _FTR_F, 5), "n_states: expected a non-negative integer, got True"),
+        ((0, 1, _FTR_F, 5), "n_states: expected a non-negative integer, got 0"),
+        ((2, -1, _FTR_F, 5), "n_inputs: expected a non-negative integer, got -1"),
+        ((2, 1, _FTR_F[:3], 5), "frequencies_hz: expected more than 3 positive frequencies"),
+        ((2, 1, [0.1, -1, 2, 3, 4], 5), "frequencies_hz: expected more than 3 positive"),
+        ((2, 1, _FTR_F, 0), "update_every: expected a positive integer, got 0"),
+        ((2, 1, _FTR_F, 5, None, None, 2.0), "n_mean: expected a positive integer, got 2.0"),
+        (
+            (2, 1, _FTR_F, 5, [["a", "b", "c"], ["d", "e"]]),
+            "parameter_names: expected 2 rows of 3 names, got [['a', 'b', 'c'], ['d', 'e']]",
+        ),
+        (
+            (2, 1, _FTR_F, 5, [["a", "b", "c"], ["d", "e", "a"]]),
+            "parameter_names: expected unique names, got ['a', 'b', 'c', 'd', 'e', 'a']",
+        ),
+        (
+            (2, 1, _FTR_F, 5, None, {"Q": 1.0}),
+            "offsets: ['Q'] are not parameter names ['A11', 'A12', 'B11', 'A21', 'A22', 'B21']",
+        ),
+        ((2, 1, _FTR_F, 5, None, {"A12": np.nan}), "offsets['A12']: expected a finite number"),
+        ((2, 1, _FTR_F, 5, None, None, 10, [-0.1]), "input_delays_s: expected finite delays"),
+    ],
+)
+def test_ftr_arguments_are_named_input_errors(arguments, message):
+    with pytest.raises(InputError) as info:
+        FourierTransformRegression(*arguments)
+    assert message in str(info.value)
+
+
 def test_innovation_test_warns_when_the_noise_model_is_wrong(linear_data):
     """R0 100× too small (σ 10× too small): most innovations lie outside their covariance,
     the result says so and is not reported as converged."""

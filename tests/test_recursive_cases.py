@@ -245,6 +245,16 @@ def _case(recursive: dict, model: bool = True):
     return parse_case(raw, ROOT / "examples/cases/fake.toml")
 
 
+# a complete FTR table (the others' errors are those of one changed key)
+_FTR_TABLE = {
+    "method": "ftr",
+    "states": ["q"],
+    "inputs": ["de"],
+    "update_every_s": 1.0,
+    "frequencies_hz": {"start": 0.2, "stop": 1.5, "step": 0.04},
+}
+
+
 @pytest.mark.parametrize(
     "table, message",
     [
@@ -272,6 +282,31 @@ def _case(recursive: dict, model: bool = True):
             },
             "recursive.frequencies_hz.step",
         ),  # fmt: skip
+        (
+            {"method": "efrls", "jacobian_step": [1e-7]},
+            r"recursive.jacobian_step: the EFRLS step is relative, one number; got \[1e-07\]",
+        ),
+        ({**_FTR_TABLE, "states": []}, r"recursive.states: expected at least one state channel"),
+        (
+            {**_FTR_TABLE, "frequencies_hz": [0.2, 1.5]},
+            r"recursive.frequencies_hz: expected a table \{start, stop, step\} \(Hz\)",
+        ),
+        (
+            {**_FTR_TABLE, "update_every_s": 0},
+            r"recursive.update_every_s: expected a time > 0 \(s\), got 0.0",
+        ),
+        (
+            {**_FTR_TABLE, "parameter_names": "Zw"},
+            "recursive.parameter_names: expected a list of lists of names, got 'Zw'",
+        ),
+        (
+            {**_FTR_TABLE, "offsets": [1.0]},
+            r"recursive.offsets: expected a table name = number, got \[1.0\]",
+        ),
+        (
+            {**_FTR_TABLE, "input_delays_s": 0.05},
+            r"recursive.input_delays_s: expected a table input channel = delay \(s\), got 0.05",
+        ),
     ],
 )
 def test_bad_recursive_keys_are_case_errors_naming_the_key(table, message):

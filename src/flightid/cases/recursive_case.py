@@ -96,8 +96,8 @@ def _numbers(value: Any, key: str, *, positive: bool = False) -> float | list[fl
     return checked if isinstance(value, list) else checked[0]
 
 
-def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
-    """The checked ``[recursive]`` table, with defaults filled in (CaseError naming the key)."""
+def _method(table: Any) -> str:
+    """The checked method of ``[recursive]``; every key known to it, every key it needs."""
     if not isinstance(table, Mapping) or not table:
         raise CaseError("recursive: expected a table with at least 'method'")
     if "method" not in table:
@@ -107,87 +107,145 @@ def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
     for key in _REQUIRED[method]:
         if key not in table:
             raise CaseError(f"recursive.{key}: missing; method {method!r} needs it")
-    settings: dict[str, Any] = {"method": method}
-    settings["report"] = _string(
+    return method
+
+
+def _report(table: Mapping[str, Any], method: str) -> str:
+    """``report``: "final" or "last_<n>" (default last_5 updates for the FTR, else last_10)."""
+    report = _string(
         table.get("report", "last_5" if method == "ftr" else "last_10"), "recursive.report"
     )
     from flightid.recursive.result import report_rows
 
     try:
-        report_rows(settings["report"], 1)
+        report_rows(report, 1)
     except InputError as exc:
         raise CaseError(f"recursive.{exc}") from None
-    settings["compiled"] = _bool(table.get("compiled", True), "recursive.compiled")
-    if method in ("ekf", "ukf", "ukf_aug"):
-        settings["p0"] = _numbers(table["p0"], "recursive.p0")
-        settings["q_states"] = _numbers(table["q_states"], "recursive.q_states")
-        settings["r0"] = _numbers(table["r0"], "recursive.r0", positive=True)
+    return report
+
+
+def _filter_settings(table: Mapping[str, Any], method: str) -> dict[str, Any]:
+    """p0, q_states, r0 (and the EKF's jacobian_step) of the EKF, UKF and UKF_aug."""
+    settings = {
+        "p0": _numbers(table["p0"], "recursive.p0"),
+        "q_states": _numbers(table["q_states"], "recursive.q_states"),
+        "r0": _numbers(table["r0"], "recursive.r0", positive=True),
+    }
     if method == "ekf":
         settings["jacobian_step"] = _numbers(
             table.get("jacobian_step", 1e-4), "recursive.jacobian_step", positive=True
         )
-    if method == "efrls":
-        settings["p0"] = _numbers(table.get("p0", 1e3), "recursive.p0", positive=True)
-        forgetting = _number(table.get("forgetting", 0.998), "recursive.forgetting")
-        if not 0.0 < forgetting <= 1.0:
-            raise CaseError(f"recursive.forgetting: expected a number in (0, 1], got {forgetting}")
-        settings["forgetting"] = forgetting
-        step = table.get("jacobian_step", 1e-7)
-        if isinstance(step, list):
-            raise CaseError(
-                f"recursive.jacobian_step: the EFRLS step is relative, one number; got {step!r}"
-            )
-        settings["jacobian_step"] = _numbers(step, "recursive.jacobian_step", positive=True)
-    if method == "ftr":
-        settings["states"] = _names(table["states"], "recursive.states")
-        settings["inputs"] = _names(table["inputs"], "recursive.inputs")
-        if not settings["states"]:
-            raise CaseError("recursive.states: expected at least one state channel, got []")
-        for key in ("states", "inputs"):
-            repeated = sorted({n for n in settings[key] if settings[key].count(n) > 1})
-            if repeated:
-                raise CaseError(f"recursive.{key}: {repeated} named more than once")
-        both = sorted(set(settings["states"]) & set(settings["inputs"]))
-        if both:
-            raise CaseError(
-                f"recursive.inputs: {both} also named in recursive.states (a channel is a "
-                "state or an input)"
-            )
-        grid = table["frequencies_hz"]
-        if not isinstance(grid, Mapping):
-            raise CaseError(
-                f"recursive.frequencies_hz: expected a table {{start, stop, step}} (Hz), got "
-                f"{grid!r}"
-            )
-        _known(grid, {"start", "stop", "step"}, "recursive.frequencies_hz")
-        for key in ("start", "stop", "step"):
-            if key not in grid:
-                raise CaseError(f"recursive.frequencies_hz.{key}: missing (Hz)")
-        settings["frequencies_hz"] = {
-            key: _number(grid[key], f"recursive.frequencies_hz.{key}")
-            for key in ("start", "stop", "step")
-        }
-        update = _number(table["update_every_s"], "recursive.update_every_s")
-        if update <= 0:
-            raise CaseError(f"recursive.update_every_s: expected a time > 0 (s), got {update}")
-        settings["update_every_s"] = update
-        settings["n_mean"] = _integer(table.get("n_mean", 10), "recursive.n_mean", 1)
-        if "parameter_names" in table:
-            rows = table["parameter_names"]
-            if not isinstance(rows, list):
-                raise CaseError(
-                    f"recursive.parameter_names: expected a list of lists of names, got {rows!r}"
-                )
-            settings["parameter_names"] = [
-                _names(row, f"recursive.parameter_names[{i}]") for i, row in enumerate(rows)
-            ]
-        offsets = table.get("offsets", {})
-        if not isinstance(offsets, Mapping):
-            raise CaseError(f"recursive.offsets: expected a table name = number, got {offsets!r}")
-        settings["offsets"] = {k: _number(v, f"recursive.offsets.{k}") for k, v in offsets.items()}
-        settings["input_delays_s"] = _ftr_delays(
-            table.get("input_delays_s", {}), settings["inputs"]
+    return settings
+
+
+def _efrls_settings(table: Mapping[str, Any]) -> dict[str, Any]:
+    """p0, forgetting in (0, 1] and the relative jacobian_step (one number) of the EFRLS."""
+    p0 = _numbers(table.get("p0", 1e3), "recursive.p0", positive=True)
+    forgetting = _number(table.get("forgetting", 0.998), "recursive.forgetting")
+    if not 0.0 < forgetting <= 1.0:
+        raise CaseError(f"recursive.forgetting: expected a number in (0, 1], got {forgetting}")
+    step = table.get("jacobian_step", 1e-7)
+    if isinstance(step, list):
+        raise CaseError(
+            f"recursive.jacobian_step: the EFRLS step is relative, one number; got {step!r}"
         )
+    return {
+        "p0": p0,
+        "forgetting": forgetting,
+        "jacobian_step": _numbers(step, "recursive.jacobian_step", positive=True),
+    }
+
+
+def _ftr_channels(table: Mapping[str, Any]) -> tuple[list[str], list[str]]:
+    """(states, inputs): at least one state, no name twice, none both a state and an input."""
+    channels = {
+        "states": _names(table["states"], "recursive.states"),
+        "inputs": _names(table["inputs"], "recursive.inputs"),
+    }
+    if not channels["states"]:
+        raise CaseError("recursive.states: expected at least one state channel, got []")
+    for key, names in channels.items():
+        repeated = sorted({n for n in names if names.count(n) > 1})
+        if repeated:
+            raise CaseError(f"recursive.{key}: {repeated} named more than once")
+    both = sorted(set(channels["states"]) & set(channels["inputs"]))
+    if both:
+        raise CaseError(
+            f"recursive.inputs: {both} also named in recursive.states (a channel is a "
+            "state or an input)"
+        )
+    return channels["states"], channels["inputs"]
+
+
+def _frequency_grid(grid: Any) -> dict[str, float]:
+    """``frequencies_hz = {start, stop, step}`` (Hz), each a number."""
+    if not isinstance(grid, Mapping):
+        raise CaseError(
+            f"recursive.frequencies_hz: expected a table {{start, stop, step}} (Hz), got {grid!r}"
+        )
+    _known(grid, {"start", "stop", "step"}, "recursive.frequencies_hz")
+    for key in ("start", "stop", "step"):
+        if key not in grid:
+            raise CaseError(f"recursive.frequencies_hz.{key}: missing (Hz)")
+    return {
+        key: _number(grid[key], f"recursive.frequencies_hz.{key}")
+        for key in ("start", "stop", "step")
+    }
+
+
+def _update_every_s(value: Any) -> float:
+    """``update_every_s``: the time between least-squares updates, > 0 s."""
+    update = _number(value, "recursive.update_every_s")
+    if update <= 0:
+        raise CaseError(f"recursive.update_every_s: expected a time > 0 (s), got {update}")
+    return update
+
+
+def _ftr_parameter_names(rows: Any) -> list[list[str]]:
+    """``parameter_names``: a list of lists of names (one per state equation)."""
+    if not isinstance(rows, list):
+        raise CaseError(
+            f"recursive.parameter_names: expected a list of lists of names, got {rows!r}"
+        )
+    return [_names(row, f"recursive.parameter_names[{i}]") for i, row in enumerate(rows)]
+
+
+def _ftr_offsets(offsets: Any) -> dict[str, float]:
+    """``offsets = {name = number}``: the known parts removed before reporting."""
+    if not isinstance(offsets, Mapping):
+        raise CaseError(f"recursive.offsets: expected a table name = number, got {offsets!r}")
+    return {k: _number(v, f"recursive.offsets.{k}") for k, v in offsets.items()}
+
+
+def _ftr_settings(table: Mapping[str, Any]) -> dict[str, Any]:
+    """The FTR's channels, frequency grid, update interval, n_mean, names, offsets, delays."""
+    states, inputs = _ftr_channels(table)
+    settings: dict[str, Any] = {
+        "states": states,
+        "inputs": inputs,
+        "frequencies_hz": _frequency_grid(table["frequencies_hz"]),
+        "update_every_s": _update_every_s(table["update_every_s"]),
+        "n_mean": _integer(table.get("n_mean", 10), "recursive.n_mean", 1),
+    }
+    if "parameter_names" in table:
+        settings["parameter_names"] = _ftr_parameter_names(table["parameter_names"])
+    settings["offsets"] = _ftr_offsets(table.get("offsets", {}))
+    settings["input_delays_s"] = _ftr_delays(table.get("input_delays_s", {}), inputs)
+    return settings
+
+
+def recursive_settings(table: Mapping[str, Any]) -> dict[str, Any]:
+    """The checked ``[recursive]`` table, with defaults filled in (CaseError naming the key)."""
+    method = _method(table)
+    settings: dict[str, Any] = {"method": method}
+    settings["report"] = _report(table, method)
+    settings["compiled"] = _bool(table.get("compiled", True), "recursive.compiled")
+    if method in ("ekf", "ukf", "ukf_aug"):
+        settings.update(_filter_settings(table, method))
+    if method == "efrls":
+        settings.update(_efrls_settings(table))
+    if method == "ftr":
+        settings.update(_ftr_settings(table))
     return settings
 
 

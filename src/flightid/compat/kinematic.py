@@ -521,6 +521,185 @@ def _choice(value: object, argument: str, allowed: Sequence[str]) -> str:
     return str(value)
 
 
+def _states_and_outputs(states: object, outputs: object) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The checked integrated states and outputs (default: every output the states give)."""
+    states = _names(states, "states", QUANTITIES)
+    if not states:
+        raise InputError("states: expected at least one integrated kinematic quantity")
+    if outputs is None:
+        outputs = tuple(
+            o for o in OUTPUTS if o in _AIR_OUTPUTS or o in states
+        )  # every output the states give
+    outputs = _names(outputs, "outputs", OUTPUTS)
+    if not outputs:
+        raise InputError("outputs: expected at least one output")
+    for o in outputs:
+        if o in QUANTITIES and o not in states:
+            raise InputError(
+                f"outputs: {o!r} is not an integrated state (states {list(states)}); a "
+                "measured attitude, altitude or position cannot be an output of its own model"
+            )
+    return states, outputs
+
+
+def _gravity(g: object) -> float:
+    """The checked gravity, L/s²: a positive finite number."""
+    if isinstance(g, bool) or not isinstance(g, (int, float)):
+        raise InputTypeError(f"g: expected a number (L/s²), got {describe(g)}")
+    g = float(g)
+    if not (math.isfinite(g) and g > 0):
+        raise InputError(f"g: expected a positive finite number (L/s²), got {g!r}")
+    return g
+
+
+def _scale_reference(scale_reference: Mapping[str, float] | None) -> dict[str, float]:
+    """The checked {sensor: x_ref} of the scale factors (an output or a sensor input)."""
+    reference = dict(scale_reference or {})
+    for name, value in reference.items():
+        if name not in OUTPUTS and name not in SENSOR_INPUTS:
+            raise InputError(
+                f"scale_reference: {name!r} is not an output {list(OUTPUTS)} or input "
+                f"{list(SENSOR_INPUTS)}"
+            )
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InputError(f"scale_reference.{name}: expected a number, got {describe(value)}")
+    return reference
+
+
+@dataclass(frozen=True)
+class _Options:
+    """The checked arguments of ``kinematic_spec`` (positions: (x, y, z) from the CG, L)."""
+
+    states: tuple[str, ...]
+    outputs: tuple[str, ...]
+    wind: tuple[str, ...]
+    g: float
+    accelerometer: tuple[float, float, float]
+    airdata: tuple[float, float, float]
+    velocity_at: str
+    beta: str
+    bias_convention: str
+    scale_convention: str
+    length_unit: str
+    input_biases: tuple[str, ...]
+    input_scales: tuple[str, ...]
+    output_biases: tuple[str, ...]
+    output_scales: tuple[str, ...]
+    reference: dict[str, float]
+    delays: tuple[str, ...]
+    renames: dict[str, str]
+
+
+def _measured_quantities(opt: _Options) -> tuple[str, ...]:
+    """The kinematic quantities the state equations and outputs read but do not integrate."""
+    needed = {q for s in opt.states for q in _STATE_NEEDS[s]} | {
+        q for o in opt.outputs for q in _OUTPUT_NEEDS[o]
+    }
+    if opt.wind and any(o in _AIR_OUTPUTS for o in opt.outputs):
+        # the air data read the wind in body axes, Rᵀ·W: the attitude
+        needed |= {"φ", "θ", "ψ"}
+    return tuple(q for q in QUANTITIES if q in needed and q not in opt.states)
+
+
+@dataclass
+class _ParameterTable:
+    """The (default name, start value, unit) of each parameter and the θ index tables."""
+
+    defaults: list[tuple[str, float, str]]
+    in_bias: np.ndarray
+    in_scale: np.ndarray
+    out_bias: np.ndarray
+    out_scale: np.ndarray
+    wind: np.ndarray
+
+    def add(self, name: str, value: float, unit: str) -> int:
+        """Append a parameter; its θ index."""
+        self.defaults.append((name, value, unit))
+        return len(self.defaults) - 1
+
+
+def _parameter_table(opt: _Options) -> _ParameterTable:
+    """Parameters: input biases, input scales, then per output f then b, wind, then delays."""
+    L = opt.length_unit
+    scale_start = 1.0 if opt.scale_convention == "factor" else 0.0
+    table = _ParameterTable(
+        defaults=[],
+        in_bias=-np.ones(6, dtype=np.int64),
+        in_scale=-np.ones(6, dtype=np.int64),
+        out_bias=-np.ones(len(OUTPUTS), dtype=np.int64),
+        out_scale=-np.ones(len(OUTPUTS), dtype=np.int64),
+        wind=-np.ones(3, dtype=np.int64),
+    )
+    for i, s in enumerate(SENSOR_INPUTS):
+        if s in opt.input_biases:
+            table.in_bias[i] = table.add(f"b_{_INPUT_SUFFIX[s]}", 0.0, _unit(L, s))
+    for i, s in enumerate(SENSOR_INPUTS):
+        if s in opt.input_scales:
+            table.in_scale[i] = table.add(f"f_{_INPUT_SUFFIX[s]}", scale_start, "")
+    for o in opt.outputs:
+        i = OUTPUTS.index(o)
+        if o in opt.output_scales:
+            table.out_scale[i] = table.add(f"f_{o}", scale_start, "")
+        if o in opt.output_biases:
+            table.out_bias[i] = table.add(f"b_{o}", 0.0, _unit(L, o))
+    for i, component in enumerate(WIND):
+        if component in opt.wind:
+            table.wind[i] = table.add(component, 0.0, _unit(L, component))
+    for name in opt.delays:
+        table.add(name, 0.0, "s")
+    return table
+
+
+def _renamed_parameters(
+    defaults: list[tuple[str, float, str]], renames: Mapping[str, str]
+) -> Parameters:
+    """The free parameters, each under its name in ``renames`` or its default name."""
+    default_names = [d[0] for d in defaults]
+    for key in renames:
+        if key not in default_names:
+            raise InputError(
+                f"names: {key!r} is not a parameter of this model; its parameters: {default_names}"
+            )
+    try:
+        return Parameters(
+            [Parameter(renames.get(n, n), v, free=True, unit=u) for n, v, u in defaults]
+        )
+    except InputError as exc:
+        raise InputError(f"names: {exc}") from None
+
+
+def _sources(
+    states: tuple[str, ...], measured: tuple[str, ...], inputs: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per kinematic quantity, its state index and its input index (−1: not that source)."""
+    src_state = -np.ones(len(QUANTITIES), dtype=np.int64)
+    src_input = -np.ones(len(QUANTITIES), dtype=np.int64)
+    for i, q in enumerate(QUANTITIES):
+        if q in states:
+            src_state[i] = states.index(q)
+        elif q in measured:
+            src_input[i] = inputs.index(q)
+    return src_state, src_input
+
+
+def _constants(opt: _Options, transfer: bool, ground: bool) -> np.ndarray:
+    """The constants vector read by the compiled model functions (the _C_* indices)."""
+    return np.array(
+        [
+            opt.g,
+            *opt.accelerometer,
+            *opt.airdata,
+            1.0 if opt.bias_convention == "sensor" else -1.0,
+            0.0 if opt.scale_convention == "factor" else 1.0,
+            1.0 if opt.velocity_at == "airdata" else 0.0,
+            1.0 if opt.beta == "asin" else 0.0,
+            float(len(SENSOR_INPUTS)) if transfer else -1.0,
+            1.0 if opt.wind else 0.0,
+            1.0 if ground else 0.0,
+        ]
+    )
+
+
 def kinematic_spec(
     *,
     states: Sequence[str] = DEFAULT_STATES,
@@ -543,156 +722,60 @@ def kinematic_spec(
     length_unit: str = "m",
 ) -> KinematicSpec:
     """The tables of a kinematic model; the arguments are those of ``kinematic_model``."""
-    states = _names(states, "states", QUANTITIES)
-    if not states:
-        raise InputError("states: expected at least one integrated kinematic quantity")
-    if outputs is None:
-        outputs = tuple(
-            o for o in OUTPUTS if o in _AIR_OUTPUTS or o in states
-        )  # every output the states give
-    outputs = _names(outputs, "outputs", OUTPUTS)
-    if not outputs:
-        raise InputError("outputs: expected at least one output")
-    for o in outputs:
-        if o in QUANTITIES and o not in states:
-            raise InputError(
-                f"outputs: {o!r} is not an integrated state (states {list(states)}); a "
-                "measured attitude, altitude or position cannot be an output of its own model"
-            )
-    wind = _names(wind, "wind", WIND)
-    if isinstance(g, bool) or not isinstance(g, (int, float)):
-        raise InputTypeError(f"g: expected a number (L/s²), got {describe(g)}")
-    g = float(g)
-    if not (math.isfinite(g) and g > 0):
-        raise InputError(f"g: expected a positive finite number (L/s²), got {g!r}")
-    xa, ya, za = _position(accelerometer_position, "accelerometer_position")
-    xn, yn, zn = _position(airdata_position, "airdata_position")
-    velocity_at = _choice(velocity_at, "velocity_at", VELOCITY_AT)
-    beta = _choice(beta, "beta", BETA_DEFINITIONS)
-    bias_convention = _choice(bias_convention, "bias_convention", BIAS_CONVENTIONS)
-    scale_convention = _choice(scale_convention, "scale_convention", SCALE_CONVENTIONS)
-    length_unit = _choice(length_unit, "length_unit", LENGTH_UNITS)
-    input_biases = _names(input_biases, "input_biases", SENSOR_INPUTS)
-    input_scales = _names(input_scales, "input_scales", SENSOR_INPUTS)
+    states, outputs = _states_and_outputs(states, outputs)
     default_sensors = tuple(o for o in ("α", "β") if o in outputs)
-    output_biases = _names(
-        default_sensors if output_biases is None else output_biases, "output_biases", outputs
+    # checked in this order: the first bad argument is the one reported
+    opt = _Options(
+        states=states,
+        outputs=outputs,
+        wind=_names(wind, "wind", WIND),
+        g=_gravity(g),
+        accelerometer=_position(accelerometer_position, "accelerometer_position"),
+        airdata=_position(airdata_position, "airdata_position"),
+        velocity_at=_choice(velocity_at, "velocity_at", VELOCITY_AT),
+        beta=_choice(beta, "beta", BETA_DEFINITIONS),
+        bias_convention=_choice(bias_convention, "bias_convention", BIAS_CONVENTIONS),
+        scale_convention=_choice(scale_convention, "scale_convention", SCALE_CONVENTIONS),
+        length_unit=_choice(length_unit, "length_unit", LENGTH_UNITS),
+        input_biases=_names(input_biases, "input_biases", SENSOR_INPUTS),
+        input_scales=_names(input_scales, "input_scales", SENSOR_INPUTS),
+        output_biases=_names(
+            default_sensors if output_biases is None else output_biases, "output_biases", outputs
+        ),
+        output_scales=_names(
+            default_sensors if output_scales is None else output_scales, "output_scales", outputs
+        ),
+        reference=_scale_reference(scale_reference),
+        delays=tuple(delays),
+        renames=dict(names or {}),
     )
-    output_scales = _names(
-        default_sensors if output_scales is None else output_scales, "output_scales", outputs
-    )
-    reference = dict(scale_reference or {})
-    for name, value in reference.items():
-        if name not in OUTPUTS and name not in SENSOR_INPUTS:
-            raise InputError(
-                f"scale_reference: {name!r} is not an output {list(OUTPUTS)} or input "
-                f"{list(SENSOR_INPUTS)}"
-            )
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise InputError(f"scale_reference.{name}: expected a number, got {describe(value)}")
-    delays = tuple(delays)
-    renames = dict(names or {})
-
+    states, outputs = opt.states, opt.outputs
     # measured kinematic quantities: what the state equations and outputs read, not integrated
-    needed = {q for s in states for q in _STATE_NEEDS[s]} | {
-        q for o in outputs for q in _OUTPUT_NEEDS[o]
-    }
-    if wind and any(o in _AIR_OUTPUTS for o in outputs):
-        # the air data read the wind in body axes, Rᵀ·W: the attitude
-        needed |= {"φ", "θ", "ψ"}
+    measured = _measured_quantities(opt)
     ground = bool({"x_N", "y_E"} & set(states)) or any(o in GROUND_OUTPUTS for o in outputs)
-    measured = tuple(q for q in QUANTITIES if q in needed and q not in states)
-    transfer = any(v != 0.0 for v in (xa, ya, za))
+    transfer = any(v != 0.0 for v in opt.accelerometer)
     inputs = (*SENSOR_INPUTS, *(RATE_DERIVATIVES if transfer else ()), *measured)
-
-    # parameters: input biases, input scales, then per output f then b, then delays
-    L = length_unit
-    scale_start = 1.0 if scale_convention == "factor" else 0.0
-    in_bias = -np.ones(6, dtype=np.int64)
-    in_scale = -np.ones(6, dtype=np.int64)
-    out_bias = -np.ones(len(OUTPUTS), dtype=np.int64)
-    out_scale = -np.ones(len(OUTPUTS), dtype=np.int64)
-    # (default name, start value, unit) of each parameter
-    defaults: list[tuple[str, float, str]] = []
-
-    def add(name: str, value: float, unit: str) -> int:
-        defaults.append((name, value, unit))
-        return len(defaults) - 1
-
-    for i, s in enumerate(SENSOR_INPUTS):
-        if s in input_biases:
-            in_bias[i] = add(f"b_{_INPUT_SUFFIX[s]}", 0.0, _unit(L, s))
-    for i, s in enumerate(SENSOR_INPUTS):
-        if s in input_scales:
-            in_scale[i] = add(f"f_{_INPUT_SUFFIX[s]}", scale_start, "")
-    for o in outputs:
-        i = OUTPUTS.index(o)
-        if o in output_scales:
-            out_scale[i] = add(f"f_{o}", scale_start, "")
-        if o in output_biases:
-            out_bias[i] = add(f"b_{o}", 0.0, _unit(L, o))
-    wind_index = -np.ones(3, dtype=np.int64)
-    for i, component in enumerate(WIND):
-        if component in wind:
-            wind_index[i] = add(component, 0.0, _unit(L, component))
-    for name in delays:
-        add(name, 0.0, "s")
-    default_names = [d[0] for d in defaults]
-    for key in renames:
-        if key not in default_names:
-            raise InputError(
-                f"names: {key!r} is not a parameter of this model; its parameters: {default_names}"
-            )
-    try:
-        parameters = Parameters(
-            [Parameter(renames.get(n, n), v, free=True, unit=u) for n, v, u in defaults]
-        )
-    except InputError as exc:
-        raise InputError(f"names: {exc}") from None
-
-    src_state = -np.ones(len(QUANTITIES), dtype=np.int64)
-    src_input = -np.ones(len(QUANTITIES), dtype=np.int64)
-    for i, q in enumerate(QUANTITIES):
-        if q in states:
-            src_state[i] = states.index(q)
-        elif q in measured:
-            src_input[i] = inputs.index(q)
-    consts = np.array(
-        [
-            g,
-            xa,
-            ya,
-            za,
-            xn,
-            yn,
-            zn,
-            1.0 if bias_convention == "sensor" else -1.0,
-            0.0 if scale_convention == "factor" else 1.0,
-            1.0 if velocity_at == "airdata" else 0.0,
-            1.0 if beta == "asin" else 0.0,
-            float(len(SENSOR_INPUTS)) if transfer else -1.0,
-            1.0 if wind else 0.0,
-            1.0 if ground else 0.0,
-        ]
-    )
+    table = _parameter_table(opt)
+    parameters = _renamed_parameters(table.defaults, opt.renames)
+    src_state, src_input = _sources(states, measured, inputs)
     return KinematicSpec(
         states=states,
         inputs=inputs,
         outputs=outputs,
         parameters=parameters,
-        length_unit=L,
+        length_unit=opt.length_unit,
         src_state=src_state,
         src_input=src_input,
         deriv_index=np.array([QUANTITIES.index(s) for s in states], dtype=np.int64),
         out_index=np.array([OUTPUTS.index(o) for o in outputs], dtype=np.int64),
-        in_bias=in_bias,
-        in_scale=in_scale,
-        in_ref=np.array([float(reference.get(s, 0.0)) for s in SENSOR_INPUTS]),
-        out_bias=out_bias,
-        out_scale=out_scale,
-        out_ref=np.array([float(reference.get(o, 0.0)) for o in OUTPUTS]),
-        wind=wind_index,
-        consts=consts,
+        in_bias=table.in_bias,
+        in_scale=table.in_scale,
+        in_ref=np.array([float(opt.reference.get(s, 0.0)) for s in SENSOR_INPUTS]),
+        out_bias=table.out_bias,
+        out_scale=table.out_scale,
+        out_ref=np.array([float(opt.reference.get(o, 0.0)) for o in OUTPUTS]),
+        wind=table.wind,
+        consts=_constants(opt, transfer, ground),
     )
 
 

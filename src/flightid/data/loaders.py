@@ -596,44 +596,38 @@ def struct_table(
     )
 
 
-def _mat_table(
-    path: Path,
-    arrays: Mapping[str, np.ndarray],
-    varlab: Any,
-    variable: str | None,
-    structs: Sequence[str] = (),
+def _fdata_table(
+    matrix: np.ndarray, varlab: Any, source: str, constants: Mapping[str, float]
 ) -> Table:
-    """The ``Table`` of ``read_mat`` from the file's numeric arrays (MATLAB shapes, at least
-    2-D), its ``varlab`` labels (array of strings, or None) and the names of its structs
-    (for messages)."""
-    constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
-    source = str(path)
-    structs_words = f"; structs: {list(structs)}" if structs else ""
-    if variable is not None:
-        if variable not in arrays:
-            raise DataFileError(
-                f"{path}: no numeric variable or struct {variable!r}; variables: "
-                f"{sorted(arrays)}{structs_words}"
-            )
-        names = None
-        if variable == "fdata" and varlab is not None:
-            names, units = _varlab(varlab, arrays[variable].shape[1])
-            return _finish_table(arrays[variable], names, units, source, constants)
-        return _finish_table(arrays[variable], names, None, source, constants)
-    if "fdata" in arrays:
-        matrix = arrays["fdata"]
-        names, units = (None, None)
-        if varlab is not None:
-            names, units = _varlab(varlab, matrix.shape[1])
-        return _finish_table(matrix, names, units, source, constants)
+    """SIDPAC's ``fdata`` matrix, its columns named by ``varlab`` where the file has it."""
+    names, units = (None, None)
+    if varlab is not None:
+        names, units = _varlab(varlab, matrix.shape[1])
+    return _finish_table(matrix, names, units, source, constants)
+
+
+def _only_matrix(
+    path: Path, arrays: Mapping[str, np.ndarray], constants: Mapping[str, float]
+) -> Table | None:
+    """The table of the file's one 2-D matrix; None when it has none, an error when several."""
     matrices = {k: v for k, v in arrays.items() if v.ndim == 2 and min(v.shape) > 1}
-    if len(matrices) == 1:
-        ((name, matrix),) = matrices.items()
-        return _finish_table(matrix, None, None, f"{source}:{name}", constants)
     if len(matrices) > 1:
         raise DataFileError(
             f"{path}: several matrices {sorted(matrices)}; name the one to read (variable)"
         )
+    if not matrices:
+        return None
+    ((name, matrix),) = matrices.items()
+    return _finish_table(matrix, None, None, f"{path}:{name}", constants)
+
+
+def _vectors_table(
+    path: Path,
+    arrays: Mapping[str, np.ndarray],
+    structs: Sequence[str],
+    constants: Mapping[str, float],
+) -> Table:
+    """The column vectors of the most common length, as named columns."""
     vectors = {k: v.ravel() for k, v in arrays.items() if v.ndim == 2 and min(v.shape) == 1}
     vectors = {k: v for k, v in vectors.items() if v.size > 1}
     if not vectors and structs:
@@ -648,8 +642,38 @@ def _mat_table(
     n = max(set(lengths), key=lengths.count)
     chosen = {k: v for k, v in vectors.items() if v.size == n}
     return _finish_table(
-        np.column_stack(list(chosen.values())), list(chosen), None, source, constants
+        np.column_stack(list(chosen.values())), list(chosen), None, str(path), constants
     )
+
+
+def _mat_table(
+    path: Path,
+    arrays: Mapping[str, np.ndarray],
+    varlab: Any,
+    variable: str | None,
+    structs: Sequence[str] = (),
+) -> Table:
+    """The ``Table`` of ``read_mat`` from the file's numeric arrays (MATLAB shapes, at least
+    2-D), its ``varlab`` labels (array of strings, or None) and the names of its structs
+    (for messages)."""
+    constants = {k: float(v.ravel()[0]) for k, v in arrays.items() if v.size == 1}
+    source = str(path)
+    if variable is not None:
+        if variable not in arrays:
+            structs_words = f"; structs: {list(structs)}" if structs else ""
+            raise DataFileError(
+                f"{path}: no numeric variable or struct {variable!r}; variables: "
+                f"{sorted(arrays)}{structs_words}"
+            )
+        if variable == "fdata":
+            return _fdata_table(arrays[variable], varlab, source, constants)
+        return _finish_table(arrays[variable], None, None, source, constants)
+    if "fdata" in arrays:
+        return _fdata_table(arrays["fdata"], varlab, source, constants)
+    table = _only_matrix(path, arrays, constants)
+    if table is not None:
+        return table
+    return _vectors_table(path, arrays, structs, constants)
 
 
 def _varlab(varlab: np.ndarray, k: int) -> tuple[list[str], list[str]]:

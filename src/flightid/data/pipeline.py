@@ -259,7 +259,8 @@ def _scalar(value: Any, constants: Mapping[str, Any], where: str, unit: str = ""
     return number
 
 
-def _parse_step(raw: Any, index: int, constants: Mapping[str, Any]) -> StepSpec:
+def _step_kind(raw: Any, index: int) -> tuple[str, _Kind]:
+    """The checked kind of ``[[data.steps]]`` entry ``index`` and its ``_Kind``."""
     where = f"steps[{index}]"
     if not isinstance(raw, Mapping):
         raise PreprocessError(f"{where}: expected a table ([[data.steps]]), got {describe(raw)}")
@@ -268,8 +269,11 @@ def _parse_step(raw: Any, index: int, constants: Mapping[str, Any]) -> StepSpec:
         raise PreprocessError(
             f"{where}.kind: expected one of {sorted(STEP_KINDS)}, got {kind_name!r}"
         )
-    kind = STEP_KINDS[kind_name]
-    where = f"{where} ({kind_name})"
+    return kind_name, STEP_KINDS[kind_name]
+
+
+def _check_step_keys(raw: Mapping[str, Any], kind: _Kind, where: str) -> None:
+    """No key the kind does not know, every key it requires."""
     allowed = {"kind", "names", *kind.required, *kind.optional}
     if kind.roles:
         allowed.add("signals")
@@ -279,67 +283,111 @@ def _parse_step(raw: Any, index: int, constants: Mapping[str, Any]) -> StepSpec:
     missing = [k for k in kind.required if k not in raw]
     if missing:
         raise PreprocessError(f"{where}: missing {missing} ({kind.what})")
+
+
+def _bias_step(
+    raw: Mapping[str, Any], constants: Mapping[str, Any], where: str
+) -> tuple[dict[str, str], dict[str, Any], dict[str, str]]:
+    """(roles, settings, default output names) of a remove_bias step."""
+    biases = raw["biases"]
+    if not isinstance(biases, Mapping) or not biases:
+        raise PreprocessError(
+            f"{where}.biases: expected a table signal = bias (in the signal's unit), got "
+            f"{describe(biases)}"
+        )
+    roles = {_signal_name(k, f"{where}.biases"): k for k in biases}
+    settings = {
+        "biases": {k: _scalar(v, constants, f"{where}.biases.{k}") for k, v in biases.items()}
+    }
+    defaults = {k: f"{k}_c" for k in biases}
+    return roles, settings, defaults
+
+
+def _step_roles(raw: Mapping[str, Any], kind: _Kind, where: str) -> dict[str, str]:
+    """Role → the signal it reads: ``signals`` of the step, by default the role's name."""
+    given = raw.get("signals", {})
+    if not isinstance(given, Mapping):
+        raise PreprocessError(
+            f"{where}.signals: expected a table role = signal, got {describe(given)}"
+        )
+    bad = sorted(set(given) - set(kind.roles))
+    if bad:
+        raise PreprocessError(f"{where}.signals: unknown role(s) {bad}; roles: {list(kind.roles)}")
+    return {
+        role: _signal_name(given.get(role, role), f"{where}.signals.{role}") for role in kind.roles
+    }
+
+
+def _step_settings(
+    raw: Mapping[str, Any], constants: Mapping[str, Any], where: str
+) -> dict[str, Any]:
+    """The positions (m), scalar settings (SI) and engines that ``raw`` gives."""
     settings: dict[str, Any] = {}
-    if kind_name == "remove_bias":
-        biases = raw["biases"]
-        if not isinstance(biases, Mapping) or not biases:
-            raise PreprocessError(
-                f"{where}.biases: expected a table signal = bias (in the signal's unit), got "
-                f"{describe(biases)}"
-            )
-        roles = {_signal_name(k, f"{where}.biases"): k for k in biases}
-        settings["biases"] = {
-            k: _scalar(v, constants, f"{where}.biases.{k}") for k, v in biases.items()
-        }
-        defaults = {k: f"{k}_c" for k in biases}
-    else:
-        given = raw.get("signals", {})
-        if not isinstance(given, Mapping):
-            raise PreprocessError(
-                f"{where}.signals: expected a table role = signal, got {describe(given)}"
-            )
-        bad = sorted(set(given) - set(kind.roles))
-        if bad:
-            raise PreprocessError(
-                f"{where}.signals: unknown role(s) {bad}; roles: {list(kind.roles)}"
-            )
-        roles = {
-            role: _signal_name(given.get(role, role), f"{where}.signals.{role}")
-            for role in kind.roles
-        }
-        defaults = {role: name for role, (name, _) in kind.outputs.items()}
-        for key in ("sensor", "target", "reference_point"):
-            if key in raw:
-                settings[key] = _position(raw[key], constants, f"{where}.{key}")
-        for key, unit in _SETTING_UNITS.items():
-            if key in raw:
-                settings[key] = _scalar(raw[key], constants, f"{where}.{key}", unit)
-        if "engines" in raw:
-            settings["engines"] = _engines(raw["engines"], constants, f"{where}.engines")
+    for key in ("sensor", "target", "reference_point"):
+        if key in raw:
+            settings[key] = _position(raw[key], constants, f"{where}.{key}")
+    for key, unit in _SETTING_UNITS.items():
+        if key in raw:
+            settings[key] = _scalar(raw[key], constants, f"{where}.{key}", unit)
+    if "engines" in raw:
+        settings["engines"] = _engines(raw["engines"], constants, f"{where}.engines")
+    return settings
+
+
+def _output_names(
+    raw: Mapping[str, Any], defaults: Mapping[str, str], where: str
+) -> dict[str, str]:
+    """Role → the signal the step makes: ``names`` of the step, by default ``defaults``."""
     names_given = raw.get("names", {})
     if not isinstance(names_given, Mapping):
         raise PreprocessError(f"{where}.names: expected a table role = name, got {names_given!r}")
     bad = sorted(set(names_given) - set(defaults))
     if bad:
         raise PreprocessError(f"{where}.names: unknown role(s) {bad}; roles: {list(defaults)}")
-    names = {
+    return {
         role: _signal_name(names_given.get(role, default), f"{where}.names.{role}")
         for role, default in defaults.items()
     }
+
+
+def _mass_geometry(settings: Mapping[str, Any]) -> MassGeometry:
+    """The ``MassGeometry`` of an aero_coefficients step's settings (SI)."""
+    return MassGeometry(
+        mass_kg=settings["mass"],
+        Ix=settings["Ix"],
+        Iy=settings["Iy"],
+        Iz=settings["Iz"],
+        S_m2=settings["S"],
+        cbar_m=settings["cbar"],
+        b_m=settings["b"],
+        Ixz=settings.get("Ixz", 0.0),
+        Ixy=settings.get("Ixy", 0.0),
+        Iyz=settings.get("Iyz", 0.0),
+        reference_point_m=settings.get("reference_point", (0.0, 0.0, 0.0)),
+    )
+
+
+def _check_geometry(settings: Mapping[str, Any], where: str) -> None:
+    """The mass and geometry of an aero_coefficients step make a ``MassGeometry``."""
+    try:
+        _mass_geometry(settings)
+    except PreprocessError as exc:
+        raise PreprocessError(f"{where}: {exc}") from None
+
+
+def _parse_step(raw: Any, index: int, constants: Mapping[str, Any]) -> StepSpec:
+    kind_name, kind = _step_kind(raw, index)
+    where = f"steps[{index}] ({kind_name})"
+    _check_step_keys(raw, kind, where)
+    if kind_name == "remove_bias":
+        roles, settings, defaults = _bias_step(raw, constants, where)
+    else:
+        roles = _step_roles(raw, kind, where)
+        defaults = {role: name for role, (name, _) in kind.outputs.items()}
+        settings = _step_settings(raw, constants, where)
+    names = _output_names(raw, defaults, where)
     if kind_name == "aero_coefficients":
-        geometry = {k: settings[k] for k in ("mass", "Ix", "Iy", "Iz", "S", "cbar", "b")}
-        try:
-            MassGeometry(
-                mass_kg=geometry["mass"],
-                Ix=geometry["Ix"],
-                Iy=geometry["Iy"],
-                Iz=geometry["Iz"],
-                S_m2=geometry["S"],
-                cbar_m=geometry["cbar"],
-                b_m=geometry["b"],
-            )
-        except PreprocessError as exc:
-            raise PreprocessError(f"{where}: {exc}") from None
+        _check_geometry(settings, where)
     return StepSpec(kind_name, index, roles, names, settings)
 
 
@@ -430,10 +478,7 @@ class Pipeline:
             spec = self.signals[key].with_file_unit(
                 table, f"signals.{key}", {k: v for k, v in names.items() if k != key}
             )
-            if spec.column == key:  # the file's column of the same name
-                units[key] = spec.target_unit
-            else:
-                units[key] = Pipeline({}, {}, (), (), units).unit_of(spec)
+            units[key] = _signal_unit(key, spec, units)
         return dataclasses.replace(self, units=units)
 
     def evaluate(
@@ -525,19 +570,7 @@ def _run_step(step: StepSpec, args: Mapping[str, np.ndarray], thrust_of) -> dict
     if step.kind == "transfer_accelerations":
         ax, ay, az = transfer_accelerations(*accelerations, *rates, *rate_dots, s["sensor"], target)
         return {"ax": ax, "ay": ay, "az": az}
-    geometry = MassGeometry(
-        mass_kg=s["mass"],
-        Ix=s["Ix"],
-        Iy=s["Iy"],
-        Iz=s["Iz"],
-        S_m2=s["S"],
-        cbar_m=s["cbar"],
-        b_m=s["b"],
-        Ixz=s.get("Ixz", 0.0),
-        Ixy=s.get("Ixy", 0.0),
-        Iyz=s.get("Iyz", 0.0),
-        reference_point_m=s.get("reference_point", (0.0, 0.0, 0.0)),
-    )
+    geometry = _mass_geometry(s)
     engines = [
         Engine(thrust_of(name, f"{step.where}.engines[{k}].thrust"), position, incidence)
         for k, (name, position, incidence) in enumerate(s.get("engines", ()))
@@ -549,15 +582,8 @@ def _run_step(step: StepSpec, args: Mapping[str, np.ndarray], thrust_of) -> dict
     )
 
 
-def parse_pipeline(
-    constants: Mapping[str, Any] | None = None,
-    signals: Mapping[str, Any] | None = None,
-    steps: Sequence[Any] | None = None,
-) -> Pipeline:
-    """Check ``[data.constants]``, ``[data.signals]`` and ``[[data.steps]]`` without data and
-    order them (see the module docstring). Errors: ``PreprocessError`` (settings, cycles,
-    missing constants, units) and ``ChannelError`` (signal specifications)."""
-    consts = parse_constants(constants)
+def _parse_signals(signals: Any) -> dict[str, ChannelSpec]:
+    """``[data.signals]`` → name → checked ``ChannelSpec``."""
     if signals is not None and not isinstance(signals, Mapping):
         raise PreprocessError(
             f"signals: expected a table of name = channel specification, got {describe(signals)}"
@@ -569,51 +595,74 @@ def parse_pipeline(
                 f"signals: names must be identifiers other than 't' and 'pi', got {name!r}"
             )
         specs[name] = ChannelSpec.from_value(value, f"signals.{name}")
+    return specs
+
+
+def _parse_steps(steps: Any, constants: Mapping[str, Any]) -> tuple[StepSpec, ...]:
+    """``[[data.steps]]`` → the checked ``StepSpec``s."""
     if steps is not None and not isinstance(steps, list):
         raise PreprocessError(f"steps: expected an array of tables [[data.steps]], got {steps!r}")
-    parsed = tuple(_parse_step(raw, i, consts) for i, raw in enumerate(steps or ()))
+    return tuple(_parse_step(raw, i, constants) for i, raw in enumerate(steps or ()))
 
-    # who makes each name: a signal, or a step
-    maker: dict[str, tuple[str, Any]] = {}
-    units: dict[str, str] = {}
-    for name in specs:
-        maker[name] = ("signal", name)
-    for step in parsed:
+
+def _makers(
+    specs: Mapping[str, ChannelSpec], steps: Sequence[StepSpec], constants: Mapping[str, Any]
+) -> dict[str, tuple[str, Any]]:
+    """Who makes each name: ("signal", name) or ("step", index); each name made once and
+    none a constant's."""
+    maker: dict[str, tuple[str, Any]] = {name: ("signal", name) for name in specs}
+    for step in steps:
         for role, name in step.names.items():
             if name in maker:
-                first = maker[name]
-                first_where = (
-                    f"signals.{first[1]}" if first[0] == "signal" else parsed[first[1]].where
-                )
                 raise PreprocessError(
-                    f"{step.where}.names.{role}: {name!r} is already made by {first_where}; "
-                    "give it another name (names = {...})"
+                    f"{step.where}.names.{role}: {name!r} is already made by "
+                    f"{_node_label(maker[name], steps)}; give it another name (names = {{...}})"
                 )
             maker[name] = ("step", step.index)
     for name in maker:
-        if name in consts:
+        if name in constants:
             raise PreprocessError(
                 f"constants.{name}: the name is also a signal; constants and signals need "
                 "different names"
             )
+    return maker
 
-    # what each node needs (names made by other nodes)
+
+def _node_label(node: tuple[str, Any], steps: Sequence[StepSpec]) -> str:
+    """'signals.<name>' or the step's 'steps[i] (kind)'."""
+    return f"signals.{node[1]}" if node[0] == "signal" else steps[node[1]].where
+
+
+def _needs(
+    specs: Mapping[str, ChannelSpec],
+    steps: Sequence[StepSpec],
+    maker: Mapping[str, tuple[str, Any]],
+    constants: Mapping[str, Any],
+) -> dict[tuple[str, Any], set]:
+    """What each node (signal, step) needs: the nodes that make the names it reads. A signal
+    may not read a list constant."""
     needs: dict[tuple[str, Any], set] = {}
     for name, spec in specs.items():
         needs[("signal", name)] = {
             maker[n] for n in _channel_names(spec) if n in maker and n != name
         }
-    for step in parsed:
+    for step in steps:
         needs[("step", step.index)] = {maker[n] for n in step.reads() if n in maker}
     for name, spec in specs.items():
         for used in _channel_names(spec):
-            value = consts.get(used)
+            value = constants.get(used)
             if isinstance(value, tuple) and used not in maker:
                 raise PreprocessError(
                     f"signals.{name}: the constant {used!r} is a list {list(value)}; only "
                     "single numbers can be used in expressions"
                 )
+    return needs
 
+
+def _evaluation_order(
+    needs: Mapping[tuple[str, Any], set], steps: Sequence[StepSpec]
+) -> list[tuple[str, Any]]:
+    """The nodes in dependency order (a cycle is a ``PreprocessError`` naming it)."""
     # Kahn's algorithm; among the ready nodes the first declared (signals, then steps)
     nodes = list(needs)
     order: list[tuple[str, Any]] = []
@@ -624,56 +673,87 @@ def parse_pipeline(
             waiting = [n for n in nodes if n not in done]
             raise PreprocessError(
                 "signals and steps depend on each other in a cycle: "
-                + _cycle_words(waiting, needs, parsed)
+                + _cycle_words(waiting, needs, steps)
             )
         node = ready[0]
         order.append(node)
         done.add(node)
+    return order
 
-    # units: every made signal's, checked against what the steps expect where declared
+
+def _signal_unit(key: str, spec: ChannelSpec, units: Mapping[str, str]) -> str:
+    """The unit signal ``key`` delivers: the file column of the same name's, else its own or
+    (one signal, no unit declared) that signal's in ``units``."""
+    if spec.column == key:  # the file's column of the same name
+        return spec.target_unit
+    return Pipeline({}, {}, (), (), units).unit_of(spec)
+
+
+def _check_step_units(step: StepSpec, units: Mapping[str, str]) -> None:
+    """The signals a step reads are in the units its roles expect (where both are declared);
+    thrust signals in N."""
+    kind = STEP_KINDS[step.kind]
+    for role, name in step.signals.items():
+        expected = kind.roles.get(role)
+        got = units.get(name, "")
+        if expected and got and not _units_equal(got, expected):
+            raise PreprocessError(
+                f"{step.where}.signals.{role}: expected {expected}, but the signal {name!r} "
+                f"is in {got!r}"
+            )
+    for engine in step.settings.get("engines", ()):
+        got = units.get(engine[0], "")
+        if got and not _units_equal(got, "N"):
+            raise PreprocessError(
+                f"{step.where}.engines: the thrust signal {engine[0]!r} is in {got!r}, expected N"
+            )
+
+
+def _made_units(
+    order: Sequence[tuple[str, Any]],
+    specs: Mapping[str, ChannelSpec],
+    steps: Sequence[StepSpec],
+) -> dict[str, str]:
+    """Every made signal's unit, checked against what the steps expect where declared."""
+    units: dict[str, str] = {}
     for what, key in order:
         if what == "signal":
-            spec = specs[key]
-            if spec.column == key:  # the file's column of the same name
-                units[key] = spec.target_unit
-            else:
-                units[key] = Pipeline({}, {}, (), (), units).unit_of(spec)
+            units[key] = _signal_unit(key, specs[key], units)
             continue
-        step = parsed[key]
-        kind = STEP_KINDS[step.kind]
-        for role, name in step.signals.items():
-            expected = kind.roles.get(role)
-            got = units.get(name, "")
-            if expected and got and not _units_equal(got, expected):
-                raise PreprocessError(
-                    f"{step.where}.signals.{role}: expected {expected}, but the signal {name!r} "
-                    f"is in {got!r}"
-                )
-        for engine in step.settings.get("engines", ()):
-            got = units.get(engine[0], "")
-            if got and not _units_equal(got, "N"):
-                raise PreprocessError(
-                    f"{step.where}.engines: the thrust signal {engine[0]!r} is in {got!r}, "
-                    "expected N"
-                )
+        step = steps[key]
+        _check_step_units(step, units)
         for role, name in step.names.items():
             if step.kind == "remove_bias":
                 units[name] = units.get(step.signals[role], "")
             else:
-                units[name] = kind.outputs[role][1]
+                units[name] = STEP_KINDS[step.kind].outputs[role][1]
+    return units
+
+
+def parse_pipeline(
+    constants: Mapping[str, Any] | None = None,
+    signals: Mapping[str, Any] | None = None,
+    steps: Sequence[Any] | None = None,
+) -> Pipeline:
+    """Check ``[data.constants]``, ``[data.signals]`` and ``[[data.steps]]`` without data and
+    order them (see the module docstring). Errors: ``PreprocessError`` (settings, cycles,
+    missing constants, units) and ``ChannelError`` (signal specifications)."""
+    consts = parse_constants(constants)
+    specs = _parse_signals(signals)
+    parsed = _parse_steps(steps, consts)
+    maker = _makers(specs, parsed, consts)
+    order = _evaluation_order(_needs(specs, parsed, maker, consts), parsed)
+    units = _made_units(order, specs, parsed)
     return Pipeline(consts, specs, parsed, tuple(order), units)
 
 
 def _cycle_words(waiting: list, needs: Mapping, steps: Sequence[StepSpec]) -> str:
     """'signals.a → signals.b → signals.a' for one cycle among the waiting nodes."""
 
-    def label(node) -> str:
-        return f"signals.{node[1]}" if node[0] == "signal" else steps[node[1]].where
-
     path = [waiting[0]]
     while True:
         nxt = next(n for n in needs[path[-1]] if n in waiting)
         if nxt in path:
             cycle = path[path.index(nxt) :] + [nxt]
-            return " → ".join(label(n) for n in cycle)
+            return " → ".join(_node_label(n, steps) for n in cycle)
         path.append(nxt)

@@ -86,6 +86,82 @@ def _checked_delays(value, n_inputs: int) -> np.ndarray:
     return delays
 
 
+def _checked_sizes(n_states: object, n_inputs: object) -> None:
+    """n_states ≥ 1 and n_inputs ≥ 0, both integers."""
+    for name, value in (("n_states", n_states), ("n_inputs", n_inputs)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < (name == "n_states"):
+            raise InputError(f"{name}: expected a non-negative integer, got {value!r}")
+
+
+def _checked_frequencies(frequencies_hz: object, n_p: int) -> np.ndarray:
+    """``frequencies_hz`` as more than n_p positive finite frequencies (Hz)."""
+    from flightid.recursive.base import float_array
+
+    freq = float_array(frequencies_hz, "frequencies_hz", "frequencies (Hz)")
+    if freq.ndim != 1 or freq.size <= n_p or not np.all(np.isfinite(freq)) or np.any(freq <= 0):
+        raise InputError(
+            f"frequencies_hz: expected more than {n_p} positive frequencies, got "
+            f"{describe(frequencies_hz)}"
+        )
+    return freq
+
+
+def _positive_integer(value: object, name: str) -> int:
+    """``value`` as an integer ≥ 1 (a bool is no integer here)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InputError(f"{name}: expected a positive integer, got {value!r}")
+    return value
+
+
+def _default_parameter_names(n_states: int, n_inputs: int) -> list[list[str]]:
+    """Row i: "A<i>1" … "A<i><n_x>", "B<i>1" … "B<i><n_u>"."""
+    return [
+        [f"A{i + 1}{j + 1}" for j in range(n_states)]
+        + [f"B{i + 1}{j + 1}" for j in range(n_inputs)]
+        for i in range(n_states)
+    ]
+
+
+def _checked_parameter_names(parameter_names: object, n_states: int, n_p: int) -> list[str]:
+    """n_states rows of n_p unique names, flattened row by row."""
+    if (
+        isinstance(parameter_names, str)
+        or not isinstance(parameter_names, Sequence)
+        or not all(
+            isinstance(row, Sequence) and not isinstance(row, str) for row in parameter_names
+        )
+    ):
+        raise InputError(
+            f"parameter_names: expected {n_states} rows of {n_p} names, got "
+            f"{describe(parameter_names)}"
+        )
+    rows = [list(row) for row in parameter_names]
+    if len(rows) != n_states or any(len(row) != n_p for row in rows):
+        raise InputError(f"parameter_names: expected {n_states} rows of {n_p} names, got {rows!r}")
+    names = [name for row in rows for name in row]
+    if len(set(names)) != len(names) or not all(isinstance(n, str) for n in names):
+        raise InputError(f"parameter_names: expected unique names, got {names}")
+    return names
+
+
+def _checked_offsets(offsets: object, names: Sequence[str]) -> dict:
+    """``offsets`` as {parameter name: finite number}; {} for None."""
+    if offsets is not None and not isinstance(offsets, Mapping):
+        raise InputError(f"offsets: expected a mapping name → number, got {describe(offsets)}")
+    offsets = dict(offsets or {})
+    unknown = [name for name in offsets if name not in names]
+    if unknown:
+        raise InputError(f"offsets: {unknown} are not parameter names {names}")
+    for name, value in offsets.items():
+        if (
+            isinstance(value, (bool, np.bool_))
+            or not isinstance(value, (int, float, np.number))
+            or not np.isfinite(value)
+        ):
+            raise InputError(f"offsets[{name!r}]: expected a finite number, got {value!r}")
+    return offsets
+
+
 class FourierTransformRegression(RecursiveEstimatorBase):
     """Recursive FTR for n_x measured states and n_u inputs.
 
@@ -118,64 +194,15 @@ class FourierTransformRegression(RecursiveEstimatorBase):
         n_mean: int = 10,
         input_delays_s: Sequence[float] | np.ndarray | None = None,
     ) -> None:
-        for name, value in (("n_states", n_states), ("n_inputs", n_inputs)):
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, int)
-                or value < (name == "n_states")
-            ):
-                raise InputError(f"{name}: expected a non-negative integer, got {value!r}")
-        from flightid.recursive.base import float_array
-
-        freq = float_array(frequencies_hz, "frequencies_hz", "frequencies (Hz)")
+        _checked_sizes(n_states, n_inputs)
         n_p = n_states + n_inputs
-        if freq.ndim != 1 or freq.size <= n_p or not np.all(np.isfinite(freq)) or np.any(freq <= 0):
-            raise InputError(
-                f"frequencies_hz: expected more than {n_p} positive frequencies, got "
-                f"{describe(frequencies_hz)}"
-            )
-        if isinstance(update_every, bool) or not isinstance(update_every, int) or update_every < 1:
-            raise InputError(f"update_every: expected a positive integer, got {update_every!r}")
-        if isinstance(n_mean, bool) or not isinstance(n_mean, int) or n_mean < 1:
-            raise InputError(f"n_mean: expected a positive integer, got {n_mean!r}")
+        freq = _checked_frequencies(frequencies_hz, n_p)
+        update_every = _positive_integer(update_every, "update_every")
+        n_mean = _positive_integer(n_mean, "n_mean")
         if parameter_names is None:
-            parameter_names = [
-                [f"A{i + 1}{j + 1}" for j in range(n_states)]
-                + [f"B{i + 1}{j + 1}" for j in range(n_inputs)]
-                for i in range(n_states)
-            ]
-        if (
-            isinstance(parameter_names, str)
-            or not isinstance(parameter_names, Sequence)
-            or not all(
-                isinstance(row, Sequence) and not isinstance(row, str) for row in parameter_names
-            )
-        ):
-            raise InputError(
-                f"parameter_names: expected {n_states} rows of {n_p} names, got "
-                f"{describe(parameter_names)}"
-            )
-        rows = [list(row) for row in parameter_names]
-        if len(rows) != n_states or any(len(row) != n_p for row in rows):
-            raise InputError(
-                f"parameter_names: expected {n_states} rows of {n_p} names, got {rows!r}"
-            )
-        names = [name for row in rows for name in row]
-        if len(set(names)) != len(names) or not all(isinstance(n, str) for n in names):
-            raise InputError(f"parameter_names: expected unique names, got {names}")
-        if offsets is not None and not isinstance(offsets, Mapping):
-            raise InputError(f"offsets: expected a mapping name → number, got {describe(offsets)}")
-        offsets = dict(offsets or {})
-        unknown = [name for name in offsets if name not in names]
-        if unknown:
-            raise InputError(f"offsets: {unknown} are not parameter names {names}")
-        for name, value in offsets.items():
-            if (
-                isinstance(value, (bool, np.bool_))
-                or not isinstance(value, (int, float, np.number))
-                or not np.isfinite(value)
-            ):
-                raise InputError(f"offsets[{name!r}]: expected a finite number, got {value!r}")
+            parameter_names = _default_parameter_names(n_states, n_inputs)
+        names = _checked_parameter_names(parameter_names, n_states, n_p)
+        offsets = _checked_offsets(offsets, names)
         self.n_states, self.n_inputs, self.n_outputs = n_states, n_inputs, n_states
         self.frequencies_hz = freq
         # ω = 2πf (rad/s)
