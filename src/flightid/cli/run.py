@@ -333,18 +333,18 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
             json.dumps(json.loads(dumps({"stages": run.stages_dict()})), indent=2) + "\n",
             encoding="utf-8",
         )
+        from flightid.report.estimator_reports import write_stages_files
+
         if run.output_error is None:
             # regression stages only: results.json, estimates.csv, report.html of the stages
             (directory / "results.json").write_text(dumps(document) + "\n", encoding="utf-8")
-        # the regression fits (stages.html beside an output-error report, else report.html)
-        from flightid.report.estimator_reports import write_stages_files
-
-        page = write_stages_files(run, directory, case.output.get("figures", True))
-        if run.output_error is None:
-            return page
+            return write_stages_files(run, directory, case.output.get("figures", True))
         from flightid.report.html import write_files
 
-        return write_files(run.output_error, directory)
+        # the output-error stage's report.html, then stages.html (its file list is complete)
+        page = write_files(run.output_error, directory)
+        write_stages_files(run, directory, case.output.get("figures", True))
+        return page
 
     answer_then_files(args, lambda: document, show, folder, write)
     return 0

@@ -135,28 +135,28 @@ def _frequency_rows(result) -> list[EstimateRow]:
 
 
 def _frequency_residuals(result) -> str:
-    """RMS |V| and whiteness across frequency of Re V, V = Z − Ŷ per output."""
+    """Per output the time-domain equivalent √R of the residual spectral covariance S, and
+    the whiteness across frequency of Re V, V = Z − Ŷ."""
     blocks, index = [], []
     for m, (_, z, y) in enumerate(result.output_transforms()):
         blocks.append(np.asarray(z - y))
         index.append(np.full(z.shape[0], m))
     residuals = np.vstack(blocks)
-    units = [f"{u}·s" if u else "" for u in (result.output_units or [""] * len(result.outputs))]
+    units = list(result.output_units or [""] * len(result.outputs))
+    # the transforms' own scale: no output unit on V
     text = residual_section(
         list(result.outputs),
-        units,
+        [""] * len(result.outputs),
         np.real(residuals),
         maneuver_index=np.concatenate(index),
         what="residual transform (real part)",
         lag_unit="frequency steps",
     )
-    rms = np.sqrt(np.mean(np.abs(residuals) ** 2, axis=0))
     equivalent = result.equivalent_variances()
     rows = [
         [
             html.escape(name),
             html.escape(units[j]) or "—",
-            f"{rms[j]:.4g}",
             f"{np.sqrt(equivalent[j]):.4g}" if np.isfinite(equivalent[j]) else "—",
         ]
         for j, name in enumerate(result.outputs)
@@ -165,7 +165,7 @@ def _frequency_residuals(result) -> str:
         "<p>Residual transforms V(f) = Z(f) − Ŷ(f) over the band; their correlation from one "
         "frequency to the next is what the coloured-residual σ accounts for.</p>"
         + table(
-            ["output", "unit", "RMS |V| [unit]", "time-domain equivalent √R [output unit]"],
+            ["output", "unit", "time-domain equivalent of the residual, √R = √(S/(Δt T)) [unit]"],
             rows,
         )
         + text
