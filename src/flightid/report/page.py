@@ -258,10 +258,10 @@ class EstimateRow:
 
 
 def _interval_half_width(std: float, confidence: float) -> float:
-    from scipy.stats import norm
+    from statistics import NormalDist
 
-    # k = z_{(1+c)/2}: the two-sided normal quantile
-    return float(norm.ppf(0.5 * (1.0 + confidence))) * std
+    # z_{(1+c)/2}·σ: z the two-sided normal quantile
+    return NormalDist().inv_cdf(0.5 * (1.0 + confidence)) * std
 
 
 def estimate_csv_rows(rows: Sequence[EstimateRow], confidence: float = 0.95) -> list[dict]:
