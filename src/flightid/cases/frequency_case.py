@@ -386,6 +386,8 @@ Progress = Callable[[str], None]
 def _correlation(covariance, n_free: int) -> np.ndarray:
     """ρ_ij = P_ij / √(P_ii P_jj) of the estimated parameters; empty when the covariance
     is not the free parameters' (n_free × n_free)."""
+    if covariance is None:
+        return np.zeros((0, 0))
     matrix = np.asarray(covariance, dtype=float)
     if matrix.shape != (n_free, n_free):
         return np.zeros((0, 0))
@@ -571,7 +573,8 @@ def run_frequency_case(
                 model_response(system, s, None, boundary=False, constants=False) for s in spectra
             )
             values, std, std_col, std_cr = ee.theta, ee.std, ee.std, ee.std_cr
-            covariance = ee.covariance
+            # one regression per state equation: no joint covariance of all parameters
+            covariance = None
             S = cost = None
             converged, message, cycles, iterations = True, "closed-form least squares", 0, 0
             nuisance: tuple = ()

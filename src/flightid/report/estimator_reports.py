@@ -230,7 +230,8 @@ def write_frequency_files(result, directory: str | Path) -> Path:
         correlation_html=correlation_section(
             free_names,
             getattr(result, "correlation", None),
-            missing="No correlation matrix was kept with this result.",
+            missing="Equation error fits each state equation on its own: there is no joint "
+            "covariance of all parameters, so no correlation matrix.",
         ),
         residuals_heading="Residual analysis (frequency domain)",
         residuals_html=_frequency_residuals(result),
