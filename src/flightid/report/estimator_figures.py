@@ -103,11 +103,11 @@ def design_input_figure(
     outputs: np.ndarray,
     output_names: Sequence[str],
     output_units: Sequence[str],
-    limits: dict,
     title: str,
 ) -> Figure:
     """The designed perturbations Δu (dotted: ± the amplitude limit) and the predicted
-    responses Δy (dotted: ± the response limit, where one is set) against time."""
+    outputs y against time (the response limits, about the trim-input response, are in
+    the report's table)."""
     n = len(input_names) + len(output_names)
     figure, axes = _grid(n, 1, 7.5, 1.5)
     for j, name in enumerate(input_names):
@@ -119,10 +119,7 @@ def design_input_figure(
     for i, name in enumerate(output_names):
         ax = axes[len(input_names) + i]
         ax.plot(time_s, outputs[:, i], lw=0.9, color="C1")
-        if name in limits:
-            for sign in (1, -1):
-                ax.axhline(sign * limits[name], color="0.6", ls=":", lw=0.8)
-        ax.set_ylabel(axis_label(f"Δ{name}", output_units[i]), fontsize=8)
+        ax.set_ylabel(axis_label(name, output_units[i]), fontsize=8)
     for ax in axes:
         ax.set_xlabel("time [s]", fontsize=8)
     return _finish(figure, axes, title)

@@ -497,8 +497,7 @@ def write_design_files(
         accuracy.outputs,
         accuracy.output_names,
         [units.get(n, "") for n in accuracy.output_names],
-        dict(problem.limits),
-        f"designed input ({problem.signal}) and predicted response (dotted: limits)",
+        f"designed input ({problem.signal}, dotted: amplitude limit) and predicted response",
     )
     scale = np.maximum(np.abs(accuracy.values), accuracy.typical)
     reference = None if result.reference is None else 100 * result.reference[0].std / scale
