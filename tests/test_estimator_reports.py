@@ -293,3 +293,27 @@ def test_regression_stages_alone_write_the_common_folder(tmp_path, capsys):
         rows = [r for r in csv.DictReader(stream) if r["coefficient"] == "qdot"]
     np.testing.assert_allclose([float(r["measured"]) for r in rows], y, rtol=1e-8, atol=1e-10)
     np.testing.assert_allclose([float(r["fitted"]) for r in rows], fitted, rtol=1e-6, atol=1e-9)
+
+
+def test_frequency_domain_folder_on_simulated_data(tmp_path):
+    from flightid.cases import load_case
+    from flightid.cases.frequency_case import run_frequency_case
+    from flightid.report.estimator_reports import write_frequency_files
+    from test_frequency_delays import write_case
+
+    case_file = write_case(tmp_path)
+    result = run_frequency_case(load_case(case_file))
+    out = tmp_path / "out"
+    write_frequency_files(result, out)
+    page = _check_page(out, "Residual analysis (frequency domain)", ["Bode", "output transforms"])
+    assert hashlib.sha256(case_file.read_bytes()).hexdigest() in page
+    # the 2 × 2 correlation of wn and zeta: ρ = P12/√(P11 P22) of the reported covariance
+    assert result.correlation.shape == (2, 2)
+    rho = result.correlation[0, 1]
+    assert -1.0 < rho < 1.0 and result.correlation[1, 0] == pytest.approx(rho)
+    assert f"<td>{rho:.2g}</td>" in page
+    with open(out / "estimates.csv", newline="", encoding="utf-8") as stream:
+        rows = {r["name"]: r for r in csv.DictReader(stream)}
+    for name, std in zip(result.names, result.std, strict=True):
+        assert float(rows[name]["std"]) == pytest.approx(std, rel=1e-12)
+        assert rows[name]["std_kind"] == "coloured"
