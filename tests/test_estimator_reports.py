@@ -317,3 +317,59 @@ def test_frequency_domain_folder_on_simulated_data(tmp_path):
     for name, std in zip(result.names, result.std, strict=True):
         assert float(rows[name]["std"]) == pytest.approx(std, rel=1e-12)
         assert rows[name]["std_kind"] == "coloured"
+
+
+_REGRESSION_CASE = """title = "simulated regression"
+[data]
+data_dir = "."
+file = "sim.csv"
+time = "t"
+[data.inputs]
+w = { column = "w", unit = "m/s" }
+q = { column = "q", unit = "rad/s" }
+de = { column = "de", unit = "rad" }
+qdot = { column = "qdot", unit = "rad/s^2" }
+[data.outputs]
+az = { column = "az", unit = "m/s^2" }
+[[stages]]
+kind = "regression"
+method = "ols"
+[stages.coefficients.az]
+response = "az"
+terms = ["w", "q", "de"]
+parameters = ["Zw", "Zq", "Zde"]
+[stages.coefficients.qdot]
+response = "qdot"
+terms = ["w", "q", "de"]
+parameters = ["Mw", "Mq", "Mde"]
+"""
+
+
+def test_regression_stages_folder_on_simulated_data(tmp_path, capsys):
+    from flightid.cli.main import main
+
+    rng = np.random.default_rng(11)
+    t = 0.02 * np.arange(600)
+    w, q, de = (np.sin(2 * np.pi * f * t + k) for k, f in enumerate((0.3, 0.7, 1.1)))
+    X = np.column_stack([w, q, de])
+    az = X @ [-1.5, 0.3, -5.0] + 0.01 * rng.standard_normal(t.size)
+    qdot = X @ [0.2, -3.0, -12.0] + 0.02 * rng.standard_normal(t.size)
+    np.savetxt(tmp_path / "sim.csv", np.column_stack([t, w, q, de, qdot, az]), delimiter=",",
+               header="t,w,q,de,qdot,az", comments="")  # fmt: skip
+    (tmp_path / "case.toml").write_text(_REGRESSION_CASE, encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["run", str(tmp_path / "case.toml"), "--out", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    page = _check_page(out, "Residual analysis", ["measured and fitted coefficients"])
+    assert page.count("<table class='correlation'>") == 2  # one per coefficient
+    # fitted = X θ̂ by lstsq, residual = measured − fitted (independent of the stage code)
+    theta = np.linalg.lstsq(X, qdot, rcond=None)[0]
+    with open(out / "stage_time_histories.csv", newline="", encoding="utf-8") as stream:
+        rows = [r for r in csv.DictReader(stream) if r["coefficient"] == "qdot"]
+    np.testing.assert_allclose([float(r["measured"]) for r in rows], qdot, atol=1e-9)
+    np.testing.assert_allclose([float(r["fitted"]) for r in rows], X @ theta, atol=1e-8)
+    with open(out / "estimates.csv", newline="", encoding="utf-8") as stream:
+        estimates = {r["name"]: r for r in csv.DictReader(stream)}
+    np.testing.assert_allclose(
+        [float(estimates[n]["value"]) for n in ("Mw", "Mq", "Mde")], theta, rtol=1e-9
+    )
