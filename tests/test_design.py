@@ -443,10 +443,12 @@ def test_design_result_files_hold_the_input_and_the_predicted_bounds(tmp_path):
     )  # fmt: skip
     best, tried = design_input(problem)
     result = DesignResult(problem, best, tuple(tried), title="files")
-    main = result.write_files(tmp_path)
+    from flightid.report.estimator_reports import write_design_files
+
+    main = write_design_files(result, tmp_path)
     assert main.name == "report.html"
     page = main.read_text()
-    assert "data:image/png;base64," in page and 'href="designed_input.csv"' in page
+    assert "data:image/png;base64," in page and "href='designed_input.csv'" in page
     document = json.loads((tmp_path / "results.json").read_text())
     entry = document["results"][0]
     assert entry["predicted"] == {
@@ -464,6 +466,6 @@ def test_design_result_files_hold_the_input_and_the_predicted_bounds(tmp_path):
     np.testing.assert_allclose(
         [table[n] for n in best.accuracy.names], best.accuracy.std, rtol=1e-5
     )
-    assert (tmp_path / "design.png").stat().st_size > 10_000
+    assert (tmp_path / "figures" / "designed_input.png").stat().st_size > 10_000
     frame = result.to_frame()
     assert list(frame.index) == list(best.accuracy.names)

@@ -125,15 +125,17 @@ def test_lateral_case_agrees_as_documented(capsys):
 
 
 def test_write_files_and_summary(tmp_path):
+    from flightid.report.estimator_reports import write_frequency_files
+
     result = run_frequency_case(load_case(SP_CASE))
-    main_file = result.write_files(tmp_path)
+    main_file = write_frequency_files(result, tmp_path)
     assert main_file.name == "report.html"
     page = main_file.read_text()
     assert page.count("data:image/png;base64,") == 2  # the Bode and spectra figures
-    assert 'href="results.json"' in page and "Mde" in page
+    assert "href='results.json'" in page and "Mde" in page
     document = json.loads((tmp_path / "results.json").read_text())
     assert document["results"][0]["parameters"][1]["name"] == "Za"
-    for name in ("frequency_spectra.csv", "frequency_bode.png", "frequency_spectra.png"):
+    for name in ("frequency_spectra.csv", "figures/bode.png", "figures/spectra.png"):
         assert (tmp_path / name).stat().st_size > 0
     header = (tmp_path / "frequency_spectra.csv").read_text().splitlines()[0]
     assert header.startswith("maneuver,frequency_hz,alpha_measured_re")

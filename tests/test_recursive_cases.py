@@ -215,11 +215,13 @@ def test_results_entry_follows_the_schema_and_files_are_written(tmp_path):
     jsonschema = pytest.importorskip("jsonschema")
     case = load_case(ROOT / "examples/cases/unstab_sp_recursive_ekf.toml")
     result = run_recursive_case(case, DATA)
-    path = result.write_files(tmp_path)
+    from flightid.report.estimator_reports import write_recursive_files
+
+    path = write_recursive_files(result, tmp_path)
     # report.html stands alone: the figure embedded, the files linked
     assert path.name == "report.html"
     page = path.read_text()
-    assert "data:image/png;base64," in page and 'href="parameter_histories.csv"' in page
+    assert "data:image/png;base64," in page and "href='parameter_histories.csv'" in page
     assert "zw" in page  # the summary table
     document = json.loads((tmp_path / "results.json").read_text())
     schema = json.loads((ROOT / "docs/schema/results.schema.json").read_text())

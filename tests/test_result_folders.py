@@ -182,17 +182,18 @@ def test_design_refuses_its_case_folder_and_writes_a_manifest(tmp_path, monkeypa
     from types import SimpleNamespace
 
     import flightid.design.case as design_case
+    import flightid.report.estimator_reports as estimator_reports
 
-    def write_files(directory: Path) -> Path:
+    def write_files(result, directory: Path, units=None) -> Path:
         (directory / "design.csv").write_text("time,de\n0,0\n")
         return directory / "design.csv"
 
     result = SimpleNamespace(
         summary=lambda: "design",
         to_dict=lambda: {"inputs": {}, "predicted": {}},
-        write_files=write_files,
     )
     monkeypatch.setattr(design_case, "run_design_case", lambda *args, **kwargs: result)
+    monkeypatch.setattr(estimator_reports, "write_design_files", write_files)
     case = tmp_path / "design" / "short_period_design.toml"
     case.parent.mkdir()
     shutil.copy(ROOT / "examples/cases/short_period_design.toml", case)

@@ -162,7 +162,8 @@ def test_regression_stage_whiteness_is_that_of_y_minus_x_theta(tmp_path, capsys)
     out = str(tmp_path / "out")
     assert main(["run", str(case), "--out", out, "--quiet", "--data-dir", str(DATA)]) == 0
     capsys.readouterr()
-    page = (tmp_path / "out" / "stages.html").read_text(encoding="utf-8")
-    assert "Residual whiteness" in page and "coloured</span>" in page
+    # regression stages only: the stages' page is the folder's report.html
+    page = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "Residual analysis" in page and "coloured</span>" in page
     assert "data:image/png;base64," in page
     assert (tmp_path / "out" / "figures" / "whiteness_0_regression.png").is_file()

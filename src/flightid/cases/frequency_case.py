@@ -170,6 +170,9 @@ class FrequencyResult(ResultSurface):
     # Cramér–Rao σ, corrected for grids finer than 1/T (empty: taken as std)
     std_cr: np.ndarray = field(default_factory=lambda: np.zeros(0))
     grid_factors: tuple[float, ...] = ()
+    # correlation matrix of the estimated parameters (of the reported covariance), (n_free,
+    # n_free); empty: not kept
+    correlation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     def __post_init__(self) -> None:
         if self.std_cr.size == 0:
@@ -376,49 +379,20 @@ class FrequencyResult(ResultSurface):
             figure.savefig(path, dpi=dpi)
         return figure
 
-    def write_files(self, directory: Path) -> Path:
-        """results.json, frequency_spectra.csv, frequency_bode.png, frequency_spectra.png and
-        report.html (``flightid.report.summary_page``); returns the path of report.html."""
-        import matplotlib.pyplot as plt
-
-        from flightid.frequency.plots import spectra_figure
-        from flightid.report.summary_page import write_results_json, write_summary_page
-
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        main = write_results_json(directory, self.to_dict())
-        header = ["maneuver", "frequency_hz"]
-        for o in self.outputs:
-            header += [f"{o}_measured_re", f"{o}_measured_im", f"{o}_model_re", f"{o}_model_im"]
-        rows = []
-        for m, (f, z, y) in enumerate(self.output_transforms(), start=1):
-            for k in range(f.size):
-                row = [str(m), repr(float(f[k]))]
-                for j in range(len(self.outputs)):
-                    row += [
-                        repr(float(v))
-                        for v in (z[k, j].real, z[k, j].imag, y[k, j].real, y[k, j].imag)
-                    ]
-                rows.append(",".join(row))
-        (directory / "frequency_spectra.csv").write_text(
-            ",".join(header) + "\n" + "\n".join(rows) + "\n", encoding="utf-8"
-        )
-        for name, figure in (
-            ("frequency_bode.png", self.plot()),
-            ("frequency_spectra.png", spectra_figure(self)),
-        ):
-            figure.savefig(directory / name, dpi=100)
-            plt.close(figure)
-        # report.html: the summary, the Bode and spectra figures embedded, links to the files
-        return write_summary_page(
-            directory,
-            self.summary(),
-            figures=["frequency_bode.png", "frequency_spectra.png"],
-            files=[main.name, "frequency_spectra.csv"],
-        )
-
 
 Progress = Callable[[str], None]
+
+
+def _correlation(covariance, n_free: int) -> np.ndarray:
+    """ρ_ij = P_ij / √(P_ii P_jj) of the estimated parameters; empty when the covariance
+    is not the free parameters' (n_free × n_free)."""
+    if covariance is None:
+        return np.zeros((0, 0))
+    matrix = np.asarray(covariance, dtype=float)
+    if matrix.shape != (n_free, n_free):
+        return np.zeros((0, 0))
+    scale = np.sqrt(np.where(np.diag(matrix) > 0, np.diag(matrix), np.nan))
+    return matrix / np.outer(scale, scale)
 
 
 @dataclass(frozen=True)
@@ -599,6 +573,8 @@ def run_frequency_case(
                 model_response(system, s, None, boundary=False, constants=False) for s in spectra
             )
             values, std, std_col, std_cr = ee.theta, ee.std, ee.std, ee.std_cr
+            # one regression per state equation: no joint covariance of all parameters
+            covariance = None
             S = cost = None
             converged, message, cycles, iterations = True, "closed-form least squares", 0, 0
             nuisance: tuple = ()
@@ -620,6 +596,7 @@ def run_frequency_case(
                 scales=np.maximum(np.abs(start), 0.01),
             )
             values, std, std_col, std_cr = fit.theta, fit.std, fit.std_coloured, fit.std_cr
+            covariance = fit.covariance_coloured
             S, cost = fit.S, fit.cost
             converged, message = fit.converged, fit.message
             cycles, iterations = fit.noise_cycles, fit.iterations
@@ -642,6 +619,7 @@ def run_frequency_case(
         std_coloured=np.where(free, std_col, np.nan),
         std_cr=np.where(free, std_cr, np.nan),
         grid_factors=tuple(float(c) for c in grid_factors(spectra)),
+        correlation=_correlation(covariance, int(free.sum())),
         free=free,
         units=tuple(p.unit for p in model.parameters),
         not_estimated=not_estimated,

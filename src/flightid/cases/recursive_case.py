@@ -27,6 +27,7 @@ Every key is checked; a wrong one is a ``CaseError`` naming ``recursive.<key>``.
 
 from __future__ import annotations
 
+import hashlib
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -307,11 +308,30 @@ def _columns(maneuvers, names: Sequence[str], key: str) -> np.ndarray:
     return values
 
 
+def _parameter_correlation(estimator) -> np.ndarray | None:
+    """Correlation of the parameters in the filter's last covariance P (its parameter
+    block, after the n_x model states); None for an estimator without one, or for the
+    EFRLS, whose P is an RLS matrix, not a covariance."""
+    P = getattr(estimator, "P", None)
+    augmented = getattr(estimator, "augmented", None)
+    if P is None or augmented is None or getattr(estimator, "method", "") == "efrls":
+        return None
+    block = np.asarray(P, dtype=float)[augmented.n_x :, augmented.n_x :]
+    # ρ_ij = P_ij / √(P_ii P_jj)
+    scale = np.sqrt(np.where(np.diag(block) > 0, np.diag(block), np.nan))
+    return block / np.outer(scale, scale)
+
+
 def _meta(case: Case, maneuvers, description: str, outputs, r0) -> dict[str, Any]:
     units = maneuvers[0].units
+    path = Path(case.path) if case.path is not None else None
     return {
         "title": case.title,
         "file": str(case.path),
+        # SHA-256 of the case file's bytes as run (the report's provenance)
+        "sha256": hashlib.sha256(path.read_bytes()).hexdigest()
+        if path is not None and path.is_file()
+        else "",
         "model": description,
         "outputs": list(outputs),
         "output_units": [units.get(n, "") for n in outputs],
@@ -520,6 +540,13 @@ def run_recursive_case(
     if innovations.size:
         # rms of the innovations ν_k = z_k − ỹ_k per output
         meta["innovation_rms"] = np.sqrt(np.mean(innovations**2, axis=0)).tolist()
+        # the innovations themselves, one per corrected sample (the last ones of the run),
+        # for the report's innovation analysis
+        meta["innovations"] = innovations
+        meta["innovation_time_s"] = np.asarray(t, dtype=float)[-innovations.shape[0] :]
+    correlation = _parameter_correlation(estimator)
+    if correlation is not None:
+        meta["parameter_correlation"] = correlation
     result = online.result(
         settings["report"],
         units=prepared.units,

@@ -11,7 +11,8 @@ duration and response limits is kept. Standard output gets the summary (text) or
 with ``inputs`` = {"time": [...], "<input>": [Δu ...]} (perturbations about the trim values
 given in ENTRY["trim"]) and ``predicted`` = {parameter: predicted σ}; ENTRY has both too and
 ``parameters`` in the results.json layout (std = predicted σ). ``--out DIR`` writes
-results.json, designed_input.csv, predicted_accuracy.csv and design.png. Progress goes to
+results.json, estimates.csv, designed_input.csv, predicted_accuracy.csv, figures/ and
+report.html (``flightid.report.estimator_reports.write_design_files``). Progress goes to
 stderr. Exit status 0 after a design, 1 on any failure (one line ``flightid: error: ...``).
 """
 
@@ -37,7 +38,8 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--out",
         default=None,
-        help="write results.json, designed_input.csv, predicted_accuracy.csv, design.png and "
+        help="write results.json, estimates.csv, designed_input.csv, predicted_accuracy.csv, "
+        "figures and "
         "report.html to this folder (a folder that already holds a run is refused unless "
         "--overwrite)",
     )
@@ -77,11 +79,34 @@ def run(args: argparse.Namespace) -> int:
                 "predicted": entry["predicted"],
             }
 
+        from flightid.report.estimator_reports import write_design_files
+
+        units = declared_units(case)
         answer_then_files(
-            args, document, lambda: print(result.summary()), folder, result.write_files,
-            written="design",
+            args, document, lambda: print(result.summary()), folder,
+            lambda directory: write_design_files(result, directory, units), written="design",
         )  # fmt: skip
     finally:
         if folder is not None:
             folder.release()
     return 0
+
+
+# the unit a channel declared in ``unit`` without ``to`` is converted to (the loaders'
+# unit rule: angles in rad)
+_CONVERTED = {"deg": "rad", "deg/s": "rad/s", "deg/s^2": "rad/s^2"}
+
+
+def declared_units(case) -> dict[str, str]:
+    """{channel: unit} of the case's ``[data.inputs]`` and ``[data.outputs]`` after
+    loading: ``to`` where given, else ``unit`` (deg → rad), for the design's axis labels."""
+    units: dict[str, str] = {}
+    for section in ("inputs", "outputs"):
+        table = case.data.get(section, {})
+        if not isinstance(table, dict):
+            continue
+        for name, spec in table.items():
+            if isinstance(spec, dict):
+                unit = spec.get("to") or spec.get("unit") or ""
+                units[name] = _CONVERTED.get(unit, unit) if "to" not in spec else unit
+    return units

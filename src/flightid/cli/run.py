@@ -268,8 +268,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
     """A case with a ``[recursive]`` or ``[frequency_domain]`` table: its own module runs it
-    and returns a result with the common surface (``summary()``, ``to_dict()``) and
-    ``write_files(directory) -> Path`` (the file to name in the progress line)."""
+    and returns a result with the common surface (``summary()``, ``to_dict()``); its folder
+    is written by ``flightid.report.estimator_reports`` (the same layout as the output-error
+    run's)."""
     from flightid.cases.run import stderr_progress
     from flightid.results import results_document
 
@@ -281,15 +282,17 @@ def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
         )
     if case.recursive:
         from flightid.cases.recursive_case import run_recursive_case as run_own
+        from flightid.report.estimator_reports import write_recursive_files as write_own
     else:
         from flightid.cases.frequency_case import run_frequency_case as run_own
+        from flightid.report.estimator_reports import write_frequency_files as write_own
     result = run_own(case, args.data_dir, progress=None if args.quiet else stderr_progress)
     answer_then_files(
         args,
         lambda: results_document([result.to_dict()]),
         lambda: print(result.summary()),
         folder,
-        result.write_files,
+        lambda directory: write_own(result, directory),
     )
     return 0
 
@@ -297,8 +300,9 @@ def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
 def _run_stages(case, args: argparse.Namespace, folder) -> int:
     """A case with regression stages (``flightid.cases.stages``): print the stages' results,
     and write the output-error stage's files plus ``stages.json`` and ``stages.html`` (the
-    fits with their residual whiteness, ``flightid.report.stages_report``) into the result
-    folder."""
+    fits with their residual whiteness, ``flightid.report.estimator_reports``) into the
+    result folder; without an output-error stage the stages' page is report.html, with
+    results.json and estimates.csv beside it."""
     import json
 
     from flightid.cases.run import stderr_progress
@@ -329,15 +333,18 @@ def _run_stages(case, args: argparse.Namespace, folder) -> int:
             json.dumps(json.loads(dumps({"stages": run.stages_dict()})), indent=2) + "\n",
             encoding="utf-8",
         )
-        # stages.html: the regression fits and their residual whiteness
-        from flightid.report.stages_report import write_stages_files
+        from flightid.report.estimator_reports import write_stages_files
 
-        page = write_stages_files(run, directory, case.output.get("figures", True))
         if run.output_error is None:
-            return page
+            # regression stages only: results.json, estimates.csv, report.html of the stages
+            (directory / "results.json").write_text(dumps(document) + "\n", encoding="utf-8")
+            return write_stages_files(run, directory, case.output.get("figures", True))
         from flightid.report.html import write_files
 
-        return write_files(run.output_error, directory)
+        # the output-error stage's report.html, then stages.html (its file list is complete)
+        page = write_files(run.output_error, directory)
+        write_stages_files(run, directory, case.output.get("figures", True))
+        return page
 
     answer_then_files(args, lambda: document, show, folder, write)
     return 0

@@ -5,14 +5,12 @@
 ``to_dict()`` (one results.json entry: ``parameters`` [{name, value, std, free, unit,
 initial}] with std the *predicted* Cramér–Rao bound, plus ``inputs`` {time, one series per
 input}, ``predicted`` {name: σ}, the settings, peak factors and the reference maneuver's
-prediction), ``to_json()``, ``plot()`` and ``write_files(directory)`` (results.json,
-designed_input.csv — time and trim + Δu per input, ready for a test card or an onboard
-excitation system —, predicted_accuracy.csv and design.png).
+prediction), ``to_json()`` and ``plot()``; its result folder is written by
+``flightid.report.estimator_reports.write_design_files``.
 """
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -242,50 +240,3 @@ class DesignResult:
             path.parent.mkdir(parents=True, exist_ok=True)
             figure.savefig(path, dpi=dpi)
         return figure
-
-    def write_files(self, directory: Path) -> Path:
-        """results.json, designed_input.csv, predicted_accuracy.csv, design.png and
-        report.html (``flightid.report.summary_page``) in ``directory``; returns the path of
-        report.html."""
-        import matplotlib.pyplot as plt
-
-        from flightid.report.summary_page import write_results_json, write_summary_page
-
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        main = write_results_json(directory, self.to_dict())
-        absolute = self._absolute_inputs()
-        with open(directory / "designed_input.csv", "w", newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(
-                ["time_s", *[f"{n}" for n in absolute], *[f"delta_{n}" for n in absolute]]
-            )
-            for k, t in enumerate(self.best.time):
-                writer.writerow(
-                    [f"{t:.6f}"]
-                    + [f"{absolute[n][k]:.9g}" for n in absolute]
-                    + [f"{self.best.perturbations[k, j]:.9g}" for j in range(len(absolute))]
-                )
-        with open(
-            directory / "predicted_accuracy.csv", "w", newline="", encoding="utf-8"
-        ) as handle:
-            writer = csv.writer(handle)
-            header = ["name", "value", "predicted_std"]
-            if self.reference is not None:
-                header.append("reference_std")
-            writer.writerow(header)
-            accuracy = self.best.accuracy
-            for j, name in enumerate(accuracy.names):
-                row = [name, f"{accuracy.values[j]:.9g}", f"{accuracy.std[j]:.6g}"]
-                if self.reference is not None:
-                    row.append(f"{self.reference[0].std_of(name):.6g}")
-                writer.writerow(row)
-        figure = self.plot(directory / "design.png")
-        plt.close(figure)
-        # report.html: the summary, the figure embedded, links to the files
-        return write_summary_page(
-            directory,
-            self.summary(),
-            figures=["design.png"],
-            files=[main.name, "designed_input.csv", "predicted_accuracy.csv"],
-        )

@@ -23,8 +23,8 @@ Which σ ``std`` is, per method:
 
 The result answers the common result surface (``flightid.results``): ``summary()``,
 ``to_dict()`` (one results.json entry), ``to_json()``, ``to_frame()``, ``conf_int()``,
-``plot()``, and ``write_files(directory)`` (results.json, parameter_histories.csv,
-figures/parameter_histories.png).
+and ``plot()``; its result folder is written by
+``flightid.report.estimator_reports.write_recursive_files``.
 """
 
 from __future__ import annotations
@@ -359,36 +359,6 @@ class RecursiveResult(ResultSurface):
             path.parent.mkdir(parents=True, exist_ok=True)
             figure.savefig(path, dpi=dpi)
         return figure
-
-    def write_files(self, directory: str | Path) -> Path:
-        """results.json, parameter_histories.csv, figures/parameter_histories.png and
-        report.html (``flightid.report.summary_page``) in ``directory``; returns the path of
-        report.html."""
-        import matplotlib.pyplot as plt
-
-        from flightid.report.summary_page import write_results_json, write_summary_page
-
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        path = write_results_json(directory, self.to_dict())
-        columns, rows = self.history_table()
-        np.savetxt(
-            directory / "parameter_histories.csv",
-            rows,
-            delimiter=",",
-            header=",".join(columns),
-            comments="",
-            fmt="%.10g",
-        )
-        figure = self.plot(directory / "figures" / "parameter_histories.png")
-        plt.close(figure)
-        # report.html: the summary, the figure embedded, links to the files
-        return write_summary_page(
-            directory,
-            self.summary(),
-            figures=["figures/parameter_histories.png"],
-            files=[path.name, "parameter_histories.csv"],
-        )
 
 
 def _finite_or_none(value: float) -> float | None:

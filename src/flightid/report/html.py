@@ -31,7 +31,6 @@ results.
 
 from __future__ import annotations
 
-import base64
 import csv
 import html
 from dataclasses import dataclass, field
@@ -41,6 +40,9 @@ from pathlib import Path
 import numpy as np
 
 from flightid.report.diagnostics import COLOURED_RATIO_WARNING
+from flightid.report.page import STYLE as _STYLE
+from flightid.report.page import image as _img
+from flightid.report.page import table as _table
 
 __all__ = ["write_report", "write_files", "interval_half_widths"]
 
@@ -172,17 +174,6 @@ def _coloured(run):
     return result
 
 
-def _img(figure: tuple[str, bytes] | None, alt: str, width: str = "100%") -> str:
-    """An <img> with the PNG embedded as a base64 data URI: the page needs no other file."""
-    if figure is None:
-        return ""
-    data = base64.b64encode(figure[1]).decode("ascii")
-    return (
-        f"<figure><img alt='{html.escape(alt)}' style='max-width:{width}' "
-        f"src='data:image/png;base64,{data}'><figcaption>{html.escape(alt)}</figcaption></figure>"
-    )
-
-
 # ------------------------------------------------------------------------------ tables
 
 
@@ -245,41 +236,6 @@ def _fmt(value, digits: int = 6) -> str:
     if not np.isfinite(value):
         return str(value)
     return f"{value:.{digits}g}"
-
-
-def _table(
-    headers: list[str],
-    rows: list[list[str]],
-    classes: list[str] | None = None,
-    table_class: str = "",
-) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-    thead = f"<thead><tr>{head}</tr></thead>" if any(headers) else ""
-    body = []
-    for i, row in enumerate(rows):
-        cls = f' class="{classes[i]}"' if classes and classes[i] else ""
-        body.append(f"<tr{cls}>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>")
-    attribute = f" class='{table_class}'" if table_class else ""
-    return f"<table{attribute}>{thead}<tbody>{''.join(body)}</tbody></table>"
-
-
-_STYLE = """
-body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1180px; color: #222;
-       padding: 0 1em; }
-h1 { margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #ccc; margin-top: 1.6em; }
-table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.88em; }
-th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: right; }
-th { background: #f0f0f0; } td:first-child { text-align: left; font-family: monospace; }
-table.facts td, table.facts th { text-align: left; }
-table.facts td:first-child { font-family: inherit; }
-tr.fixed td { color: #888; } .high { background: #fbd5d5; }
-.ok { color: #176117; } .bad { color: #a11; }
-.warning { border: 2px solid #c33; background: #fff1f0; padding: 0.6em 1em; margin: 1em 0; }
-.note { border: 1px solid #cb3; background: #fffbe6; padding: 0.5em 1em; margin: 1em 0; }
-figure { margin: 0.5em 0 1.2em; } figcaption { font-size: 0.85em; color: #555; }
-img { border: 1px solid #ddd; } code { font-size: 0.95em; }
-.small { font-size: 0.85em; color: #555; }
-"""
 
 
 def _unit(unit: str | None) -> str:
