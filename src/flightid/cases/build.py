@@ -557,7 +557,7 @@ def _compiled(fn, n_x: int, n_u: int, n_p: int):
     parameter that is zero here) is not a compilation failure (``try_compiled``).
     """
     from flightid.model.compilation import try_compiled
-    from flightid.simulate.cache import compiled_function
+    from flightid.model.kernel_cache import compiled_function
 
     try:
         jitted = compiled_function(fn)

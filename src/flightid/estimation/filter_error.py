@@ -140,7 +140,7 @@ def _filter_kernel(f: Callable, h: Callable, compiled: bool) -> Callable:
     if compiled:
         import numba
 
-        from flightid.simulate.cache import cached_njit
+        from flightid.model.kernel_cache import cached_njit
 
         kernel = cached_njit(
             _filter_source(kernel_function(f_out, True), kernel_function(h_out, True), numba.njit)
