@@ -152,7 +152,7 @@ def base_model(case: Case, data_dir: Path | None = None) -> tuple[StateSpaceMode
         structure = structure_from_terms(spec["aero"])
         return alpha_q_base(case, data_dir, structure, zero_parameters(structure))
     if spec.get("type") == "kinematic":
-        from flightid.compat.case import kinematic_from_case
+        from flightid.cases.compat_case import kinematic_from_case
 
         return kinematic_from_case(case), "built-in kinematic model (flight-path reconstruction)"
     if spec.get("type") == "linear":

@@ -538,7 +538,7 @@ def _model_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
     if model.get("type") == "linear":
         return _linear_section(model)
     if model.get("type") == "kinematic":
-        from flightid.compat.case import kinematic_section
+        from flightid.cases.compat_case import kinematic_section
 
         return kinematic_section(model)
     _known(model, _MODEL, "model")
