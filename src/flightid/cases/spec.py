@@ -107,7 +107,7 @@ _TOP = {
     # estimators and tools with their own table, checked by their own module
     "recursive",  # flightid.cases.recursive_case (EKF, UKF, EFRLS, FTR)
     "frequency_domain",  # flightid.cases.frequency_case
-    "design",  # flightid.design (flightid design CASE.toml)
+    "design",  # flightid.cases.design_case (flightid design CASE.toml)
 }
 # keys of the old `flightid regress` dialect, and where they went in the one language
 _MIGRATED = {
