@@ -111,8 +111,8 @@ def attas(runs: int, seed: int):
 
     from flightid.cases import load_case
     from flightid.cases.build import load_maneuvers, resolve_data_dir
+    from flightid.cases.design_case import run_design_case
     from flightid.data.flightdata import FlightData
-    from flightid.design.case import run_design_case
     from flightid.design.optimize import design_input, trim_state
 
     case = load_case(ROOT / "examples" / "cases" / "short_period_design.toml")

@@ -37,7 +37,7 @@ from flightid.aircraft import (
 )
 from flightid.aircraft.generated import module_name
 from flightid.errors import InputError
-from flightid.simulate.cache import kernel_digest
+from flightid.model.kernel_cache import kernel_digest
 
 
 @pytest.fixture(autouse=True)
@@ -320,7 +320,7 @@ class Compiles(event.Listener):
 event.register("numba:compile", Compiles())
 import numpy as np
 from flightid.aircraft import AeroModel, Airplane, six_dof_model
-from flightid.simulate.cache import compiled_function
+from flightid.model.kernel_cache import compiled_function
 airplane = Airplane(mass=1300.0, Ix=1500.0, Iy=3000.0, Iz=4000.0, Ixz=150.0, S=17.0, b=10.5,
                     cbar=1.7, density=1.1, thrust_input="T")
 model = six_dof_model(airplane, AeroModel({"CD": ["1", "alpha^2"], "CL": ["1", "alpha"],

@@ -140,7 +140,7 @@ def test_a_case_built_twice_in_a_process_compiles_once(case_file, monkeypatch):
 
 
 def test_same_content_gives_one_compiled_function_and_one_key():
-    from flightid.simulate.cache import compiled_function, content_key
+    from flightid.model.kernel_cache import compiled_function, content_key
 
     def make(gain):
         def g(x):

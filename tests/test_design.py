@@ -374,7 +374,7 @@ def _case(tmp_path, design: str):
     ],
 )  # fmt: skip
 def test_design_table_errors_name_the_key(tmp_path, design, message):
-    from flightid.design.case import run_design_case
+    from flightid.cases.design_case import run_design_case
 
     case = _case(tmp_path, design)
     with pytest.raises(CaseError, match=message):

@@ -1,7 +1,7 @@
 """Every shipped model module's f and h can be found again by their module's name.
 
 numba rebuilds a kernel from its disk cache by importing the module of the compiled
-functions' globals by name (``flightid.simulate.cache``); a model whose f and h live in a
+functions' globals by name (``flightid.model.kernel_cache``); a model whose f and h live in a
 module missing from ``sys.modules`` is compiled again by every process. examples/models/
 hfb320_upper.py loaded hfb320.py without registering it, and the shipped
 hfb320_longitudinal_filter_error case compiled 16 functions (29.7 s) in every run

@@ -165,7 +165,7 @@ def test_empty_output_dir_of_the_case_is_refused(case, capsys):
 
 
 def test_design_with_an_empty_out_is_refused_before_designing(tmp_path, monkeypatch, capsys):
-    import flightid.design.case as design_case
+    import flightid.cases.design_case as design_case
 
     def forbidden(*args, **kwargs):
         raise AssertionError("the design ran although --out is empty")
@@ -181,7 +181,7 @@ def test_design_with_an_empty_out_is_refused_before_designing(tmp_path, monkeypa
 def test_design_refuses_its_case_folder_and_writes_a_manifest(tmp_path, monkeypatch, capsys):
     from types import SimpleNamespace
 
-    import flightid.design.case as design_case
+    import flightid.cases.design_case as design_case
     import flightid.report.estimator_reports as estimator_reports
 
     def write_files(result, directory: Path, units=None) -> Path:

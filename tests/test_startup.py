@@ -161,7 +161,7 @@ def test_second_process_loads_both_kernels_from_the_disk_cache(tmp_path):
 
 
 def test_digest_follows_closures_globals_and_arrays():
-    from flightid.simulate.cache import kernel_digest
+    from flightid.model.kernel_cache import kernel_digest
 
     def make(table):
         def g(x):
@@ -203,7 +203,7 @@ import numba
 def early(x):
     return x + 1.0
 early(1.0)
-from flightid.simulate.cache import kernel_digest
+from flightid.model.kernel_cache import kernel_digest
 @numba.njit
 def late(x):
     return x + 2.0

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from flightid.cases import CaseError, load_case, prepare_case, run_case
+from flightid.cases.design_case import design_problem
 from flightid.cli.main import main
-from flightid.design.case import design_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "examples" / "csv_walkthrough"

@@ -1,6 +1,6 @@
 """Generated model source as an importable module, kept in a file named by its content.
 
-numba's disk cache (``flightid.simulate.cache``) needs the source file of every function it
+numba's disk cache (``flightid.model.kernel_cache``) needs the source file of every function it
 caches: its cache files sit next to that file (or under ``NUMBA_CACHE_DIR``) and record its
 time stamp. A module made by ``exec`` of a string has no file, so its functions, and every
 kernel built on them, would be compiled again in each process. ``load_source`` therefore

@@ -17,7 +17,7 @@ internal error with its type. The batch goes on either way.
 The record counts the numba compilations the task caused (``numba_compilations``, and their
 time ``numba_compile_s``, from numba's ``numba:compile`` events, which fire only when a
 function is really compiled, not when it is loaded from the disk cache): with flightid's
-kernel cache (``flightid.simulate.cache``) shared by the processes of one machine, only the
+kernel cache (``flightid.model.kernel_cache``) shared by the processes of one machine, only the
 first task of a model compiles.
 """
 

@@ -152,7 +152,7 @@ def base_model(case: Case, data_dir: Path | None = None) -> tuple[StateSpaceMode
         structure = structure_from_terms(spec["aero"])
         return alpha_q_base(case, data_dir, structure, zero_parameters(structure))
     if spec.get("type") == "kinematic":
-        from flightid.compat.case import kinematic_from_case
+        from flightid.cases.compat_case import kinematic_from_case
 
         return kinematic_from_case(case), "built-in kinematic model (flight-path reconstruction)"
     if spec.get("type") == "linear":
@@ -557,7 +557,7 @@ def _compiled(fn, n_x: int, n_u: int, n_p: int):
     parameter that is zero here) is not a compilation failure (``try_compiled``).
     """
     from flightid.model.compilation import try_compiled
-    from flightid.simulate.cache import compiled_function
+    from flightid.model.kernel_cache import compiled_function
 
     try:
         jitted = compiled_function(fn)

@@ -30,6 +30,7 @@ import time as _time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,6 +60,9 @@ from flightid.estimation.shooting import estimate_multiple_shooting
 from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate import simulate
+
+if TYPE_CHECKING:
+    from flightid.compat.kinematic import KinematicSpec
 
 __all__ = [
     "DEFAULT_BUDGET",
@@ -188,6 +192,22 @@ class CaseRun:
             None if self.identifiability is None else self.identifiability.to_dict()
         )
         return entry
+
+    @property
+    def kinematic_spec(self) -> KinematicSpec | None:
+        """The ``KinematicSpec`` of a case whose ``[model]`` has ``type = "kinematic"`` (what
+        ``flightid.compat.reconstruct.write_reconstruction`` inverts the sensors with);
+        None for other models."""
+        if self.case.model.get("type") != "kinematic":
+            return None
+        from flightid.cases.compat_case import spec_from_case
+
+        return spec_from_case(self.case)
+
+    @property
+    def input_interpolation(self) -> str:
+        """The case's ``estimation.input_interpolation`` (``input_interpolation``)."""
+        return input_interpolation(self.case)
 
 
 @dataclass(frozen=True)

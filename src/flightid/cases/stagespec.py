@@ -42,7 +42,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from flightid.cases.checks import CaseError, _known, _names, _number, _string, _table
-from flightid.cases.spec import (
+from flightid.cases.settings import (
     StageSpec,
     accuracy_settings,
     estimation_settings,

@@ -57,9 +57,9 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     # imported here: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case
+    from flightid.cases.design_case import run_design_case
     from flightid.cases.run import stderr_progress
     from flightid.cli.run import answer_then_files, open_result_folder
-    from flightid.design.case import run_design_case
     from flightid.results import results_document
 
     case = load_case(args.case)

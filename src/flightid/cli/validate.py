@@ -76,11 +76,11 @@ def _stages(case, data_dir):
 
 def _design(case, data_dir) -> None:
     """The ``[design]`` table checked as ``flightid design`` checks it before designing
-    (``flightid.design.case.design_problem``: keys, ranges, bands below the Nyquist
+    (``flightid.cases.design_case.design_problem``: keys, ranges, bands below the Nyquist
     frequency, inputs and outputs of the model, the trim search)."""
     from pathlib import Path
 
-    from flightid.design.case import design_problem
+    from flightid.cases.design_case import design_problem
 
     problem, _ = design_problem(case, Path(data_dir) if data_dir else None)
     print(

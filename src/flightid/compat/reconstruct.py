@@ -187,13 +187,11 @@ def reconstruction_file_name(maneuver: str) -> str:
 def write_reconstruction(run, directory: Path) -> list[Path]:
     """Write ``reconstructed_<maneuver>.csv`` for each maneuver of a kinematic case run
     (``flightid.cases.CaseRun``) into ``directory``; returns the paths (none for other
-    models)."""
-    if run.case.model.get("type") != "kinematic":
+    models). The run carries the parsed case: ``run.kinematic_spec`` (the ``KinematicSpec``
+    of its ``[model]``, None for other models) and ``run.input_interpolation``."""
+    spec = run.kinematic_spec
+    if spec is None:
         return []
-    from flightid.cases.run import input_interpolation
-    from flightid.compat.case import spec_from_case
-
-    spec = spec_from_case(run.case)
     estimate = run.estimate
     theta = run.model.parameters.with_values(
         dict(zip(estimate.names, estimate.values, strict=True))
@@ -204,7 +202,7 @@ def write_reconstruction(run, directory: Path) -> list[Path]:
         run.maneuvers,
         theta,
         method=run.case.estimation.get("method", "rk4"),
-        input_interpolation=input_interpolation(run.case),
+        input_interpolation=run.input_interpolation,
         compiled=bool(run.case.estimation.get("compiled", True)),
     )
     return [

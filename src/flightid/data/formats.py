@@ -24,16 +24,15 @@ from typing import Any
 
 import numpy as np
 
-from flightid.data.loaders import (
+from flightid.data.mat_tables import _mat_table, struct_table
+from flightid.data.table import (
     _CSV_UNIT,
     DataFileError,
     Table,
     TableStream,
     _finish_table,
-    _mat_table,
-    struct_table,
+    _require,
 )
-from flightid.results import MissingDependencyError
 
 __all__ = [
     "Stream",
@@ -64,20 +63,6 @@ class Stream:
     time_s: np.ndarray
     fields: dict[str, np.ndarray]
     units: dict[str, str] = dataclasses.field(default_factory=dict)
-
-
-def _require(module: str, extra: str, what: str) -> Any:
-    """Import ``module`` or raise ``MissingDependencyError`` naming the extra."""
-    import importlib
-
-    try:
-        return importlib.import_module(module)
-    except ImportError:
-        package = module.split(".")[0]
-        raise MissingDependencyError(
-            f"reading {what} needs {package}, which is not installed; install it with "
-            f"pip install 'flightid[{extra}]' (or pip install {package})"
-        ) from None
 
 
 # =====================================================================================

@@ -46,15 +46,11 @@ from typing import Any
 
 import numpy as np
 
+from flightid.data.channels import ChannelSpec
 from flightid.data.coefficients import COEFFICIENTS, Engine, MassGeometry, aero_coefficients
-from flightid.data.loaders import (
-    ChannelError,
-    ChannelSpec,
-    Table,
-    expression_columns,
-    parse_expression,
-)
+from flightid.data.expressions import expression_columns, parse_expression
 from flightid.data.preprocess import PreprocessError, apply_steps
+from flightid.data.table import ChannelError, Table
 from flightid.data.transfer import transfer_accelerations, transfer_air_data
 from flightid.data.units import channel_conversion, parse_unit
 from flightid.errors import InputError, describe

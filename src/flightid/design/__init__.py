@@ -4,6 +4,8 @@
 ``multisine``    orthogonal, phase-optimised multisines for several inputs at once
 ``information``  predicted Cramér–Rao bounds and correlations of a candidate input
 ``optimize``     amplitudes / band / timing chosen for a D-, A- or named-parameter criterion
-``case``         the ``[design]`` table of a case file (``flightid design CASE.toml``)
 ``result``       the design result: summary, JSON, CSV, figures
+
+The ``[design]`` table of a case file (``flightid design CASE.toml``) is read by
+``flightid.cases.design_case``.
 """

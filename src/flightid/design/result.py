@@ -25,7 +25,7 @@ __all__ = ["DesignResult"]
 
 @dataclass(frozen=True)
 class DesignResult:
-    """A finished design (``flightid.design.case.run_design_case``)."""
+    """A finished design (``flightid.cases.design_case.run_design_case``)."""
 
     problem: DesignProblem
     best: Candidate

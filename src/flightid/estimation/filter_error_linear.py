@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from flightid.errors import InputError
-from flightid.estimation.filter_error import KC_TOLERANCE, FilterErrorProblem
+from flightid.estimation.filter_error_problem import KC_TOLERANCE, FilterErrorProblem
 from flightid.filtering.kalman import RiccatiError
 from flightid.filtering.linear import (
     check_linear,

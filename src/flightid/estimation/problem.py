@@ -33,8 +33,9 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import FlightIdError, InputError, ModelError, SimulationError
+from flightid.model.binding import as_data_list
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.simulator import SimulationBatch, Simulator, _as_data_list
+from flightid.simulate.simulator import SimulationBatch, Simulator
 
 __all__ = ["OutputErrorProblem", "FiniteDifferences", "estimate_noise_covariance"]
 
@@ -106,7 +107,7 @@ class OutputErrorProblem:
         input_interpolation: str = "linear",
     ) -> None:
         self.model = model
-        self.maneuvers = _as_data_list(data)
+        self.maneuvers = as_data_list(data)
         for i, maneuver in enumerate(self.maneuvers):
             missing = [n for n in model.outputs if n not in maneuver.output_names]
             if missing:

@@ -19,7 +19,6 @@ __all__ = [
     "name_list",
     "positive_integer",
     "real_array",
-    "spectra_list",
 ]
 
 
@@ -99,23 +98,3 @@ def checked_callable(value: Any, argument: str) -> Callable:
     if not callable(value):
         raise InputError(f"{argument}: expected a function, got {describe(value)}")
     return value
-
-
-def spectra_list(value: Any, argument: str = "spectra") -> list:
-    """A non-empty sequence of ``ManeuverSpectra`` (one per maneuver)."""
-    from flightid.frequency.fourier import ManeuverSpectra
-
-    if isinstance(value, ManeuverSpectra):
-        raise InputError(
-            f"{argument}: expected a list of ManeuverSpectra (one per maneuver), got one "
-            "ManeuverSpectra; pass [spectra]"
-        )
-    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not value:
-        raise InputError(
-            f"{argument}: expected at least one maneuver (a non-empty list of ManeuverSpectra), "
-            f"got {describe(value)}"
-        )
-    wrong = [describe(v) for v in value if not isinstance(v, ManeuverSpectra)]
-    if wrong:
-        raise InputError(f"{argument}: expected ManeuverSpectra, got {wrong[0]}")
-    return list(value)

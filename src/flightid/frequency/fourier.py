@@ -40,7 +40,9 @@ constant offset puts a large (1 − e^{−jωT})/(jω) component at low frequenc
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.signal import czt
@@ -49,6 +51,7 @@ from flightid.errors import InputError, describe
 from flightid.frequency.arguments import real_array
 
 __all__ = [
+    "spectra_list",
     "TRENDS",
     "QUADRATURES",
     "frequency_grid",
@@ -331,3 +334,21 @@ def maneuver_spectra(
         name=name,
         input_ends=np.vstack([u[0], u[-1]]),
     )
+
+
+def spectra_list(value: Any, argument: str = "spectra") -> list:
+    """A non-empty sequence of ``ManeuverSpectra`` (one per maneuver)."""
+    if isinstance(value, ManeuverSpectra):
+        raise InputError(
+            f"{argument}: expected a list of ManeuverSpectra (one per maneuver), got one "
+            "ManeuverSpectra; pass [spectra]"
+        )
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not value:
+        raise InputError(
+            f"{argument}: expected at least one maneuver (a non-empty list of ManeuverSpectra), "
+            f"got {describe(value)}"
+        )
+    wrong = [describe(v) for v in value if not isinstance(v, ManeuverSpectra)]
+    if wrong:
+        raise InputError(f"{argument}: expected ManeuverSpectra, got {wrong[0]}")
+    return list(value)

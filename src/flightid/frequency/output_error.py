@@ -82,9 +82,8 @@ from flightid.frequency.arguments import (
     name_list,
     positive_integer,
     real_array,
-    spectra_list,
 )
-from flightid.frequency.fourier import ManeuverSpectra
+from flightid.frequency.fourier import ManeuverSpectra, spectra_list
 from flightid.frequency.linear_system import LinearSystem
 from flightid.frequency.uncertainty import (
     grid_corrected_inverse,

@@ -43,6 +43,7 @@ import numpy as np
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputTypeError, ModelError, describe
+from flightid.model.binding import bind_feedback, bind_maneuvers, check_method
 from flightid.model.statespace import StateSpaceModel
 
 __all__ = ["ModelCheck", "check_model"]
@@ -360,23 +361,23 @@ def check_model(
     """
     from time import perf_counter
 
-    from flightid.simulate.simulator import Simulator
-
     started = perf_counter()
     if not isinstance(model, StateSpaceModel):
         raise InputTypeError(f"model: expected a StateSpaceModel, got {describe(model)}")
-    # The simulator resolves the maneuvers, their input matrices and x0 maps (and checks
-    # them); compiled=False builds only the pure-Python kernel, which is never run here.
-    simulator = Simulator(model, data, method=method, compiled=False)
+    # The maneuvers, their input matrices, x0 maps and feedback options, resolved and
+    # checked as the simulator resolves and checks them (flightid.model.binding).
+    check_method(method)
+    bound = bind_maneuvers(model, data)
+    bind_feedback(model, bound)
     theta = np.array(model.parameters.values, dtype=float)
     functions = {"f": _python_function(model.f), "h": _python_function(model.h)}
     # a model without states has no f to call (simulate.kernels: h alone at every sample)
     checked = ("h", "f") if model.has_states else ("h",)
-    n_maneuvers = len(simulator.maneuvers)
+    n_maneuvers = len(bound.maneuvers)
     shapes = {"f": (len(model.states),), "h": (len(model.outputs),)}
     n_checked = 0
     for i, (maneuver, t, u) in enumerate(
-        zip(simulator.maneuvers, simulator._times, simulator._inputs, strict=True)
+        zip(bound.maneuvers, bound.times, bound.inputs, strict=True)
     ):
         x0 = model.initial_state(theta, i if model.per_maneuver_x0 else 0)
         if t.shape[0] == 0:

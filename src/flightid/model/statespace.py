@@ -57,7 +57,13 @@ from flightid.model.forms import as_out_form, as_return_form
 from flightid.model.forms import function_form as _form_of
 from flightid.model.parameters import Parameters
 
-__all__ = ["StateSpaceModel", "InitialState", "DELAY_CONVENTIONS", "per_maneuver_name"]
+__all__ = [
+    "StateSpaceModel",
+    "InitialState",
+    "DELAY_CONVENTIONS",
+    "no_state_derivative",
+    "per_maneuver_name",
+]
 
 InitialState = Sequence[float | str]
 # how a delayed output is formed between samples (flightid.simulate.simulator):
@@ -83,6 +89,11 @@ def _names(values: Sequence[str], argument: str) -> tuple[str, ...]:
     if len(set(names)) != len(names):
         raise InputError(f"{argument}: names must be unique, got {list(names)}")
     return names
+
+
+def no_state_derivative(t: float, x: np.ndarray, u: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """dx/dt of a model without states: the empty array (the ``f`` of ``f=None``)."""
+    return np.empty(0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,8 +158,6 @@ class StateSpaceModel:
                     f"{list(self.states)}, got None (f=None is only for a model without states)"
                 )
             # no states: dx/dt is the empty array, never integrated (simulate.kernels)
-            from flightid.simulate.kernels import no_state_derivative
-
             object.__setattr__(self, "f", no_state_derivative)
         if not self.outputs:
             raise InputError("outputs: expected at least one output name, got none")

@@ -218,7 +218,7 @@ def with_eigenvalue_shift(
         try:
             # compiled through the digest-keyed disk cache (an uncached njit here was
             # compiled again by every process, and with it every kernel calling it)
-            from flightid.simulate.cache import compiled_function
+            from flightid.model.kernel_cache import compiled_function
 
             f_inner = compiled_function(f)
             # an error the compiled f raises at these values (a division by a parameter)

@@ -246,7 +246,7 @@ class AugmentedModel:
 
         if compiled:
             try:
-                from flightid.simulate.cache import cached_njit
+                from flightid.model.kernel_cache import cached_njit
 
                 sources = _kernel_sources(
                     kernel_function(self.model.f_out, True),

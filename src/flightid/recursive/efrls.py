@@ -23,7 +23,7 @@ from scipy import linalg
 
 from flightid.errors import InputError, describe
 from flightid.recursive.augmented import AugmentedModel, relative_steps
-from flightid.recursive.base import AugmentedFilter
+from flightid.recursive.augmented_filter import AugmentedFilter
 
 __all__ = ["ExtendedForgettingRLS"]
 

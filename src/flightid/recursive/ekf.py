@@ -27,7 +27,8 @@ import numpy as np
 
 from flightid.errors import InputError, describe
 from flightid.recursive.augmented import AugmentedModel, absolute_steps
-from flightid.recursive.base import AugmentedFilter, float_array
+from flightid.recursive.augmented_filter import AugmentedFilter
+from flightid.recursive.base import float_array
 
 __all__ = ["ExtendedKalmanFilter", "transition_series"]
 

@@ -36,7 +36,8 @@ import numpy as np
 from scipy import linalg
 
 from flightid.recursive.augmented import AugmentedModel
-from flightid.recursive.base import AugmentedFilter, diagonal_matrix, symmetric_sqrt
+from flightid.recursive.augmented_filter import AugmentedFilter
+from flightid.recursive.base import diagonal_matrix, symmetric_sqrt
 
 __all__ = [
     "UnscentedKalmanFilter",

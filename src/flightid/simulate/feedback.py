@@ -23,7 +23,7 @@ returns the state at its last sample, *before* any correction there, so that the
 defect of an interval is x_end(interval m) − x0(interval m + 1).
 
 Both kernels are numba-compiled like the plain ones (disk cache by digest,
-``flightid.simulate.cache``) and take the out-form model functions; the loops allocate
+``flightid.model.kernel_cache``) and take the out-form model functions; the loops allocate
 nothing per step. The batch loop of the state kernel is a ``prange`` (parallel for batches of
 several trajectories, ``flightid.simulate.kernels.BatchKernel``); the sensitivity kernel is
 the one of ``flightid.simulate.sensitivity``, given the gain and the measured outputs.

@@ -45,7 +45,7 @@ empty float64 array; ``method`` and ``interpolation`` do not matter there.
 
 The same Python source runs compiled (numba ``njit``) or interpreted; ``make_kernel`` builds
 both from the user's ``f`` and ``h``. The compiled kernel is kept on disk between runs, keyed
-by a digest of the model functions (``flightid.simulate.cache``).
+by a digest of the model functions (``flightid.model.kernel_cache``).
 """
 
 from __future__ import annotations
@@ -55,6 +55,8 @@ from collections.abc import Callable
 
 import numpy as np
 from numba import prange
+
+from flightid.model.statespace import no_state_derivative
 
 __all__ = [
     "make_kernel",
@@ -166,11 +168,6 @@ def record_sample(y, x, y_block, k, n_outputs):
     return finite
 
 
-def no_state_derivative(t: float, x: np.ndarray, u: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """dx/dt of a model without states: the empty array (the ``f`` of ``f=None``)."""
-    return np.empty(0)
-
-
 def _identity(function: Callable) -> Callable:
     return function
 
@@ -277,7 +274,7 @@ class BatchKernel:
     """
 
     def __init__(self, source: Callable) -> None:
-        from flightid.simulate.cache import cached_njit
+        from flightid.model.kernel_cache import cached_njit
 
         self.source = source
         self.serial = cached_njit(source)
@@ -346,7 +343,7 @@ def make_kernel(
 
     Returns ``(kernel, is_compiled)``. With ``compiled=True`` the kernel is numba-compiled if
     numba can compile ``f``, ``h`` and the loop (checked lazily by the first call: see
-    ``Simulator``), its machine code is cached on disk (``flightid.simulate.cache``), and
+    ``Simulator``), its machine code is cached on disk (``flightid.model.kernel_cache``), and
     batches of several trajectories run in parallel (``BatchKernel``); with
     ``compiled=False`` it is the same loop in plain Python.
     """

@@ -234,7 +234,7 @@ class SensitivityKernel:
     def __init__(self, source: Callable, compiled: bool) -> None:
         self.compiled = compiled
         if compiled:
-            from flightid.simulate.cache import cached_njit
+            from flightid.model.kernel_cache import cached_njit
 
             self.serial = cached_njit(source)
             self.parallel = cached_njit(source, parallel=True)
@@ -274,7 +274,7 @@ class SensitivityKernel:
 def make_sensitivity_kernel(f_out: Callable, h_out: Callable, compiled: bool = True) -> Callable:
     """The sensitivity kernel for the out-form ``f_out`` and ``h_out`` (``model.f_out``,
     ``model.h_out``): numba-compiled (its machine code cached on disk,
-    ``flightid.simulate.cache``), or the same loop in Python.
+    ``flightid.model.kernel_cache``), or the same loop in Python.
 
     ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs,
     y_out, g_out)`` (``method``: 0 Euler, 1 RK4; ``interpolation``: 0 linear, 1 zoh)

@@ -19,13 +19,19 @@ returns the continuity defects x_end(interval m) − x0(interval m + 1) beside t
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import InputError, InputTypeError, SimulationError, describe
+from flightid.errors import InputError, SimulationError
+from flightid.model.binding import (
+    INTEGRATION_METHODS,
+    bind_feedback,
+    bind_maneuvers,
+    check_method,
+)
 from flightid.model.compilation import is_compile_error, warn_pure_python
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulate.feedback import make_feedback_kernel
@@ -42,7 +48,7 @@ __all__ = [
     "delayed_inputs",
 ]
 
-_METHODS = {"euler": EULER, "rk4": RK4}
+_METHODS = dict(zip(INTEGRATION_METHODS, (EULER, RK4), strict=True))
 # input between samples: "linear" (u at the RK4 half step = mean of the neighbouring
 # samples) or "zoh" (zero-order hold: u = u_k on [t_k, t_{k+1})); see simulate.kernels
 INPUT_INTERPOLATIONS = tuple(INTERPOLATIONS)
@@ -148,9 +154,9 @@ def delayed_inputs(
     return np.ascontiguousarray(out)
 
 
-# Kernels are kept per content of (f, h) (cache.content_key) so that repeated estimations in
+# Kernels are kept per content of (f, h) (kernel_cache.content_key) so that repeated estimations in
 # a process reuse them (across processes the compiled code is kept on disk:
-# flightid.simulate.cache).
+# flightid.model.kernel_cache).
 _KERNEL_CACHE: dict[tuple, object] = {}
 
 
@@ -168,19 +174,6 @@ class SimulationBatch:
     diverged: np.ndarray
     messages: tuple[str, ...]
     defects: np.ndarray | None = None
-
-
-def _as_data_list(data: FlightData | Sequence[FlightData]) -> list[FlightData]:
-    if isinstance(data, FlightData):
-        return [data]
-    if isinstance(data, (str, bytes, Mapping)) or not isinstance(data, Iterable):
-        raise InputTypeError(
-            f"data: expected a FlightData or a non-empty list of FlightData, got {describe(data)}"
-        )
-    items = list(data)
-    if not items or not all(isinstance(d, FlightData) for d in items):
-        raise InputError("data: expected a FlightData or a non-empty list of FlightData")
-    return items
 
 
 class Simulator:
@@ -206,55 +199,18 @@ class Simulator:
         compiled: bool = True,
         input_interpolation: str = "linear",
     ) -> None:
-        if method not in _METHODS:
-            raise InputError(f"method: expected one of {sorted(_METHODS)}, got {method!r}")
+        self.method = check_method(method)
         self.input_interpolation = check_input_interpolation(input_interpolation)
         self._interpolation = INTERPOLATIONS[input_interpolation]
         self.model = model
-        self.maneuvers = _as_data_list(data)
-        self.method = method
-        if model.per_maneuver_x0 and len(model.x0) != len(self.maneuvers):
-            raise InputError(
-                f"data: the model gives initial states for {len(model.x0)} maneuvers, "
-                f"but {len(self.maneuvers)} were given"
-            )
-        n_per = model.n_parameter_maneuvers
-        if n_per and n_per != len(self.maneuvers):
-            raise InputError(
-                f"data: the model gives per-maneuver parameters "
-                f"{list(model.maneuver_parameters)} for {n_per} maneuvers, but "
-                f"{len(self.maneuvers)} were given"
-            )
-        self._times = []
-        self._inputs = []
-        for i, maneuver in enumerate(self.maneuvers):
-            missing = [
-                n
-                for n in model.inputs
-                if n not in maneuver.input_names and n not in maneuver.output_names
-            ]
-            if missing:
-                raise InputError(
-                    f"data[{i}] ({maneuver.name or 'unnamed'}): the model's inputs {missing} are "
-                    f"not channels of the data (inputs {list(maneuver.input_names)}, outputs "
-                    f"{list(maneuver.output_names)})"
-                )
-            self._times.append(np.ascontiguousarray(maneuver.time, dtype=float))
-            u = (
-                np.column_stack([maneuver.channel(n) for n in model.inputs])
-                if model.inputs
-                else np.zeros((maneuver.n_samples, 0))
-            )
-            self._inputs.append(np.ascontiguousarray(u, dtype=float))
-        self._x0_maps = [
-            model.initial_state_maps(i if model.per_maneuver_x0 else 0)
-            for i in range(len(self.maneuvers))
-        ]
+        bound = bind_maneuvers(model, data)
+        self.maneuvers = bound.maneuvers
+        self._times = bound.times
+        self._inputs = bound.inputs
+        self._x0_maps = bound.x0_maps
         # θ_f = θ[map]: the θ that f and h receive in each maneuver (None: θ itself)
-        self._theta_maps = [
-            model.function_theta_map(i) if model.substitutes_parameters else None
-            for i in range(len(self.maneuvers))
-        ]
+        self._theta_maps = bound.theta_maps
+        self._bound = bound
         self._kernel, self.compiled = self._get_kernel(compiled)
         self._setup_feedback()
         self.evaluations = 0
@@ -262,63 +218,15 @@ class Simulator:
     # --------------------------------------------------------------------- feedback
     def _setup_feedback(self) -> None:
         """The stabilizing gain, measured outputs and shooting intervals of the model
-        (``flightid.model.unstable``), checked against the maneuvers."""
-        model = self.model
-        gain = getattr(model, "stabilizing_gain", None)
-        shooting = getattr(model, "shooting", None)
-        self.feedback = gain is not None or shooting is not None
-        n_s, n_o = len(model.states), len(model.outputs)
-        self._gain = np.zeros((0, 0))
-        self._measured = [np.zeros((t.shape[0], 0)) for t in self._times]
-        if gain is not None:
-            gain = np.ascontiguousarray(gain, dtype=float)
-            if gain.shape != (n_s, n_o):
-                raise InputError(
-                    f"stabilizing_gain: expected a {n_s} × {n_o} matrix (states "
-                    f"{list(model.states)} × outputs {list(model.outputs)}), got {gain.shape}"
-                )
-            if model.output_delay_maps():
-                raise InputError(
-                    "stabilizing_gain: not available with output delays (the correction "
-                    "uses the undelayed output of h)"
-                )
-            self._gain = gain
-            self._measured = []
-            for i, maneuver in enumerate(self.maneuvers):
-                missing = [n for n in model.outputs if n not in maneuver.output_names]
-                if missing:
-                    raise InputError(
-                        f"data[{i}] ({maneuver.name or 'unnamed'}): the stabilized simulation "
-                        f"needs the measured outputs {missing}; outputs "
-                        f"{list(maneuver.output_names)}"
-                    )
-                self._measured.append(
-                    np.ascontiguousarray(
-                        np.column_stack([maneuver.output(n) for n in model.outputs]), dtype=float
-                    )
-                )
+        (``flightid.model.unstable``), checked against the maneuvers
+        (``flightid.model.binding.bind_feedback``)."""
+        bound = bind_feedback(self.model, self._bound)
+        self.feedback = bound.feedback
+        self._gain = bound.gain
+        self._measured = bound.measured
         # per maneuver: [(first sample, parameter index per state)] of intervals 2, 3, ...
-        self._intervals: list[list[tuple[int, np.ndarray]]] = [[] for _ in self._times]
-        if shooting is not None:
-            if len(shooting) != len(self._times):
-                raise InputError(
-                    f"shooting: intervals for {len(shooting)} maneuvers, but "
-                    f"{len(self._times)} were given"
-                )
-            names = model.parameters.names
-            for i, (intervals, t) in enumerate(zip(shooting, self._times, strict=True)):
-                previous = 0
-                for start, states in intervals:
-                    if not previous < start < t.shape[0] - 1 or len(states) != n_s:
-                        raise InputError(
-                            f"shooting[{i}]: an interval starts at sample {start}; expected "
-                            f"increasing samples inside the maneuver (1 … {t.shape[0] - 2}) "
-                            f"with one parameter per state"
-                        )
-                    previous = start
-                    index = np.array([names.index(n) for n in states], dtype=np.int64)
-                    self._intervals[i].append((int(start), index))
-        self.n_defects = n_s * sum(len(v) for v in self._intervals)
+        self._intervals = bound.intervals
+        self.n_defects = bound.n_defects
         if self.feedback:
             self._feedback_kernel = self._memo(
                 ("feedback", self.compiled),
@@ -329,10 +237,10 @@ class Simulator:
     def _memo(self, kind: tuple, build):
         """The kernel ``kind`` of this model's (f, h): built once per process by ``build()``,
         then reused by every simulator of functions that compute the same: the key is the
-        content of the out forms the kernels call (``flightid.simulate.cache.content_key``:
+        content of the out forms the kernels call (``flightid.model.kernel_cache.content_key``:
         their code, constants and closure values), not the function objects, so a case
         builder making new closures of the same model gets the kernel already compiled."""
-        from flightid.simulate.cache import content_key
+        from flightid.model.kernel_cache import content_key
 
         key = (content_key(self.model.f_out), content_key(self.model.h_out), *kind)
         kernel = _KERNEL_CACHE.get(key)
