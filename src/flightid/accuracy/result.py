@@ -214,11 +214,8 @@ class AccuracyResult(ResultSurface):
 
     def summary(self) -> str:
         """A table of the intervals beside each other."""
+        from flightid.numbers import format_at_sigma, format_interval, format_sigma
         from flightid.report.text import format_table
-
-        def cell(pair) -> str:
-            lo, hi = pair
-            return f"[{lo:.4g}, {hi:.4g}]"
 
         units = self.unit_map
         show_units = any(units.values())
@@ -231,12 +228,20 @@ class AccuracyResult(ResultSurface):
             headers.append("search")
         rows = []
         for j, name in enumerate(self.names):
+            # σ to two significant digits; estimate and bounds to the decimal place of the
+            # smaller σ (the finer one the table shows)
+            sigmas = [s for s in (self.std_scaled[j], self.std_coloured[j]) if np.isfinite(s)]
+            place = min(sigmas) if sigmas else float("nan")
+
+            def cell(pair, place=place) -> str:
+                return format_interval(pair[0], pair[1], place)
+
             row = [
                 name,
                 *([units[name]] if show_units else []),
-                f"{self.center[j]:.6g}",
-                f"{self.std_scaled[j]:.3g}",
-                f"{self.std_coloured[j]:.3g}",
+                format_at_sigma(self.center[j], place),
+                format_sigma(self.std_scaled[j]),
+                format_sigma(self.std_coloured[j]),
                 cell(self.ci_cr[j]),
                 cell(self.ci_cr_beale[j]),
             ]

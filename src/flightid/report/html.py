@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flightid.numbers import format_at_sigma, format_sigma
 from flightid.report.diagnostics import COLOURED_RATIO_WARNING
 
 __all__ = ["write_report", "write_files", "interval_half_widths"]
@@ -380,20 +381,22 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
         ratio = coloured.ratio[j] if j is not None else None
         high = ratio is not None and np.isfinite(ratio) and ratio > COLOURED_RATIO_WARNING
         ratio_text = _fmt(ratio, 3) if ratio is not None and np.isfinite(ratio) else "—"
+        # σ to two significant digits; estimate and interval at the default σ's decimal place
+        place = row["std"]
         cells = [
             html.escape(row["name"]),
             _unit(unit),
-            _fmt(row["value"]),
-            _fmt(row["std_cr"], 3),
+            _fmt(row["value"]) if place is None else format_at_sigma(row["value"], place),
+            format_sigma(row["std_cr"]),
         ]
         if scaled:
-            cells.append(_fmt(std_cr, 3))
+            cells.append(format_sigma(std_cr))
         cells += [
-            _fmt(std_col, 3) if std_col is not None and np.isfinite(std_col) else "—",
+            format_sigma(std_col) if std_col is not None and np.isfinite(std_col) else "—",
             f"<span class='high'>{ratio_text}</span>" if high else ratio_text,
-            _fmt(row["relative_percent"], 3),
-            _fmt(row["lower"]),
-            _fmt(row["upper"]),
+            _fmt(row["relative_percent"], 2),
+            _fmt(row["lower"]) if place is None else format_at_sigma(row["lower"], place),
+            _fmt(row["upper"]) if place is None else format_at_sigma(row["upper"], place),
             _fmt(row["initial"]),
             "on a bound"
             if row["name"] in run.estimate.at_bound
@@ -648,11 +651,17 @@ def _utc_now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
-def _interval(pair) -> str:
-    """ "[lower, upper]"; an open side (no limit found) shows as ∓∞, an unknown one as —."""
+def _interval(pair, sigma: float | None = None) -> str:
+    """ "[lower, upper]", both at the decimal place of σ's second significant digit
+    (``flightid.numbers``; six significant digits without a σ); an open side (no limit
+    found) shows as ∓∞, an unknown one as —."""
     lower, upper = (float(v) for v in pair)
-    low = "−∞" if lower == -np.inf else _fmt(lower) if np.isfinite(lower) else "—"
-    high = "+∞" if upper == np.inf else _fmt(upper) if np.isfinite(upper) else "—"
+
+    def bound(v: float) -> str:
+        return _fmt(v) if sigma is None else format_at_sigma(v, sigma)
+
+    low = "−∞" if lower == -np.inf else bound(lower) if np.isfinite(lower) else "—"
+    high = "+∞" if upper == np.inf else bound(upper) if np.isfinite(upper) else "—"
     return f"[{low}, {high}]"
 
 
@@ -664,9 +673,10 @@ def _accuracy_section(run) -> str:
     headers += [f"{m} interval" for m in ran]
     rows = []
     for j, name in enumerate(acc.names):
-        row = [html.escape(name), _fmt(acc.center[j]), _fmt(acc.std_scaled[j], 3)]
-        row.append(_interval(acc.ci_cr[j]))
-        row += [_interval(getattr(acc, f"ci_{m}")[j]) for m in ran]
+        sigma = float(acc.std_scaled[j])
+        row = [html.escape(name), format_at_sigma(acc.center[j], sigma), format_sigma(sigma)]
+        row.append(_interval(acc.ci_cr[j], sigma))
+        row += [_interval(getattr(acc, f"ci_{m}")[j], sigma) for m in ran]
         rows.append(row)
     n_phi = acc.nonlinearity.n_phi
     spent = ", ".join(f"{k} {v}" for k, v in acc.evaluations.items())
@@ -733,12 +743,12 @@ def _trust_section(run) -> str:
         rows = [
             [
                 html.escape(p.name),
-                _fmt(p.value),
-                _fmt(p.std_cr, 3),
-                _fmt(p.std_coloured, 3),
-                _interval(p.ci_cr),
-                _interval(p.ci_profile),
-                _fmt(p.std_profile, 3),
+                format_at_sigma(p.value, p.std_cr),
+                format_sigma(p.std_cr),
+                format_sigma(p.std_coloured),
+                _interval(p.ci_cr, p.std_cr),
+                _interval(p.ci_profile, p.std_cr),
+                format_sigma(p.std_profile),
                 "fails" if p.quadratic_fails else "holds",
             ]
             for p in weak.profiled

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from flightid.numbers import format_sigma, format_with_sigma
+
 __all__ = ["estimate_summary", "format_table", "sigma_note", "sigma_range"]
 
 
@@ -74,13 +76,15 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
         elif result.free[i]:
             std = result.std[i]
             relative = abs(std / value) * 100 if value != 0 and np.isfinite(std) else np.inf
-            cr = [f"{result.std_cr[i]:.3g}"] if coloured else []
+            cr = [format_sigma(result.std_cr[i], missing="-")] if coloured else []
+            # σ to two significant digits, the estimate to σ's decimal place
+            value_text, std_text = format_with_sigma(value, std, missing="-")
             rows.append(
                 [
                     name,
-                    f"{value:.6g}",
-                    f"{std:.3g}",
-                    f"{relative:.2f}" if np.isfinite(relative) else "-",
+                    value_text,
+                    std_text,
+                    f"{relative:.2g}" if np.isfinite(relative) else "-",
                     *cr,
                     f"{result.initial[i]:.6g}",
                     "",
