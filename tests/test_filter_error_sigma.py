@@ -117,3 +117,41 @@ def test_steady_gain_is_linearised_at_x0_and_the_first_input_sample():
     p = DT * r * (a + np.sqrt(a**2 + 0.3**2 / (DT * r)))
     assert point.covariance[0, 0] == pytest.approx(p, rel=1e-8)
     assert point.gain[0, 0] == pytest.approx(p / r, rel=1e-8)
+
+
+@pytest.fixture(scope="module")
+def pinned_result():
+    """The scalar case whose F11 is solved from diag(KC) = 1 (as in the test above)."""
+    data = _scalar_data(12)
+    return estimate_filter_error(
+        _scalar_model(-1.0, 0.8, 0.03), data, {"x": "F11"}, MNR(), gradients="analytic"
+    )
+
+
+def test_a_solved_process_noise_element_is_listed_as_solved(pinned_result, tmp_path):
+    import csv
+    from types import SimpleNamespace
+
+    from flightid.report.html import write_csv
+
+    result = pinned_result
+    assert result.solved == ("F11",)
+    assert result.role("F11") == "solved" and result.role("b") == "free"
+    assert result.role("a") == "fixed"
+    # the console summary names the method and marks the row
+    text = result.summary()
+    assert text.splitlines()[0].startswith("flightid filter-error estimate — ")
+    (row,) = [line for line in text.splitlines() if line.startswith("F11 ")]
+    assert row.rstrip().endswith("solved")
+    (row,) = [line for line in text.splitlines() if line.startswith("b ")]
+    assert not row.rstrip().endswith("solved")
+    # results.json and estimates.csv
+    document = result.to_dict()
+    assert document["estimator"] == "filter_error" and document["solved"] == ["F11"]
+    roles = {p["name"]: p["role"] for p in document["parameters"]}
+    assert roles == {"a": "fixed", "b": "free", "F11": "solved"}
+    run = SimpleNamespace(estimate=result, case=SimpleNamespace(accuracy={}))
+    write_csv(run, tmp_path / "estimates.csv")
+    with (tmp_path / "estimates.csv").open() as stream:
+        rows = {r["name"]: r for r in csv.DictReader(stream)}
+    assert {n: r["role"] for n, r in rows.items()} == roles

@@ -969,4 +969,6 @@ def estimate_filter_error(
         wall_time_s=_time.perf_counter() - started,
         model=estimated_model,
         optimality_sigma=outcome.sigma,
+        # the pinned F elements: solved from diag(KC)_i = 1, not estimated freely
+        solved=tuple(last.process_noise[s] for s in outcome.pinned),
     )

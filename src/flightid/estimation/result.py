@@ -79,6 +79,9 @@ class Estimate(ResultSurface):
             θ̂: how far (in Cramér–Rao σ) the linearised model puts the optimum; a converged
             estimate has it ≤ ``Convergence.confirm_sigma``.
         at_bound: free parameters that ended on a bound (their std is NaN).
+        solved: free parameters whose value is solved from a constraint rather than
+            estimated freely (the filter error method's process-noise elements solved from
+            diag(KC)_i = 1); listed as "solved" in summaries, reports and estimates.csv.
         weights: the samples' weights (N, n_o) in the cost, or None when all are 1; with
             weights, ``residuals`` and ``sensitivities`` are √w·(z − y) and √w·∂y/∂θ, and a
             weight of 0 leaves the measurement out of ``n_data``.
@@ -126,6 +129,7 @@ class Estimate(ResultSurface):
     std_kind: str = CRAMER_RAO
     residuals_white: bool | None = None
     coloured_lag: int = 0
+    solved: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         # without a separate default σ, the default is the Cramér–Rao σ
@@ -165,6 +169,23 @@ class Estimate(ResultSurface):
     @property
     def free_names(self) -> list[str]:
         return [n for n, f in zip(self.names, self.free, strict=True) if f]
+
+    @property
+    def estimator(self) -> str:
+        """``"filter_error"`` or ``"output_error"`` (the case key ``estimation.estimator``),
+        told by the noise policy (``"filter_error/<relaxation>"`` for the filter error
+        method)."""
+        return "filter_error" if self.noise_policy.startswith("filter_error") else "output_error"
+
+    def role(self, name: str) -> str:
+        """How parameter ``name`` got its value: ``"fixed"``, ``"free"`` (estimated),
+        ``"solved"`` (from a constraint: ``solved``) or ``"at_bound"`` (estimated, ended on
+        a bound)."""
+        if name in self.solved:
+            return "solved"
+        if name in self.at_bound:
+            return "at_bound"
+        return "free" if self.free[self.names.index(name)] else "fixed"
 
     @property
     def parameters(self) -> Parameters:
@@ -323,10 +344,12 @@ class Estimate(ResultSurface):
                     "std": std if (self.free[i] and np.isfinite(std)) else None,
                     "std_cr": std_cr if (self.free[i] and np.isfinite(std_cr)) else None,
                     "free": bool(self.free[i]),
+                    "role": self.role(name),
                     "unit": self.parameter_units[i],
                 }
             )
         return {
+            "estimator": self.estimator,
             "method": self.solver,
             "converged": bool(self.converged),
             "status": self.status,
@@ -349,6 +372,7 @@ class Estimate(ResultSurface):
             if np.isfinite(self.optimality_sigma)
             else None,
             "at_bound": list(self.at_bound),
+            "solved": list(self.solved),
             "std_kind": self.std_kind,
             "residuals_white": None if self.residuals_white is None else bool(self.residuals_white),
             "coloured_lag": int(self.coloured_lag),

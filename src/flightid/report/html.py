@@ -187,6 +187,24 @@ def _img(figure: tuple[str, bytes] | None, alt: str, width: str = "100%") -> str
 # ------------------------------------------------------------------------------ tables
 
 
+# the estimates table's last column, by ``Estimate.role``
+_ROLE_TEXT = {
+    "free": "free",
+    "fixed": "fixed",
+    "solved": "solved (constraint)",
+    "at_bound": "on a bound",
+}
+
+
+def _role(est, name: str) -> str:
+    """``Estimate.role`` (free, fixed, solved, at_bound) for any estimate-like result."""
+    if name in getattr(est, "solved", ()):
+        return "solved"
+    if name in getattr(est, "at_bound", ()):
+        return "at_bound"
+    return "free" if est.free[list(est.names).index(name)] else "fixed"
+
+
 def _estimate_rows(run) -> list[dict]:
     est = run.estimate
     confidence = float(run.case.accuracy.get("confidence", 0.95))
@@ -210,6 +228,8 @@ def _estimate_rows(run) -> list[dict]:
                 "upper": value + half[i] if free else None,
                 "initial": float(est.initial[i]),
                 "free": free,
+                # free | fixed | solved (from a constraint) | at_bound
+                "role": _role(est, name),
             }
         )
     accuracy = getattr(run, "accuracy", None)
@@ -398,9 +418,7 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
             _fmt(row["lower"]) if place is None else format_at_sigma(row["lower"], place),
             _fmt(row["upper"]) if place is None else format_at_sigma(row["upper"], place),
             _fmt(row["initial"]),
-            "on a bound"
-            if row["name"] in run.estimate.at_bound
-            else ("free" if row["free"] else "fixed"),
+            _ROLE_TEXT[row["role"]],
         ]
         rows.append(cells)
         classes.append("" if row["free"] else "fixed")

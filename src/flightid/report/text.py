@@ -87,7 +87,8 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
                     f"{relative:.2g}" if np.isfinite(relative) else "-",
                     *cr,
                     f"{result.initial[i]:.6g}",
-                    "",
+                    # a value solved from a constraint (filter error: diag(KC)_i = 1)
+                    "solved" if name in getattr(result, "solved", ()) else "",
                 ]
             )
         else:
@@ -98,7 +99,7 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
 
 
 def estimate_summary(result) -> str:
-    """Estimates, default σ (and Cramér–Rao bounds beside it when the residuals are coloured),
+    """Header naming the method (output error, filter error); estimates, default σ (and Cramér–Rao bounds beside it when the residuals are coloured),
     relative σ, start values; cost and accounting."""
     coloured = getattr(result, "std_kind", "cramer_rao") == "coloured"
     rows = _parameter_rows(result, coloured)
@@ -110,8 +111,10 @@ def estimate_summary(result) -> str:
         )
     else:
         sigma_line = "σ: Cramér–Rao bounds (the residuals are white at lag 1)"
+    # "output-error", "filter-error": the method that produced the estimate
+    estimator = getattr(result, "estimator", "output_error").replace("_", "-")
     head = [
-        f"flightid output-error estimate — {result.model.name}",
+        f"flightid {estimator} estimate — {result.model.name}",
         f"solver {result.solver}, noise policy {result.noise_policy}, integration {result.method}",
         f"status: {result.status} — {result.message}",
         f"cost J = {result.cost:.6g}   iterations {result.iterations}   "
