@@ -99,8 +99,9 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
 
 
 def estimate_summary(result) -> str:
-    """Header naming the method (output error, filter error); estimates, default σ (and Cramér–Rao bounds beside it when the residuals are coloured),
-    relative σ, start values; cost and accounting."""
+    """A header naming the method (output error, filter error); estimates, default σ (and
+    Cramér–Rao bounds beside it when the residuals are coloured), relative σ, start values,
+    "solved" for values solved from a constraint; cost and accounting."""
     coloured = getattr(result, "std_kind", "cramer_rao") == "coloured"
     rows = _parameter_rows(result, coloured)
     if coloured:
