@@ -268,6 +268,14 @@ def _fmt(value, digits: int = 6) -> str:
     return f"{value:.{digits}g}"
 
 
+def _at_sigma(value, sigma) -> str:
+    """A value at the decimal place of σ's second significant digit (``flightid.numbers``);
+    ``_fmt`` when there is no value or no σ."""
+    if value is None or sigma is None:
+        return _fmt(value)
+    return format_at_sigma(value, sigma)
+
+
 def _table(
     headers: list[str],
     rows: list[list[str]],
@@ -406,7 +414,7 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
         cells = [
             html.escape(row["name"]),
             _unit(unit),
-            _fmt(row["value"]) if place is None else format_at_sigma(row["value"], place),
+            _at_sigma(row["value"], place),
             format_sigma(row["std_cr"]),
         ]
         if scaled:
@@ -415,8 +423,8 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
             format_sigma(std_col) if std_col is not None and np.isfinite(std_col) else "—",
             f"<span class='high'>{ratio_text}</span>" if high else ratio_text,
             _fmt(row["relative_percent"], 2),
-            _fmt(row["lower"]) if place is None else format_at_sigma(row["lower"], place),
-            _fmt(row["upper"]) if place is None else format_at_sigma(row["upper"], place),
+            _at_sigma(row["lower"], place),
+            _at_sigma(row["upper"], place),
             _fmt(row["initial"]),
             _ROLE_TEXT[row["role"]],
         ]
