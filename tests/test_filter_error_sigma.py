@@ -155,3 +155,25 @@ def test_a_solved_process_noise_element_is_listed_as_solved(pinned_result, tmp_p
     with (tmp_path / "estimates.csv").open() as stream:
         rows = {r["name"]: r for r in csv.DictReader(stream)}
     assert {n: r["role"] for n, r in rows.items()} == roles
+
+
+def test_progress_numbers_rise_over_all_cycles_and_active_sets():
+    """The pinned case runs several R cycles and two active sets; the callback's pass
+    numbers run 0, 1, 2, … without a restart and its filter-pass counts never fall."""
+    calls = []
+    result = estimate_filter_error(
+        _scalar_model(-1.0, 0.8, 0.03),
+        _scalar_data(12),
+        {"x": "F11"},
+        MNR(),
+        gradients="analytic",
+        progress=lambda passes, evaluations, cost: calls.append((passes, evaluations)),
+    )
+    assert result.noise_cycles >= 2  # more than one objective reported
+    passes = [p for p, _ in calls]
+    evaluations = np.array([e for _, e in calls])
+    assert passes == list(range(len(calls)))
+    assert np.all(np.diff(evaluations) >= 0)
+    assert evaluations[-1] <= result.equivalent_evaluations + result.accuracy_evaluations
+    # the evaluation history of the convergence display rises too
+    assert np.all(np.diff(result.evaluation_history) >= 0)

@@ -28,6 +28,7 @@ from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import information_matrix, undetermined_parameters
 from flightid.estimation.objective import NOISE_POLICIES, Objective
 from flightid.estimation.problem import OutputErrorProblem
+from flightid.estimation.progress import RunProgress, next_stage
 from flightid.estimation.result import Estimate
 from flightid.estimation.solvers import FPS, MNR, MNRES
 from flightid.model.check import check_model
@@ -236,7 +237,8 @@ def estimate(
         convergence: stopping rules (default ``Convergence()``: the paper's 10⁻³ tests).
         compiled: run the numba kernel.
         progress: called after every accepted pass with (pass number, equivalent evaluations
-            so far, cost under the current R) — e.g. to print progress.
+            so far, cost under the current R) — e.g. to print progress; both numbers rise
+            over the whole run (``flightid.estimation.progress``).
         weights: per-sample weights w ∈ [0, 1] over all maneuvers' samples in order, (N,) or
             (N, n_o): J = Σ w ν²/R; a weight 0 excludes the measurement from the cost, the
             information matrix, R̂ and N (``OutputErrorProblem.set_weights``). None: all 1.
@@ -272,11 +274,14 @@ def estimate(
     problem.check_enough_data()
     r_diag = _check_r(R, problem.n_outputs)
     evaluations_before = problem.evaluations
+    # pass numbers and evaluations rise over both runs when MNR gives a second opinion
+    progress = RunProgress.wrap(progress)
     run = _optimise(problem, solver, r_diag, noise, convergence, progress)
     if isinstance(solver, MNRES) and run.confirmation.initial_sigma > SECOND_OPINION_SIGMA:
         # MNRES's surface misled it far from any optimum: its path is not to be trusted, so
         # MNR (fresh finite differences every pass) runs from the start values too and the
         # higher likelihood wins.
+        next_stage(progress, problem.evaluations - evaluations_before)
         second = _optimise(problem, MNR(), r_diag, noise, convergence, progress)
         run = _better(problem, noise, run, second)
     objective, confirmation = run.objective, run.confirmation

@@ -60,6 +60,7 @@ from flightid.estimation.driver import _covariance, check_call_options
 from flightid.estimation.gauss_newton import information_matrix
 from flightid.estimation.objective import Objective
 from flightid.estimation.problem import OutputErrorProblem
+from flightid.estimation.progress import RunProgress, next_stage
 from flightid.estimation.result import Estimate
 from flightid.estimation.solvers import MNR, MNRES
 from flightid.filtering.kalman import RiccatiError, linearise, steady_state_gain
@@ -460,7 +461,10 @@ class _Trace:
     def record(self, objective: Objective, problem: FilterErrorProblem) -> None:
         self.r_updates.append(len(self.costs))
         self.costs.extend(objective.cost_history)
-        self.evaluations.extend(self.passes + e for e in objective.evaluation_history)
+        # filter passes of the run: finished problems, this problem's before the objective
+        # started, the objective's own
+        start = self.passes + objective.start_evaluations
+        self.evaluations.extend(start + e for e in objective.evaluation_history)
 
 
 @dataclass
@@ -505,6 +509,8 @@ def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, 
     change = float("nan")
     for _cycle in range(1, max_cycles + 1):
         problem.gain_r = r_diag.copy()
+        # the progress numbers continue over cycles and active sets (filter passes in all)
+        next_stage(progress, trace.passes + problem.evaluations)
         objective = Objective(problem, r_diag, "fixed", convergence, progress)
         outcome = solver.minimize(objective, theta)
         confirmation = confirm_convergence(
@@ -806,7 +812,8 @@ def estimate_filter_error(
             fraction in a cycle.
         max_cycles: ``fixed_point``: R updates at most (per active set).
         compiled: numba filter kernel.
-        progress: called after every accepted pass with (pass, filter passes, cost).
+        progress: called after every accepted pass with (pass, filter passes, cost), both
+            numbers rising over all R cycles and active sets.
         gradients: ``"differences"`` (H by finite differences of filter passes) or
             ``"analytic"``: a model linear in states and inputs, filtered with the exact
             discretisation Φ = e^{AΔt}, H from the differentiated Riccati equation and
@@ -830,6 +837,8 @@ def estimate_filter_error(
     if not isinstance(convergence, Convergence):
         raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
     check_call_options(compiled, progress)
+    # pass numbers and filter passes rise over all R cycles and active sets
+    progress = RunProgress.wrap(progress)
     started = _time.perf_counter()
     check_model(model, data, method=method)
     settings = {
