@@ -177,3 +177,7 @@ def test_progress_numbers_rise_over_all_cycles_and_active_sets():
     assert evaluations[-1] <= result.equivalent_evaluations + result.accuracy_evaluations
     # the evaluation history of the convergence display rises too
     assert np.all(np.diff(result.evaluation_history) >= 0)
+    # ln det R̂ of the innovations per pass ends at that of the final R (settled to
+    # r_rtol = 1e-4 per variance, one output)
+    assert len(result.log_det_r_history) == len(result.cost_history)
+    assert result.log_det_r_history[-1] == pytest.approx(result.log_det_r, abs=2e-4)

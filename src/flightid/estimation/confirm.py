@@ -99,7 +99,7 @@ def _advance(objective, accepted, policy: str):
     ``halving_search`` result): the pass recorded, R re-estimated from the new outputs and
     the cost recomputed under it unless the noise policy is "fixed"."""
     theta, cost, outputs, _ = accepted
-    objective.record(theta, cost)
+    objective.record(theta, cost, outputs)
     if policy != "fixed":
         objective.update_noise(outputs)
         cost = float(objective.costs_of(outputs)[0])

@@ -339,6 +339,8 @@ def estimate(
         cost_history=tuple(objective.cost_history),
         evaluation_history=tuple(objective.evaluation_history),
         noise_update_passes=tuple(objective.noise_update_passes),
+        log_det_r_history=tuple(objective.log_det_r_history),
+        r_history=tuple(tuple(float(v) for v in r) for r in objective.r_history),
         equivalent_evaluations=optimizer_evaluations,
         accuracy_evaluations=accuracy_evaluations,
         iterations=iterations,

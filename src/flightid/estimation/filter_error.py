@@ -452,6 +452,8 @@ class _Trace:
     """Histories over all cycles and active sets."""
 
     costs: list[float] = field(default_factory=list)
+    log_det_r: list[float] = field(default_factory=list)  # ln det of the innovations' R̂
+    r_history: list[tuple[float, ...]] = field(default_factory=list)  # R of each cost
     evaluations: list[int] = field(default_factory=list)
     r_updates: list[int] = field(default_factory=list)
     iterations: int = 0
@@ -461,6 +463,8 @@ class _Trace:
     def record(self, objective: Objective, problem: FilterErrorProblem) -> None:
         self.r_updates.append(len(self.costs))
         self.costs.extend(objective.cost_history)
+        self.log_det_r.extend(objective.log_det_r_history)
+        self.r_history.extend(tuple(float(v) for v in r) for r in objective.r_history)
         # filter passes of the run: finished problems, this problem's before the objective
         # started, the objective's own
         start = self.passes + objective.start_evaluations
@@ -954,6 +958,8 @@ def estimate_filter_error(
         cost_history=tuple(trace.costs),
         evaluation_history=tuple(trace.evaluations),
         noise_update_passes=tuple(trace.r_updates[1:]),
+        log_det_r_history=tuple(trace.log_det_r),
+        r_history=tuple(trace.r_history),
         equivalent_evaluations=int(filter_passes - accuracy),
         accuracy_evaluations=int(accuracy),
         iterations=int(trace.iterations),

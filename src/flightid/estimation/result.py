@@ -57,7 +57,20 @@ class Estimate(ResultSurface):
         sensitivities: G at θ̂, (N, n_o, n_f).
         r_diag: noise variances R used at the end (n_o,).
         cost: J(θ̂) = Σ νᵀR⁻¹ν under ``r_diag``.
-        cost_history: J after the start and each accepted pass (under the R of that pass).
+        cost_history: J after the start and each accepted pass, each under the R in force at
+            that pass (``r_history``): the cost at fixed R, before any R update that follows
+            the pass. Under the MAX / MAXLIK policies it drops within a stretch under one R
+            and jumps at an R update; ``cost`` at the end, under the final R̂, is about N·n_o
+            (J at R = R̂ is Σ_k N R̂_k/R̂_k), so neither judges convergence across updates.
+        log_det_r_history: ln det R̂ = Σ_k ln R̂_kk at each entry of ``cost_history``, R̂ the
+            covariance of that pass's residuals (innovations) [3.45]: the negative
+            log-likelihood under an estimated R up to constants, the quantity that falls
+            to its minimum as the estimate converges whatever R weights J (no jumps at R
+            updates); NaN where a pass's residuals were not at hand, empty where the
+            estimator does not record it (the filter error's reference schedule). The last
+            entry equals ``log_det_r`` when R was re-estimated at the end point.
+        r_history: the noise variances R (n_o,) each entry of ``cost_history`` is computed
+            under.
         evaluation_history: equivalent evaluations spent at those points.
         equivalent_evaluations: system integrations used by the optimizer (incl. R cycles).
         accuracy_evaluations: integrations for the final information matrix.
@@ -130,6 +143,8 @@ class Estimate(ResultSurface):
     residuals_white: bool | None = None
     coloured_lag: int = 0
     solved: tuple[str, ...] = ()
+    log_det_r_history: tuple[float, ...] = ()
+    r_history: tuple[tuple[float, ...], ...] = ()
 
     def __post_init__(self) -> None:
         # without a separate default σ, the default is the Cramér–Rao σ
@@ -176,6 +191,11 @@ class Estimate(ResultSurface):
         told by the noise policy (``"filter_error/<relaxation>"`` for the filter error
         method)."""
         return "filter_error" if self.noise_policy.startswith("filter_error") else "output_error"
+
+    @property
+    def log_det_r(self) -> float:
+        """ln det R = Σ_k ln R_kk of the final noise variances ``r_diag``."""
+        return float(np.sum(np.log(self.r_diag)))
 
     def role(self, name: str) -> str:
         """How parameter ``name`` got its value: ``"fixed"``, ``"free"`` (estimated),
@@ -379,6 +399,9 @@ class Estimate(ResultSurface):
             "cost_history": [float(c) for c in self.cost_history],
             "evaluation_history": [int(e) for e in self.evaluation_history],
             "noise_update_passes": [int(p) for p in self.noise_update_passes],
+            "log_det_r": self.log_det_r,
+            "log_det_r_history": [float(v) for v in self.log_det_r_history],
+            "r_history": [[float(v) for v in r] for r in self.r_history],
             "parameters": parameters,
         }
 

@@ -138,7 +138,8 @@ def render_figures(run, dpi: int = 96) -> Figures:
     figure = cost_history_figure(
         est.cost_history,
         getattr(est, "noise_update_passes", ()),
-        f"cost history ({est.solver}, noise {est.noise_policy})",
+        f"convergence ({est.solver}, noise {est.noise_policy})",
+        log_det_r=getattr(est, "log_det_r_history", ()),
     )
     figures.convergence = ("convergence.png", png_bytes(figure, dpi))
     return figures
@@ -560,28 +561,57 @@ def _prediction_section(run, units: dict[str, str], figures) -> str:
 
 
 def _convergence_section(run, figures) -> str:
+    """Per pass: equivalent evaluations, ln det R̂ of its residuals, the cost at the R in
+    force, and where R was re-estimated (figure and table)."""
     est = run.estimate
     updates = list(getattr(est, "noise_update_passes", ()))
     evaluations = list(est.evaluation_history)
+    log_det = list(getattr(est, "log_det_r_history", ()))
+    with_log_det = len(log_det) == len(est.cost_history) and any(np.isfinite(log_det))
     rows = []
     for i, cost in enumerate(est.cost_history):
         mark = "R re-estimated before this pass" if i in updates else ""
         evaluation = str(evaluations[i]) if i < len(evaluations) else "—"
-        rows.append([str(i), evaluation, _fmt(cost), mark])
+        ln_det = [_fmt(log_det[i], 8) if np.isfinite(log_det[i]) else "—"] if with_log_det else []
+        rows.append([str(i), evaluation, *ln_det, _fmt(cost), mark])
     tail = [u for u in updates if u >= len(est.cost_history)]
+    estimated_r = est.noise_policy != "fixed"
+    caption = (
+        "ln det R̂ per pass (top) and cost J at fixed R (bottom); dashed: R re-estimated"
+        if with_log_det
+        else "cost J per pass; dashed: R re-estimated"
+    )
+    explanation = (
+        " ln det R̂ is that of each pass's residuals: the likelihood's measure when R is "
+        "estimated, comparable across R updates; it settles at its minimum, "
+        f"ln det R = {_fmt(float(np.sum(np.log(est.r_diag))), 8)} of the final R. The cost at "
+        "fixed R falls within each stretch under one R and jumps when R is re-estimated "
+        "(under R = R̂ it is about N·n_o), so its jumps are not divergence."
+        if with_log_det and estimated_r
+        else ""
+    )
     text = [
         "<h2>Convergence</h2>",
-        _img(figures.convergence, "cost J per pass; dashed: R re-estimated", "640px")
-        if figures
-        else "",
+        _img(figures.convergence, caption, "640px") if figures else "",
         f"<p>{est.noise_cycles} R re-estimation(s) (noise policy {html.escape(est.noise_policy)})"
         + (
             "; the last one changed R by less than the tolerance and no pass followed it"
             if tail
             else ""
         )
-        + ". Costs are computed under the R in force at that pass.</p>",
-        _table(["pass", "equivalent evaluations", "cost J [–]", ""], rows),
+        + ". Costs are computed under the R in force at that pass."
+        + explanation
+        + "</p>",
+        _table(
+            [
+                "pass",
+                "equivalent evaluations",
+                *(["ln det R̂ [–]"] if with_log_det else []),
+                "cost J at fixed R [–]",
+                "",
+            ],
+            rows,
+        ),
     ]
     return "\n".join(text)
 

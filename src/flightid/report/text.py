@@ -98,6 +98,21 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
     return rows
 
 
+def _without_status(message: str, status: str) -> str:
+    """The message without a leading "<status>:" (the line names the status already)."""
+    prefix = f"{status}:"
+    return message[len(prefix) :].strip() if message.startswith(prefix) else message
+
+
+def _log_det_text(result) -> str:
+    """``   ln det R = …`` where R was estimated (the likelihood's measure then: J under
+    R = R̂ is about N·n_o whatever the fit), else nothing."""
+    if getattr(result, "noise_policy", "fixed") == "fixed":
+        return ""
+    log_det = float(np.sum(np.log(np.asarray(result.r_diag, dtype=float))))
+    return f"   ln det R = {log_det:.6g}"
+
+
 def estimate_summary(result) -> str:
     """A header naming the method (output error, filter error); estimates, default σ (and
     Cramér–Rao bounds beside it when the residuals are coloured), relative σ, start values,
@@ -117,8 +132,8 @@ def estimate_summary(result) -> str:
     head = [
         f"flightid {estimator} estimate — {result.model.name}",
         f"solver {result.solver}, noise policy {result.noise_policy}, integration {result.method}",
-        f"status: {result.status} — {result.message}",
-        f"cost J = {result.cost:.6g}   iterations {result.iterations}   "
+        f"status: {result.status} — {_without_status(result.message, result.status)}",
+        f"cost J = {result.cost:.6g}{_log_det_text(result)}   iterations {result.iterations}   "
         f"equivalent evaluations {result.equivalent_evaluations} "
         f"(+{result.accuracy_evaluations} for the information matrix)   "
         f"wall time {result.wall_time_s:.3g} s",
