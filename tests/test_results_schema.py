@@ -133,6 +133,12 @@ def test_an_output_error_run_names_its_method_and_roles(written):
     out, printed, text = written
     (entry,) = printed["results"]
     assert text.splitlines()[0].startswith("flightid output-error estimate — ")
+    # the status line names the status once (the message's own "converged:" is dropped)
+    (status,) = [line for line in text.splitlines() if line.startswith("status: ")]
+    assert status.startswith(f"status: {entry['status']} — ")
+    assert status.count(f"{entry['status']}:") == 0 and entry["message"].endswith(
+        status.split(" — ", 1)[1]
+    )
     assert entry["estimator"] == "output_error" and entry["solved"] == []
     assert {p["role"] for p in entry["parameters"]} <= {"free", "fixed"}
     with (out / "estimates.csv").open(newline="", encoding="utf-8") as stream:

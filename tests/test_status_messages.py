@@ -25,3 +25,24 @@ def test_confirmed_message_names_the_solver_stop_without_quoting_it():
     for status in ("converged", "stalled", "max_iterations", "max_evaluations"):
         message = continued_message(2, 0.1, 1.0, status)
         assert message.count("converged") == 1 and "(the solver" not in message
+
+
+def test_second_opinion_message_is_one_sentence():
+    from types import SimpleNamespace
+
+    from flightid.estimation.driver import second_opinion_message
+
+    converged = SimpleNamespace(
+        status="converged", converged=True, message="converged: cost changes below tolerance"
+    )
+    assert second_opinion_message(converged, "MNR", "ln det R", (-36.1, -43.8), 25.0) == (
+        "converged: MNR's result is reported, the higher likelihood of two runs "
+        "(ln det R = -36.1 for MNRES, -43.8 for MNR), after MNRES stopped 25 σ from an "
+        "optimum (its surface misled it) and MNR ran from the start values too"
+    )
+    stalled = SimpleNamespace(
+        status="stalled", converged=False, message="not converged: no step lowers the cost"
+    )
+    message = second_opinion_message(stalled, "MNRES", "J", (10.0, 12.0), 11.0)
+    assert message.startswith("stalled: MNRES's result is reported")
+    assert message.endswith("from the start values too; no step lowers the cost")

@@ -184,19 +184,37 @@ def _negative_log_likelihood(problem: OutputErrorProblem, noise: str, run: _Run)
     return float(np.sum(np.log(problem.noise_covariance(outputs))))
 
 
+def second_opinion_message(
+    outcome, label: str, criterion: str, values: Sequence[float], distance: float
+) -> str:
+    """One sentence for a result chosen from MNRES's run and MNR's second opinion: the
+    chosen run, why (the likelihoods), what led to it; the reason of an unconverged result
+    added as a clause (without its "<status>:")."""
+    message = (
+        f"{outcome.status}: {label}'s result is reported, the higher likelihood of two runs "
+        f"({criterion} = {values[0]:.6g} for MNRES, {values[1]:.6g} for MNR), after MNRES "
+        f"stopped {distance:.3g} σ from an optimum (its surface misled it) and MNR ran from "
+        "the start values too"
+    )
+    if outcome.converged:
+        return message
+    prefix = f"{outcome.status}:"
+    reason = outcome.message
+    for lead in (prefix, "not converged:"):
+        if reason.startswith(lead):
+            reason = reason[len(lead) :].strip()
+    return f"{message}; {reason}"
+
+
 def _better(problem: OutputErrorProblem, noise: str, first: _Run, second: _Run) -> _Run:
     """The run with the higher likelihood, its message saying what happened."""
     criterion = "J" if noise == "fixed" else "ln det R"
     values = [_negative_log_likelihood(problem, noise, run) for run in (first, second)]
-    distance = first.confirmation.initial_sigma
-    head = (
-        f"MNRES stopped {distance:.3g} σ from an optimum (its surface misled it), so MNR was "
-        f"also run from the start values: {criterion} = {values[0]:.6g} (MNRES) and "
-        f"{values[1]:.6g} (MNR); "
-    )
-    chosen, label = (second, "MNR's") if values[1] < values[0] else (first, "MNRES's")
+    chosen, label = (second, "MNR") if values[1] < values[0] else (first, "MNRES")
     outcome = chosen.confirmation.outcome
-    message = f"{head}{label} result is reported — {outcome.message}"
+    message = second_opinion_message(
+        outcome, label, criterion, values, first.confirmation.initial_sigma
+    )
     confirmation = replace(chosen.confirmation, outcome=replace(outcome, message=message))
     return _Run(
         chosen.objective,
