@@ -257,3 +257,23 @@ def test_page_warns_on_coloured_residuals_and_shows_the_prediction(walk_run, col
     rms = np.sqrt(np.mean((held.outputs - est.predicted) ** 2, axis=0))
     assert all(f"<td>{e:.4g}</td>" in page for e in rms)
     assert page.count("data:image/png;base64,") == 4  # fit, prediction, autocorrelation, cost
+
+
+def test_estimates_show_the_digits_their_sigma_supports(walk_run):
+    """1234.56789 ± 0.00012: σ to two significant digits, the estimate and its 95 % interval
+    to σ's decimal place (10⁻⁵) in the text summary and the page — six significant digits
+    (1234.57) would hide what σ resolves."""
+    est = walk_run.estimate
+    i = int(np.flatnonzero(est.free)[0])
+    values, std = np.array(est.values), np.array(est.std)
+    values[i], std[i] = 1234.56789, 0.00012
+    changed = dataclasses.replace(est, values=values, std=std, std_cr=std)
+    name = est.names[i]
+    (row,) = [line for line in changed.summary().splitlines() if line.startswith(f"{name} ")]
+    assert " 1234.56789 " in row and " 0.00012 " in row
+    run = dataclasses.replace(walk_run, estimate=changed, accuracy=None)
+    page = render_html(run, None)
+    # z₀.₉₇₅·σ = 1.959964·0.00012 = 0.000235: [1234.567655, 1234.568125] to 10⁻⁵
+    row = re.search(rf"<tr><td>{name}</td>(.*?)</tr>", page).group(1)
+    assert "<td>1234.56789</td>" in row and "<td>0.00012</td>" in row
+    assert "<td>1234.56765</td>" in row and "<td>1234.56813</td>" in row
