@@ -153,3 +153,20 @@ def test_bad_accuracy_keys_are_named(walk, text, key):
 def test_bad_accuracy_override_is_named():
     with pytest.raises(CaseError, match=r"accuracy\.methods: expected names"):
         run_case(load_case(CASE), accuracy=["profile", "grid"])
+
+
+def test_accuracy_table_prints_the_digits_sigma_supports():
+    """Estimate and interval bounds at the decimal place of the smaller σ's second
+    significant digit, σ to two significant digits (not four significant digits)."""
+    import math
+
+    accuracy = run_case(load_case(CASE), accuracy="cr").accuracy
+    lines = accuracy.summary().splitlines()
+    for j, name in enumerate(accuracy.names):
+        (row,) = [line for line in lines if line.split()[0] == name]
+        sigma = min(accuracy.std_scaled[j], accuracy.std_coloured[j])
+        # σ's second significant digit: 10^(floor(log10 σ₂) − 1), σ₂ = σ to two digits
+        decimals = 1 - math.floor(math.log10(float(f"{sigma:.1e}")))
+        lower, upper = accuracy.ci_cr[j]
+        assert f"[{lower:.{decimals}f}, {upper:.{decimals}f}]" in row
+        assert f" {accuracy.center[j]:.{decimals}f} " in row

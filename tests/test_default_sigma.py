@@ -167,7 +167,8 @@ def test_summary_json_frame_and_intervals_show_the_default_sigma(coloured_estima
     text = est.summary()
     assert "CR σ" in text and "coloured-residual σ" in text
     for j in range(2):
-        assert f"{est.std[j]:.3g}" in text and f"{est.std_cr[j]:.3g}" in text
+        # σ to two significant digits (flightid.numbers)
+        assert f"{est.std[j]:.2g}" in text and f"{est.std_cr[j]:.2g}" in text
     document = json.loads(est.to_json())
     assert document["std_kind"] == "coloured" and document["residuals_white"] is False
     assert document["coloured_lag"] == est.coloured_lag

@@ -117,3 +117,67 @@ def test_steady_gain_is_linearised_at_x0_and_the_first_input_sample():
     p = DT * r * (a + np.sqrt(a**2 + 0.3**2 / (DT * r)))
     assert point.covariance[0, 0] == pytest.approx(p, rel=1e-8)
     assert point.gain[0, 0] == pytest.approx(p / r, rel=1e-8)
+
+
+@pytest.fixture(scope="module")
+def pinned_result():
+    """The scalar case whose F11 is solved from diag(KC) = 1 (as in the test above)."""
+    data = _scalar_data(12)
+    return estimate_filter_error(
+        _scalar_model(-1.0, 0.8, 0.03), data, {"x": "F11"}, MNR(), gradients="analytic"
+    )
+
+
+def test_a_solved_process_noise_element_is_listed_as_solved(pinned_result, tmp_path):
+    import csv
+    from types import SimpleNamespace
+
+    from flightid.report.html import write_csv
+
+    result = pinned_result
+    assert result.solved == ("F11",)
+    assert result.role("F11") == "solved" and result.role("b") == "free"
+    assert result.role("a") == "fixed"
+    # the console summary names the method and marks the row
+    text = result.summary()
+    assert text.splitlines()[0].startswith("flightid filter-error estimate — ")
+    (row,) = [line for line in text.splitlines() if line.startswith("F11 ")]
+    assert row.rstrip().endswith("solved")
+    (row,) = [line for line in text.splitlines() if line.startswith("b ")]
+    assert not row.rstrip().endswith("solved")
+    # results.json and estimates.csv
+    document = result.to_dict()
+    assert document["estimator"] == "filter_error" and document["solved"] == ["F11"]
+    roles = {p["name"]: p["role"] for p in document["parameters"]}
+    assert roles == {"a": "fixed", "b": "free", "F11": "solved"}
+    run = SimpleNamespace(estimate=result, case=SimpleNamespace(accuracy={}))
+    write_csv(run, tmp_path / "estimates.csv")
+    with (tmp_path / "estimates.csv").open() as stream:
+        rows = {r["name"]: r for r in csv.DictReader(stream)}
+    assert {n: r["role"] for n, r in rows.items()} == roles
+
+
+def test_progress_numbers_rise_over_all_cycles_and_active_sets():
+    """The pinned case runs several R cycles and two active sets; the callback's pass
+    numbers run 0, 1, 2, … without a restart and its filter-pass counts never fall."""
+    calls = []
+    result = estimate_filter_error(
+        _scalar_model(-1.0, 0.8, 0.03),
+        _scalar_data(12),
+        {"x": "F11"},
+        MNR(),
+        gradients="analytic",
+        progress=lambda passes, evaluations, cost: calls.append((passes, evaluations)),
+    )
+    assert result.noise_cycles >= 2  # more than one objective reported
+    passes = [p for p, _ in calls]
+    evaluations = np.array([e for _, e in calls])
+    assert passes == list(range(len(calls)))
+    assert np.all(np.diff(evaluations) >= 0)
+    assert evaluations[-1] <= result.equivalent_evaluations + result.accuracy_evaluations
+    # the evaluation history of the convergence display rises too
+    assert np.all(np.diff(result.evaluation_history) >= 0)
+    # ln det R̂ of the innovations per pass ends at that of the final R (settled to
+    # r_rtol = 1e-4 per variance, one output)
+    assert len(result.log_det_r_history) == len(result.cost_history)
+    assert result.log_det_r_history[-1] == pytest.approx(result.log_det_r, abs=2e-4)

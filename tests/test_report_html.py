@@ -99,6 +99,46 @@ def test_noise_update_passes_mark_the_first_cost_under_the_new_r(walk_run):
     assert est.to_dict()["noise_update_passes"] == list(passes)
 
 
+def test_max_policy_records_ln_det_r_and_the_cost_at_fixed_r_per_pass(walk_run):
+    """MAX policy (J = Σ νᵀR⁻¹ν, R re-estimated between Gauss–Newton passes): the final cost
+    is N·n_o whatever the fit; ln det R̂ per pass shows the convergence instead."""
+    est = walk_run.estimate
+    n_passes = len(est.cost_history)
+    history = np.asarray(est.log_det_r_history)
+    assert history.shape == (n_passes,) and len(est.r_history) == n_passes
+    # at R = R̂ of the residuals themselves J = Σ_k N R̂_k / R̂_k = N·n_o (here 501·2 = 1002)
+    assert est.cost == pytest.approx(est.n_data, rel=1e-12)
+    assert est.cost_history[0] == pytest.approx(est.n_data, rel=1e-12)
+    # ln det R̂ does not jump at R updates: non-increasing from the first update on
+    first = est.noise_update_passes[0]
+    assert np.all(np.diff(history[first - 1 :]) <= 1e-9 * np.abs(history[-1]))
+    assert history[-1] < history[0] - 1.0  # and it fell on the way
+    # the last entry by hand: R̂_k = mean ν_k², ln det R̂ = Σ ln R̂_k, the final R's
+    r_hat = np.mean(est.residuals**2, axis=0)
+    assert history[-1] == pytest.approx(np.sum(np.log(r_hat)), rel=1e-9)
+    assert history[-1] == pytest.approx(est.log_det_r, rel=1e-9)
+    # the cost at fixed R of the last pass by hand: Σ_i Σ_k ν_ik² / R_k, R the one in force
+    r_fixed = np.asarray(est.r_history[-1])
+    assert est.cost_history[-1] == pytest.approx(np.sum(est.residuals**2 / r_fixed), rel=1e-9)
+    # the last pass ran under the R before the final update: its cost is not N·n_o
+    assert not np.allclose(r_fixed, est.r_diag, rtol=1e-6, atol=0.0)
+    document = est.to_dict()
+    assert document["log_det_r_history"] == pytest.approx(list(history))
+    assert document["log_det_r"] == pytest.approx(est.log_det_r)
+    assert document["r_history"][-1] == pytest.approx(list(r_fixed))
+
+
+def test_convergence_section_shows_ln_det_r_and_the_cost_at_fixed_r(walk_run, walk_page):
+    _, page = walk_page
+    est = walk_run.estimate
+    assert "<th>ln det R̂ [–]</th>" in page and "<th>cost J at fixed R [–]</th>" in page
+    assert "ln det R̂ per pass (top) and cost J at fixed R (bottom)" in page
+    last = len(est.cost_history) - 1
+    row = re.search(rf"<tr><td>{last}</td>(.*?)</tr>", page).group(1)
+    assert f"<td>{est.log_det_r_history[-1]:.8g}</td>" in row
+    assert f"<td>{est.cost_history[-1]:.6g}</td>" in row
+
+
 def _coloured_estimate(walk_run):
     """The walk-through model estimated on its data plus low-pass (AR(1), φ = 0.97, seed 11)
     noise: residuals strongly coloured."""
@@ -217,3 +257,23 @@ def test_page_warns_on_coloured_residuals_and_shows_the_prediction(walk_run, col
     rms = np.sqrt(np.mean((held.outputs - est.predicted) ** 2, axis=0))
     assert all(f"<td>{e:.4g}</td>" in page for e in rms)
     assert page.count("data:image/png;base64,") == 4  # fit, prediction, autocorrelation, cost
+
+
+def test_estimates_show_the_digits_their_sigma_supports(walk_run):
+    """1234.56789 ± 0.00012: σ to two significant digits, the estimate and its 95 % interval
+    to σ's decimal place (10⁻⁵) in the text summary and the page — six significant digits
+    (1234.57) would hide what σ resolves."""
+    est = walk_run.estimate
+    i = int(np.flatnonzero(est.free)[0])
+    values, std = np.array(est.values), np.array(est.std)
+    values[i], std[i] = 1234.56789, 0.00012
+    changed = dataclasses.replace(est, values=values, std=std, std_cr=std)
+    name = est.names[i]
+    (row,) = [line for line in changed.summary().splitlines() if line.startswith(f"{name} ")]
+    assert " 1234.56789 " in row and " 0.00012 " in row
+    run = dataclasses.replace(walk_run, estimate=changed, accuracy=None)
+    page = render_html(run, None)
+    # z₀.₉₇₅·σ = 1.959964·0.00012 = 0.000235: [1234.567655, 1234.568125] to 10⁻⁵
+    row = re.search(rf"<tr><td>{name}</td>(.*?)</tr>", page).group(1)
+    assert "<td>1234.56789</td>" in row and "<td>0.00012</td>" in row
+    assert "<td>1234.56765</td>" in row and "<td>1234.56813</td>" in row

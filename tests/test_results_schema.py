@@ -129,6 +129,23 @@ def test_a_parameter_unit_shows_in_summary_json_csv_and_report(written):
     assert "1/s²" in (out / "report.html").read_text(encoding="utf-8")
 
 
+def test_an_output_error_run_names_its_method_and_roles(written):
+    out, printed, text = written
+    (entry,) = printed["results"]
+    assert text.splitlines()[0].startswith("flightid output-error estimate — ")
+    # the status line names the status once (the message's own "converged:" is dropped)
+    (status,) = [line for line in text.splitlines() if line.startswith("status: ")]
+    assert status.startswith(f"status: {entry['status']} — ")
+    assert status.count(f"{entry['status']}:") == 0 and entry["message"].endswith(
+        status.split(" — ", 1)[1]
+    )
+    assert entry["estimator"] == "output_error" and entry["solved"] == []
+    assert {p["role"] for p in entry["parameters"]} <= {"free", "fixed"}
+    with (out / "estimates.csv").open(newline="", encoding="utf-8") as stream:
+        rows = list(csv.DictReader(stream))
+    assert all(row["role"] == ("free" if row["free"] == "True" else "fixed") for row in rows)
+
+
 def test_a_staged_run_validates(schema, tmp_path):
     """A case with [[stages]] (regression stage, then output error from it) validates, its
     "stages" entries included; the data are the walk-through's, its coefficient a channel."""

@@ -256,6 +256,21 @@ def test_multiple_shooting_recovers_the_ordinary_output_error_optimum():
     np.testing.assert_array_equal(shooting.initial, model.parameters.values)
 
 
+def test_multiple_shooting_progress_numbers_rise_over_all_stages():
+    data = _data(noise=1.0, seed=6)
+    model = with_multiple_shooting(_model(START), data, 5)  # three stages
+    calls = []
+    result = estimate_multiple_shooting(
+        model, data, solver=MNR(), progress=lambda p, e, cost: calls.append((p, e))
+    )
+    passes = [p for p, _ in calls]
+    evaluations = np.array([e for _, e in calls])
+    # every stage's passes follow the last stage's: 0, 1, 2, … over the whole run
+    assert passes == list(range(len(calls)))
+    assert len(calls) > len(result.cost_history)  # the earlier stages reported too
+    assert np.all(np.diff(evaluations) >= 0)
+
+
 def test_shooting_refuses_states_without_an_output_and_too_many_intervals():
     data = _data()
     hidden = StateSpaceModel(

@@ -15,8 +15,10 @@ SIGTERM (``kill PID``, a job scheduler's stop) is handled like Ctrl-C: the comma
 where it is, its result-folder lock and temporary files are removed, nothing half written
 stays.
 
-flightid's own warnings (``flightid.errors.FlightIdWarning``, e.g. a model that runs in pure
-Python) are one line each on stderr: ``flightid: warning: <message>``.
+Every warning is one line on stderr: flightid's own (``flightid.errors.FlightIdWarning``,
+e.g. a model that runs in pure Python, a parallel kernel numba could not compile) as
+``flightid: warning: <message>``, any other (numpy's, numba's) as
+``flightid: warning: <message> (<category>)``, without the library's file path and source.
 
 ``--debug`` (before or after the command) adds the Python traceback.
 """
@@ -111,23 +113,27 @@ def _sigterm_as_interrupt():
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def _one_line_warnings(show):
-    """``warnings.showwarning`` that prints a ``FlightIdWarning`` as one line
-    ``flightid: warning: <message>`` and hands every other warning to ``show``."""
+def warning_line(message: Warning | str, category: type[Warning]) -> str:
+    """One line for a warning: ``flightid: warning: <message>`` for a ``FlightIdWarning``,
+    ``flightid: warning: <message> (<category>)`` for any other."""
+    text = " ".join(str(message).split())
+    if issubclass(category, FlightIdWarning):
+        return f"flightid: warning: {text}"
+    return f"flightid: warning: {text} ({category.__name__})"
+
+
+def _one_line_warnings():
+    """``warnings.showwarning`` that prints every warning as one line (``warning_line``)."""
 
     def showwarning(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, FlightIdWarning):
-            text = " ".join(str(message).split())
-            print(f"flightid: warning: {text}", file=sys.stderr if file is None else file)
-            return
-        show(message, category, filename, lineno, file, line)
+        print(warning_line(message, category), file=sys.stderr if file is None else file)
 
     return showwarning
 
 
 def main(argv: list[str] | None = None) -> int:
     with _sigterm_as_interrupt(), warnings.catch_warnings():
-        warnings.showwarning = _one_line_warnings(warnings.showwarning)
+        warnings.showwarning = _one_line_warnings()
         return _main(argv)
 
 

@@ -50,13 +50,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightid.errors import SimulationError
-from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import GaussNewtonStep
 from flightid.estimation.objective import Objective, SolverOutcome
 from flightid.estimation.problem import FiniteDifferences
 from flightid.estimation.solvers.common import bounded_gauss_newton_step, halving_search
 
-__all__ = ["Confirmation", "confirm_convergence"]
+__all__ = [
+    "Confirmation",
+    "confirm_convergence",
+    "confirmed_message",
+    "continued_message",
+    "solver_stop",
+]
 
 # relative step of the central differences (also those of the CR bounds); MNR's default
 # forward step, so that MNR's last forward differences are half of them (module docstring)
@@ -94,7 +99,7 @@ def _advance(objective, accepted, policy: str):
     ``halving_search`` result): the pass recorded, R re-estimated from the new outputs and
     the cost recomputed under it unless the noise policy is "fixed"."""
     theta, cost, outputs, _ = accepted
-    objective.record(theta, cost)
+    objective.record(theta, cost, outputs)
     if policy != "fixed":
         objective.update_noise(outputs)
         cost = float(objective.costs_of(outputs)[0])
@@ -149,10 +154,143 @@ def _noise_settled(objective: Objective, policy: str, outputs: np.ndarray) -> bo
     return False
 
 
+# how the solver's stop reads inside a confirmation's message (by the solver's status)
+_SOLVER_STOPS = {
+    "converged": "its own tests stopped the solver",
+    "stalled": "the solver stalled",
+    "max_iterations": "the solver reached its pass limit",
+    "max_evaluations": "the solver spent its evaluation budget",
+}
+
+
+def solver_stop(status: str) -> str:
+    """The solver's stop in a few words, by its status (its own message is not quoted)."""
+    return _SOLVER_STOPS.get(status, f"the solver stopped ({status})")
+
+
+def continued_message(passes: int, distance: float, initial: float, status: str) -> str:
+    """One sentence for an end point reached by confirming passes: what they did and why."""
+    plural = "es" if passes != 1 else ""
+    return (
+        f"converged: {passes} further Gauss–Newton pass{plural} on central differences reached "
+        f"the optimum (next step {distance:.2g} σ) after {solver_stop(status)} "
+        f"{initial:.3g} σ short of it"
+    )
+
+
+def confirmed_message(distance: float, status: str) -> str:
+    """One sentence for a solver's end point that central differences confirm although
+    the solver did not call it converged."""
+    return (
+        f"converged: central differences confirm the optimum within {distance:.2g} σ where "
+        f"{solver_stop(status)}"
+    )
+
+
+@dataclass
+class _Walk:
+    """Where the confirming passes stand (the loop's state, shared with its helpers)."""
+
+    theta: np.ndarray
+    cost: float
+    outputs: np.ndarray
+    # the solver's last forward differences at θ (consumed: completed in place, then dropped)
+    forward: FiniteDifferences | None
+    # steps on forward differences (module docstring): where they can be completed, while a
+    # step is possible at all, and until a full step on them fails to lower the cost
+    on_forward: bool
+    forward_used: int = 0  # integrations spent on ``forward`` here (0: the solver's)
+    passes: int = 0
+    initial: float = float("nan")
+
+    def advance(self, objective: Objective, accepted, policy: str) -> None:
+        self.theta, self.cost, self.outputs = _advance(objective, accepted, policy)
+        self.passes += 1
+
+    def judged(self, objective: Objective, g: np.ndarray) -> tuple[GaussNewtonStep, float]:
+        """The Gauss–Newton step on ``g`` at θ and its length in σ (the first one kept)."""
+        gn = bounded_gauss_newton_step(objective, g, self.outputs, self.theta)
+        distance = _sigma_distance(objective.problem, g, gn.step, self.outputs)
+        if np.isnan(self.initial):
+            self.initial = distance
+        return gn, distance
+
+
+def _forward_step(objective: Objective, walk: _Walk, policy: str) -> bool:
+    """A pass on forward differences when they show the point is not the optimum and their
+    full step lowers the cost (module docstring); True when it was taken."""
+    problem, conv = objective.problem, objective.convergence
+    if walk.on_forward and walk.forward is None and not objective.budget_exhausted():
+        before = problem.evaluations
+        try:
+            walk.forward = problem.differences(
+                walk.theta, walk.outputs, _CENTRAL_STEP, central=False
+            )
+        except SimulationError:
+            walk.forward = None  # central differences below say what diverges
+        walk.forward_used = problem.evaluations - before
+    if not (walk.on_forward and _reusable(problem, walk.forward, walk.theta)):
+        return False
+    gn, distance = walk.judged(objective, walk.forward.g)
+    if (
+        conv.confirmed(distance, gn, problem.magnitude(walk.theta))
+        or walk.passes >= conv.max_confirmation_passes
+    ):
+        return False
+    # far enough that forward differences can tell: the full step, if it lowers the cost,
+    # is taken without the backward half
+    accepted = halving_search(objective, walk.theta, walk.cost, gn.step, 0)
+    if accepted is None:
+        # it did not: central differences decide from here on
+        walk.on_forward = False
+        return False
+    walk.forward = None
+    walk.advance(objective, accepted, policy)
+    return True
+
+
+def _confirmed_here(objective: Objective, walk: _Walk, policy: str, g: np.ndarray):
+    """(confirmed, Gauss–Newton step, its length in σ) on central differences ``g`` at the
+    walk's point; R re-estimated there first when it moved (MAX / MAXLIK)."""
+    problem, conv = objective.problem, objective.convergence
+    gn, distance = walk.judged(objective, g)
+    if not conv.confirmed(distance, gn, problem.magnitude(walk.theta)):
+        return False, gn, distance
+    if _noise_settled(objective, policy, walk.outputs):
+        return True, gn, distance
+    # R moved: same sensitivities, new weights
+    walk.cost = float(objective.costs_of(walk.outputs)[0])
+    gn, distance = walk.judged(objective, g)
+    return conv.confirmed(distance, gn, problem.magnitude(walk.theta)), gn, distance
+
+
+def _stop(objective: Objective, walk: _Walk, may_continue: bool, outcome, gn, distance):
+    """(status, message) when the passes must end unconfirmed here, else None."""
+    conv = objective.convergence
+    if not may_continue:
+        return outcome.status, (
+            f"{outcome.message}; a Gauss–Newton step from central differences would still "
+            f"move the estimate by {distance:.3g} Cramér–Rao σ (predicted cost drop "
+            f"{gn.predicted_reduction:.3g})"
+        )
+    if walk.passes >= conv.max_confirmation_passes or objective.budget_exhausted():
+        status = "max_evaluations" if objective.budget_exhausted() else "max_iterations"
+        return status, (
+            f"not converged: the solver stopped, but after {walk.passes} Gauss–Newton passes "
+            f"on central differences the next step would still move the estimate by "
+            f"{distance:.3g} Cramér–Rao σ (tolerance {conv.confirm_sigma})"
+        )
+    return None
+
+
 def confirm_convergence(
     objective: Objective, outcome: SolverOutcome, policy: str, fallback: bool = False
 ) -> Confirmation:
     """Confirm (or continue, or deny) the solver's outcome; see the module docstring.
+
+    The outcome's message is one sentence, "status: what happened last (why)": the solver's
+    own message when its end point is confirmed as it stands, else one composed here that
+    names the solver's stop in a few words (``solver_stop``) without quoting its message.
 
     Args:
         objective: the objective the solver minimised (its R and budget).
@@ -161,134 +299,81 @@ def confirm_convergence(
         fallback: continue from ``max_iterations`` too (MNRES falls back to these passes).
     """
     problem = objective.problem
-    conv: Convergence = objective.convergence
-    theta, outputs = outcome.theta, outcome.outputs
-    cost = float(objective.costs_of(outputs)[0])
+    solver_status = outcome.status
     may_continue = (
         outcome.converged
         or outcome.status == "stalled"
         or (fallback and outcome.status == "max_iterations")
     )
-    confirmed = False
-    passes = 0
-    initial = float("nan")
-    # the solver's last forward differences at θ (consumed: completed in place, then dropped)
-    forward = outcome.differences
-    forward_used = 0  # integrations this confirmation spent on ``forward`` (0: the solver's)
-    # steps on forward differences (module docstring): where they can be completed, while a
-    # step is possible at all, and until a full step on them fails to lower the cost
-    # (not after a stall: the solver's own step on its forward differences failed there)
-    on_forward = (
+    # not after a stall: the solver's own step on its forward differences failed there
+    walk = _Walk(
+        outcome.theta,
+        float(objective.costs_of(outcome.outputs)[0]),
+        outcome.outputs,
+        outcome.differences,
         may_continue
         and outcome.status != "stalled"
         and problem.finite_differences
-        and not problem.bounded
+        and not problem.bounded,
     )
     outcome = _replace(
-        outcome, theta, outputs, cost, outcome.converged, outcome.status, outcome.message
+        outcome,
+        walk.theta,
+        walk.outputs,
+        walk.cost,
+        outcome.converged,
+        outcome.status,
+        outcome.message,
     )
     while True:
         g = None  # the last pass's G goes before the next is computed (one G at a time)
-        if on_forward and forward is None and not objective.budget_exhausted():
-            before = problem.evaluations
-            try:
-                forward = problem.differences(theta, outputs, _CENTRAL_STEP, central=False)
-            except SimulationError:
-                forward = None  # central differences below say what diverges
-            forward_used = problem.evaluations - before
-        if on_forward and _reusable(problem, forward, theta):
-            gn = bounded_gauss_newton_step(objective, forward.g, outputs, theta)
-            distance = _sigma_distance(problem, forward.g, gn.step, outputs)
-            if np.isnan(initial):
-                initial = distance
-            if (
-                not conv.confirmed(distance, gn, problem.magnitude(theta))
-                and passes < conv.max_confirmation_passes
-            ):
-                # far enough that forward differences can tell: the full step, if it lowers
-                # the cost, is taken without the backward half
-                accepted = halving_search(objective, theta, cost, gn.step, 0)
-                if accepted is not None:
-                    forward = None
-                    theta, cost, outputs = _advance(objective, accepted, policy)
-                    passes += 1
-                    continue
-                # it did not: central differences decide from here on
-                on_forward = False
-        g, used, failure = _central(objective, theta, outputs, forward)
+        if _forward_step(objective, walk, policy):
+            continue
+        g, used, failure = _central(objective, walk.theta, walk.outputs, walk.forward)
         # the forward half taken here at this point belongs to the end point's G too
-        used += forward_used
-        forward, forward_used = None, 0
+        used += walk.forward_used
+        walk.forward, walk.forward_used = None, 0
         if failure is not None:
             # no sensitivities here: nothing can be confirmed, and there are no CR bounds
             gn = GaussNewtonStep(np.zeros(problem.n_free), 0, float("inf"), float("nan"))
-            distance = float("nan")
             message = (
-                f"not converged: the sensitivities cannot be computed at the end point, the "
-                f"perturbed simulations diverge ({failure}); the solver said: {outcome.message}"
+                f"not converged: the perturbed simulations for the sensitivities diverge at "
+                f"the end point ({failure}), where {solver_stop(solver_status)}"
             )
-            outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
-            return Confirmation(outcome, g, gn, passes, initial, distance, used)
-        gn = bounded_gauss_newton_step(objective, g, outputs, theta)
-        distance = _sigma_distance(problem, g, gn.step, outputs)
-        if np.isnan(initial):
-            initial = distance
-        if conv.confirmed(distance, gn, problem.magnitude(theta)):
-            if _noise_settled(objective, policy, outputs):
-                confirmed = True
-                break
-            # R moved: same sensitivities, new weights
-            cost = float(objective.costs_of(outputs)[0])
-            gn = bounded_gauss_newton_step(objective, g, outputs, theta)
-            distance = _sigma_distance(problem, g, gn.step, outputs)
-            if conv.confirmed(distance, gn, problem.magnitude(theta)):
-                confirmed = True
-                break
-        if not may_continue:
-            message = (
-                f"{outcome.message}; a Gauss–Newton step from central differences would still "
-                f"move the estimate by {distance:.3g} Cramér–Rao σ (predicted cost drop "
-                f"{gn.predicted_reduction:.3g})"
+            outcome = _replace(
+                outcome, walk.theta, walk.outputs, walk.cost, False, "stalled", message
             )
-            outcome = _replace(outcome, theta, outputs, cost, False, outcome.status, message)
+            return Confirmation(outcome, g, gn, walk.passes, walk.initial, float("nan"), used)
+        confirmed, gn, distance = _confirmed_here(objective, walk, policy, g)
+        if confirmed:
             break
-        if passes >= conv.max_confirmation_passes or objective.budget_exhausted():
-            status = "max_evaluations" if objective.budget_exhausted() else "max_iterations"
-            message = (
-                f"not converged: the solver stopped, but after {passes} Gauss–Newton passes on "
-                f"central differences the next step would still move the estimate by "
-                f"{distance:.3g} Cramér–Rao σ (tolerance {conv.confirm_sigma})"
+        stop = _stop(objective, walk, may_continue, outcome, gn, distance)
+        if stop is None:
+            accepted = halving_search(
+                objective, walk.theta, walk.cost, gn.step, 10, gauss_newton=gn
             )
-            outcome = _replace(outcome, theta, outputs, cost, False, status, message)
-            break
-        accepted = halving_search(objective, theta, cost, gn.step, 10, gauss_newton=gn)
-        if accepted is None:
-            message = (
-                "not converged: the solver stopped, but a Gauss–Newton step from "
-                f"central-difference sensitivities predicts a cost drop of "
-                f"{gn.predicted_reduction:.3g} ({distance:.3g} Cramér–Rao σ) that no step "
-                "length down to 2^-10 nor any Levenberg–Marquardt damping realises"
+            if accepted is not None:
+                walk.advance(objective, accepted, policy)
+                continue
+            stop = (
+                "stalled",
+                (
+                    "not converged: the solver stopped, but a Gauss–Newton step from "
+                    f"central-difference sensitivities predicts a cost drop of "
+                    f"{gn.predicted_reduction:.3g} ({distance:.3g} Cramér–Rao σ) that no step "
+                    "length down to 2^-10 nor any Levenberg–Marquardt damping realises"
+                ),
             )
-            outcome = _replace(outcome, theta, outputs, cost, False, "stalled", message)
-            break
-        theta, cost, outputs = _advance(objective, accepted, policy)
-        passes += 1
-    if confirmed and passes:
-        message = (
-            f"converged after {passes} further Gauss–Newton pass"
-            f"{'es' if passes > 1 else ''}, confirmed on central differences (the solver had "
-            f"stopped short of the optimum: {outcome.message})"
-        )
-        outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
-    elif confirmed and not outcome.converged:
-        message = (
-            f"converged: central differences confirm the optimum within "
-            f"{distance:.2g} σ (the solver said: {outcome.message})"
-        )
-        outcome = _replace(outcome, theta, outputs, cost, True, "converged", message)
-    elif confirmed:
-        outcome = _replace(outcome, theta, outputs, cost, True, "converged", outcome.message)
-    return Confirmation(outcome, g, gn, passes, initial, distance, used)
+        outcome = _replace(outcome, walk.theta, walk.outputs, walk.cost, False, *stop)
+        return Confirmation(outcome, g, gn, walk.passes, walk.initial, distance, used)
+    if walk.passes:
+        message = continued_message(walk.passes, distance, walk.initial, solver_status)
+    elif not outcome.converged:
+        message = confirmed_message(distance, solver_status)
+    else:
+        message = outcome.message
+    outcome = _replace(outcome, walk.theta, walk.outputs, walk.cost, True, "converged", message)
+    return Confirmation(outcome, g, gn, walk.passes, walk.initial, distance, used)
 
 
 def _replace(outcome, theta, outputs, cost, converged, status, message) -> SolverOutcome:

@@ -28,6 +28,7 @@ from flightid.estimation.convergence import Convergence
 from flightid.estimation.gauss_newton import information_matrix, undetermined_parameters
 from flightid.estimation.objective import NOISE_POLICIES, Objective
 from flightid.estimation.problem import OutputErrorProblem
+from flightid.estimation.progress import RunProgress, next_stage
 from flightid.estimation.result import Estimate
 from flightid.estimation.solvers import FPS, MNR, MNRES
 from flightid.model.check import check_model
@@ -183,19 +184,37 @@ def _negative_log_likelihood(problem: OutputErrorProblem, noise: str, run: _Run)
     return float(np.sum(np.log(problem.noise_covariance(outputs))))
 
 
+def second_opinion_message(
+    outcome, label: str, criterion: str, values: Sequence[float], distance: float
+) -> str:
+    """One sentence for a result chosen from MNRES's run and MNR's second opinion: the
+    chosen run, why (the likelihoods), what led to it; the reason of an unconverged result
+    added as a clause (without its "<status>:")."""
+    message = (
+        f"{outcome.status}: {label}'s result is reported, the higher likelihood of two runs "
+        f"({criterion} = {values[0]:.6g} for MNRES, {values[1]:.6g} for MNR), after MNRES "
+        f"stopped {distance:.3g} σ from an optimum (its surface misled it) and MNR ran from "
+        "the start values too"
+    )
+    if outcome.converged:
+        return message
+    prefix = f"{outcome.status}:"
+    reason = outcome.message
+    for lead in (prefix, "not converged:"):
+        if reason.startswith(lead):
+            reason = reason[len(lead) :].strip()
+    return f"{message}; {reason}"
+
+
 def _better(problem: OutputErrorProblem, noise: str, first: _Run, second: _Run) -> _Run:
     """The run with the higher likelihood, its message saying what happened."""
     criterion = "J" if noise == "fixed" else "ln det R"
     values = [_negative_log_likelihood(problem, noise, run) for run in (first, second)]
-    distance = first.confirmation.initial_sigma
-    head = (
-        f"MNRES stopped {distance:.3g} σ from an optimum (its surface misled it), so MNR was "
-        f"also run from the start values: {criterion} = {values[0]:.6g} (MNRES) and "
-        f"{values[1]:.6g} (MNR); "
-    )
-    chosen, label = (second, "MNR's") if values[1] < values[0] else (first, "MNRES's")
+    chosen, label = (second, "MNR") if values[1] < values[0] else (first, "MNRES")
     outcome = chosen.confirmation.outcome
-    message = f"{head}{label} result is reported — {outcome.message}"
+    message = second_opinion_message(
+        outcome, label, criterion, values, first.confirmation.initial_sigma
+    )
     confirmation = replace(chosen.confirmation, outcome=replace(outcome, message=message))
     return _Run(
         chosen.objective,
@@ -236,7 +255,8 @@ def estimate(
         convergence: stopping rules (default ``Convergence()``: the paper's 10⁻³ tests).
         compiled: run the numba kernel.
         progress: called after every accepted pass with (pass number, equivalent evaluations
-            so far, cost under the current R) — e.g. to print progress.
+            so far, cost under the current R) — e.g. to print progress; both numbers rise
+            over the whole run (``flightid.estimation.progress``).
         weights: per-sample weights w ∈ [0, 1] over all maneuvers' samples in order, (N,) or
             (N, n_o): J = Σ w ν²/R; a weight 0 excludes the measurement from the cost, the
             information matrix, R̂ and N (``OutputErrorProblem.set_weights``). None: all 1.
@@ -272,11 +292,14 @@ def estimate(
     problem.check_enough_data()
     r_diag = _check_r(R, problem.n_outputs)
     evaluations_before = problem.evaluations
+    # pass numbers and evaluations rise over both runs when MNR gives a second opinion
+    progress = RunProgress.wrap(progress)
     run = _optimise(problem, solver, r_diag, noise, convergence, progress)
     if isinstance(solver, MNRES) and run.confirmation.initial_sigma > SECOND_OPINION_SIGMA:
         # MNRES's surface misled it far from any optimum: its path is not to be trusted, so
         # MNR (fresh finite differences every pass) runs from the start values too and the
         # higher likelihood wins.
+        next_stage(progress, problem.evaluations - evaluations_before)
         second = _optimise(problem, MNR(), r_diag, noise, convergence, progress)
         run = _better(problem, noise, run, second)
     objective, confirmation = run.objective, run.confirmation
@@ -334,6 +357,8 @@ def estimate(
         cost_history=tuple(objective.cost_history),
         evaluation_history=tuple(objective.evaluation_history),
         noise_update_passes=tuple(objective.noise_update_passes),
+        log_det_r_history=tuple(objective.log_det_r_history),
+        r_history=tuple(tuple(float(v) for v in r) for r in objective.r_history),
         equivalent_evaluations=optimizer_evaluations,
         accuracy_evaluations=accuracy_evaluations,
         iterations=iterations,

@@ -67,6 +67,7 @@ from flightid.estimation.filter_error_problem import (  # noqa: F401 (public her
 )
 from flightid.estimation.gauss_newton import information_matrix
 from flightid.estimation.objective import Objective
+from flightid.estimation.progress import RunProgress, next_stage
 from flightid.estimation.result import Estimate
 from flightid.estimation.solvers import MNR, MNRES
 from flightid.filtering.kalman import RiccatiError
@@ -93,6 +94,8 @@ class _Trace:
     """Histories over all cycles and active sets."""
 
     costs: list[float] = field(default_factory=list)
+    log_det_r: list[float] = field(default_factory=list)  # ln det of the innovations' R̂
+    r_history: list[tuple[float, ...]] = field(default_factory=list)  # R of each cost
     evaluations: list[int] = field(default_factory=list)
     r_updates: list[int] = field(default_factory=list)
     iterations: int = 0
@@ -102,7 +105,12 @@ class _Trace:
     def record(self, objective: Objective, problem: FilterErrorProblem) -> None:
         self.r_updates.append(len(self.costs))
         self.costs.extend(objective.cost_history)
-        self.evaluations.extend(self.passes + e for e in objective.evaluation_history)
+        self.log_det_r.extend(objective.log_det_r_history)
+        self.r_history.extend(tuple(float(v) for v in r) for r in objective.r_history)
+        # filter passes of the run: finished problems, this problem's before the objective
+        # started, the objective's own
+        start = self.passes + objective.start_evaluations
+        self.evaluations.extend(start + e for e in objective.evaluation_history)
 
 
 @dataclass
@@ -147,6 +155,8 @@ def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, 
     change = float("nan")
     for _cycle in range(1, max_cycles + 1):
         problem.gain_r = r_diag.copy()
+        # the progress numbers continue over cycles and active sets (filter passes in all)
+        next_stage(progress, trace.passes + problem.evaluations)
         objective = Objective(problem, r_diag, "fixed", convergence, progress)
         outcome = solver.minimize(objective, theta)
         confirmation = confirm_convergence(
@@ -446,7 +456,8 @@ def estimate_filter_error(
             fraction in a cycle.
         max_cycles: ``fixed_point``: R updates at most (per active set).
         compiled: numba filter kernel.
-        progress: called after every accepted pass with (pass, filter passes, cost).
+        progress: called after every accepted pass with (pass, filter passes, cost), both
+            numbers rising over all R cycles and active sets.
         gradients: ``"differences"`` (H by finite differences of filter passes) or
             ``"analytic"``: a model linear in states and inputs, filtered with the exact
             discretisation Φ = e^{AΔt}, H from the differentiated Riccati equation and
@@ -470,6 +481,8 @@ def estimate_filter_error(
     if not isinstance(convergence, Convergence):
         raise InputTypeError(f"convergence: expected a Convergence, got {describe(convergence)}")
     check_call_options(compiled, progress)
+    # pass numbers and filter passes rise over all R cycles and active sets
+    progress = RunProgress.wrap(progress)
     started = _time.perf_counter()
     check_model(model, data, method=method)
     settings = {
@@ -585,6 +598,8 @@ def estimate_filter_error(
         cost_history=tuple(trace.costs),
         evaluation_history=tuple(trace.evaluations),
         noise_update_passes=tuple(trace.r_updates[1:]),
+        log_det_r_history=tuple(trace.log_det_r),
+        r_history=tuple(trace.r_history),
         equivalent_evaluations=int(filter_passes - accuracy),
         accuracy_evaluations=int(accuracy),
         iterations=int(trace.iterations),
@@ -609,4 +624,6 @@ def estimate_filter_error(
         wall_time_s=_time.perf_counter() - started,
         model=estimated_model,
         optimality_sigma=outcome.sigma,
+        # the pinned F elements: solved from diag(KC)_i = 1, not estimated freely
+        solved=tuple(last.process_noise[s] for s in outcome.pinned),
     )

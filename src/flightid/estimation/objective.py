@@ -27,6 +27,9 @@ __all__ = ["Objective", "SolverOutcome", "NOISE_POLICIES"]
 
 NOISE_POLICIES = ("fixed", "max", "maxlik")
 
+# evaluated points whose ln det R̂ is kept for the pass that records one of them
+_REMEMBERED_POINTS = 4096
+
 
 @dataclass(frozen=True)
 class SolverOutcome:
@@ -78,6 +81,11 @@ class Objective:
         self.noise_updates = 0
         # per R re-estimation, the index in cost_history of the first cost under the new R
         self.noise_update_passes: list[int] = []
+        # per recorded pass: ln det R̂ of its residuals [3.45] and the R its cost is under
+        self.log_det_r_history: list[float] = []
+        self.r_history: list[np.ndarray] = []
+        # ln det R̂ of the points evaluated lately, by θ (a pass records one of them)
+        self._log_det_r: dict[bytes, float] = {}
         self._cached: tuple[np.ndarray, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ accounting
@@ -93,11 +101,20 @@ class Objective:
         limit = self.convergence.max_evaluations
         return limit is not None and self.evaluations >= limit
 
-    def record(self, theta: np.ndarray, cost: float) -> None:
-        """Log one pass (an accepted parameter update, or the start)."""
+    def record(self, theta: np.ndarray, cost: float, outputs: np.ndarray | None = None) -> None:
+        """Log one pass (an accepted parameter update, or the start): its cost under the
+        current R, the R, and ln det R̂ of its residuals (from ``outputs``, else from the
+        evaluation of θ; NaN when neither is at hand)."""
+        theta = np.array(theta, dtype=float)
+        if outputs is not None:
+            log_det = self.log_det_noise_covariance(outputs)
+        else:
+            log_det = self._log_det_r.get(theta.tobytes(), float("nan"))
         self.cost_history.append(float(cost))
         self.evaluation_history.append(self.evaluations)
-        self.theta_history.append(np.array(theta, dtype=float))
+        self.theta_history.append(theta)
+        self.log_det_r_history.append(log_det)
+        self.r_history.append(np.array(self.r_diag, dtype=float))
         if self.progress is not None:
             self.progress(len(self.cost_history) - 1, self.evaluations, float(cost))
 
@@ -118,7 +135,25 @@ class Objective:
             self._cached = None
         else:
             outputs = self.problem.run(thetas).outputs
-        return self.costs_of(outputs), outputs
+        costs = self.costs_of(outputs)
+        self._remember_log_det(thetas, costs, outputs)
+        return costs, outputs
+
+    def log_det_noise_covariance(self, outputs: np.ndarray) -> float:
+        """ln det R̂ = Σ_k ln R̂_kk of the residuals of (N, n_o) ``outputs`` [3.45]: under an
+        estimated R the negative log-likelihood up to constants, whatever R weights J."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # ln det R̂ = Σ_k ln R̂_kk (R̂ diagonal)
+            value = float(np.sum(np.log(self.problem.noise_covariance(outputs))))
+        return value if np.isfinite(value) else float("nan")
+
+    def _remember_log_det(self, thetas: np.ndarray, costs: np.ndarray, outputs) -> None:
+        """ln det R̂ of each finite evaluation, for ``record`` (the last few thousand)."""
+        for theta, cost, output in zip(thetas, costs, outputs, strict=True):
+            if np.isfinite(cost):
+                self._log_det_r[theta.tobytes()] = self.log_det_noise_covariance(output)
+        while len(self._log_det_r) > _REMEMBERED_POINTS:
+            del self._log_det_r[next(iter(self._log_det_r))]
 
     def evaluate_start(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
         """Cost and outputs at a start point; a start that diverges is an error."""

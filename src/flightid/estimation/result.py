@@ -64,7 +64,20 @@ class Estimate(ResultSurface):
         sensitivities: G at θ̂, (N, n_o, n_f).
         r_diag: noise variances R used at the end (n_o,).
         cost: J(θ̂) = Σ νᵀR⁻¹ν under ``r_diag``.
-        cost_history: J after the start and each accepted pass (under the R of that pass).
+        cost_history: J after the start and each accepted pass, each under the R in force at
+            that pass (``r_history``): the cost at fixed R, before any R update that follows
+            the pass. Under the MAX / MAXLIK policies it drops within a stretch under one R
+            and jumps at an R update; ``cost`` at the end, under the final R̂, is about N·n_o
+            (J at R = R̂ is Σ_k N R̂_k/R̂_k), so neither judges convergence across updates.
+        log_det_r_history: ln det R̂ = Σ_k ln R̂_kk at each entry of ``cost_history``, R̂ the
+            covariance of that pass's residuals (innovations) [3.45]: the negative
+            log-likelihood under an estimated R up to constants, the quantity that falls
+            to its minimum as the estimate converges whatever R weights J (no jumps at R
+            updates); NaN where a pass's residuals were not at hand, empty where the
+            estimator does not record it (the filter error's reference schedule). The last
+            entry equals ``log_det_r`` when R was re-estimated at the end point.
+        r_history: the noise variances R (n_o,) each entry of ``cost_history`` is computed
+            under.
         evaluation_history: equivalent evaluations spent at those points.
         equivalent_evaluations: system integrations used by the optimizer (incl. R cycles).
         accuracy_evaluations: integrations for the final information matrix.
@@ -86,6 +99,9 @@ class Estimate(ResultSurface):
             θ̂: how far (in Cramér–Rao σ) the linearised model puts the optimum; a converged
             estimate has it ≤ ``Convergence.confirm_sigma``.
         at_bound: free parameters that ended on a bound (their std is NaN).
+        solved: free parameters whose value is solved from a constraint rather than
+            estimated freely (the filter error method's process-noise elements solved from
+            diag(KC)_i = 1); listed as "solved" in summaries, reports and estimates.csv.
         weights: the samples' weights (N, n_o) in the cost, or None when all are 1; with
             weights, ``residuals`` and ``sensitivities`` are √w·(z − y) and √w·∂y/∂θ, and a
             weight of 0 leaves the measurement out of ``n_data``.
@@ -133,6 +149,9 @@ class Estimate(ResultSurface):
     std_kind: str = CRAMER_RAO
     residuals_white: bool | None = None
     coloured_lag: int = 0
+    solved: tuple[str, ...] = ()
+    log_det_r_history: tuple[float, ...] = ()
+    r_history: tuple[tuple[float, ...], ...] = ()
 
     def __post_init__(self) -> None:
         # without a separate default σ, the default is the Cramér–Rao σ
@@ -172,6 +191,28 @@ class Estimate(ResultSurface):
     @property
     def free_names(self) -> list[str]:
         return [n for n, f in zip(self.names, self.free, strict=True) if f]
+
+    @property
+    def estimator(self) -> str:
+        """``"filter_error"`` or ``"output_error"`` (the case key ``estimation.estimator``),
+        told by the noise policy (``"filter_error/<relaxation>"`` for the filter error
+        method)."""
+        return "filter_error" if self.noise_policy.startswith("filter_error") else "output_error"
+
+    @property
+    def log_det_r(self) -> float:
+        """ln det R = Σ_k ln R_kk of the final noise variances ``r_diag``."""
+        return float(np.sum(np.log(self.r_diag)))
+
+    def role(self, name: str) -> str:
+        """How parameter ``name`` got its value: ``"fixed"``, ``"free"`` (estimated),
+        ``"solved"`` (from a constraint: ``solved``) or ``"at_bound"`` (estimated, ended on
+        a bound)."""
+        if name in self.solved:
+            return "solved"
+        if name in self.at_bound:
+            return "at_bound"
+        return "free" if self.free[self.names.index(name)] else "fixed"
 
     @property
     def parameters(self) -> Parameters:
@@ -325,10 +366,12 @@ class Estimate(ResultSurface):
                     "std": std if (self.free[i] and np.isfinite(std)) else None,
                     "std_cr": std_cr if (self.free[i] and np.isfinite(std_cr)) else None,
                     "free": bool(self.free[i]),
+                    "role": self.role(name),
                     "unit": self.parameter_units[i],
                 }
             )
         return {
+            "estimator": self.estimator,
             "method": self.solver,
             "converged": bool(self.converged),
             "status": self.status,
@@ -351,12 +394,16 @@ class Estimate(ResultSurface):
             if np.isfinite(self.optimality_sigma)
             else None,
             "at_bound": list(self.at_bound),
+            "solved": list(self.solved),
             "std_kind": self.std_kind,
             "residuals_white": None if self.residuals_white is None else bool(self.residuals_white),
             "coloured_lag": int(self.coloured_lag),
             "cost_history": [float(c) for c in self.cost_history],
             "evaluation_history": [int(e) for e in self.evaluation_history],
             "noise_update_passes": [int(p) for p in self.noise_update_passes],
+            "log_det_r": self.log_det_r,
+            "log_det_r_history": [float(v) for v in self.log_det_r_history],
+            "r_history": [[float(v) for v in r] for r in self.r_history],
             "parameters": parameters,
         }
 

@@ -21,6 +21,7 @@ from dataclasses import replace
 
 from flightid.data.flightdata import FlightData
 from flightid.estimation.driver import estimate
+from flightid.estimation.progress import RunProgress, next_stage
 from flightid.estimation.result import Estimate
 from flightid.model.statespace import StateSpaceModel
 
@@ -34,20 +35,28 @@ def estimate_multiple_shooting(
 
     A model without a schedule (or without shooting) is estimated once, as ``estimate``
     does. Each stage counts its passes and evaluations; the result's message names the
-    stages.
+    stages. A ``progress`` callback in ``options`` sees pass numbers and evaluations that
+    rise over all stages.
     """
     schedule = tuple(getattr(model, "shooting_schedule", ()) or ())
     if not schedule or getattr(model, "shooting", None) is None:
         return estimate(model, data, **options)
     started = _time.perf_counter()
     initial = model.parameters.values
-    iterations = evaluations = 0
+    iterations = evaluations = spent = 0
     stages = []
     current = model
+    # the progress callback's passes and evaluations rise over all stages
+    progress = RunProgress.wrap(options.get("progress"))
+    if progress is not None:
+        options = {**options, "progress": progress}
     for weight in schedule:
         stage = estimate(replace(current, shooting_weight=weight), data, **options)
         iterations += stage.iterations
         evaluations += stage.equivalent_evaluations
+        # every integration of the stage, the information matrix's included
+        spent += stage.equivalent_evaluations + stage.accuracy_evaluations
+        next_stage(progress, spent)
         stages.append(f"w = {weight:g}: {stage.status}, {stage.iterations} passes")
         current = current.with_parameters(current.parameters.with_values(stage.values))
     final = estimate(current, data, **options)

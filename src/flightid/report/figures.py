@@ -388,13 +388,27 @@ def cost_history_figure(
     costs: Sequence[float],
     noise_update_passes: Sequence[int] = (),
     title: str = "cost history",
+    log_det_r: Sequence[float] = (),
 ) -> Figure:
-    """Cost J per recorded pass (log scale), a dashed line before each pass whose cost is
-    under a re-estimated R."""
+    """Convergence per recorded pass: ln det R̂ of the pass's residuals (top panel, when
+    ``log_det_r`` has a finite entry per pass) and the cost J at fixed R (log scale, one line
+    per stretch under one R), a dashed line at each R re-estimation in both.
+
+    ln det R̂ does not depend on the R that weights J, so it runs on across R updates and
+    shows convergence where the cost, recomputed under each new R, jumps.
+    """
     costs = np.asarray(costs, dtype=float)
-    figure = Figure(figsize=(6.5, 3.2))
-    ax = figure.subplots()
+    log_det_r = np.asarray(log_det_r, dtype=float)
+    with_log_det = log_det_r.size == costs.size and bool(np.any(np.isfinite(log_det_r)))
+    figure = Figure(figsize=(6.5, 5.2 if with_log_det else 3.2))
+    axes = figure.subplots(2 if with_log_det else 1, 1, sharex=True, squeeze=False)[:, 0]
     passes = np.arange(costs.size)
+    if with_log_det:
+        finite = np.isfinite(log_det_r)
+        axes[0].plot(passes[finite], log_det_r[finite], "o-", markersize=3.5, color="tab:green")
+        axes[0].set_ylabel("ln det R̂ [–]", fontsize=8)
+        axes[0].set_title(title, fontsize=9)
+    ax = axes[-1]
     # one line per stretch under one R: a cost under a new R is not comparable with the last
     edges = sorted({0, costs.size, *(p for p in noise_update_passes if 0 < p < costs.size)})
     for a, b in zip(edges[:-1], edges[1:], strict=False):
@@ -403,20 +417,22 @@ def cost_history_figure(
         ax.semilogy(
             passes[part][positive], costs[part][positive], "o-", markersize=3.5, color="tab:blue"
         )
-    for k, p in enumerate(noise_update_passes):
-        ax.axvline(
-            p - 0.5,
-            color="tab:orange",
-            linestyle="--",
-            linewidth=1.0,
-            label="R re-estimated" if k == 0 else None,
-        )
+    for axis in axes:
+        for k, p in enumerate(noise_update_passes):
+            axis.axvline(
+                p - 0.5,
+                color="tab:orange",
+                linestyle="--",
+                linewidth=1.0,
+                label="R re-estimated" if k == 0 else None,
+            )
+        axis.tick_params(labelsize=7)
+        axis.grid(True, which="both", linewidth=0.3)
     if len(noise_update_passes):
-        ax.legend(fontsize=7, frameon=False)
+        axes[0].legend(fontsize=7, frameon=False)
     ax.set_xlabel("pass [–]", fontsize=8)
-    ax.set_ylabel("cost J = Σ νᵀR⁻¹ν [–]", fontsize=8)
-    ax.set_title(title, fontsize=9)
-    ax.tick_params(labelsize=7)
-    ax.grid(True, which="both", linewidth=0.3)
+    ax.set_ylabel("cost J at fixed R = Σ νᵀR⁻¹ν [–]", fontsize=8)
+    if not with_log_det:
+        ax.set_title(title, fontsize=9)
     figure.tight_layout()
     return figure

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flightid.numbers import format_at_sigma, format_sigma
 from flightid.report.diagnostics import COLOURED_RATIO_WARNING
 from flightid.report.page import STYLE as _STYLE
 from flightid.report.page import image as _img
@@ -139,7 +140,8 @@ def render_figures(run, dpi: int = 96) -> Figures:
     figure = cost_history_figure(
         est.cost_history,
         getattr(est, "noise_update_passes", ()),
-        f"cost history ({est.solver}, noise {est.noise_policy})",
+        f"convergence ({est.solver}, noise {est.noise_policy})",
+        log_det_r=getattr(est, "log_det_r_history", ()),
     )
     figures.convergence = ("convergence.png", png_bytes(figure, dpi))
     return figures
@@ -177,6 +179,24 @@ def _coloured(run):
 # ------------------------------------------------------------------------------ tables
 
 
+# the estimates table's last column, by ``Estimate.role``
+_ROLE_TEXT = {
+    "free": "free",
+    "fixed": "fixed",
+    "solved": "solved (constraint)",
+    "at_bound": "on a bound",
+}
+
+
+def _role(est, name: str) -> str:
+    """``Estimate.role`` (free, fixed, solved, at_bound) for any estimate-like result."""
+    if name in getattr(est, "solved", ()):
+        return "solved"
+    if name in getattr(est, "at_bound", ()):
+        return "at_bound"
+    return "free" if est.free[list(est.names).index(name)] else "fixed"
+
+
 def _estimate_rows(run) -> list[dict]:
     est = run.estimate
     confidence = float(run.case.accuracy.get("confidence", 0.95))
@@ -200,6 +220,8 @@ def _estimate_rows(run) -> list[dict]:
                 "upper": value + half[i] if free else None,
                 "initial": float(est.initial[i]),
                 "free": free,
+                # free | fixed | solved (from a constraint) | at_bound
+                "role": _role(est, name),
             }
         )
     accuracy = getattr(run, "accuracy", None)
@@ -236,6 +258,14 @@ def _fmt(value, digits: int = 6) -> str:
     if not np.isfinite(value):
         return str(value)
     return f"{value:.{digits}g}"
+
+
+def _at_sigma(value, sigma) -> str:
+    """A value at the decimal place of σ's second significant digit (``flightid.numbers``);
+    ``_fmt`` when there is no value or no σ."""
+    if value is None or sigma is None:
+        return _fmt(value)
+    return format_at_sigma(value, sigma)
 
 
 def _unit(unit: str | None) -> str:
@@ -336,24 +366,24 @@ def _estimates_table(run, coloured, units: tuple[str, ...]) -> str:
         ratio = coloured.ratio[j] if j is not None else None
         high = ratio is not None and np.isfinite(ratio) and ratio > COLOURED_RATIO_WARNING
         ratio_text = _fmt(ratio, 3) if ratio is not None and np.isfinite(ratio) else "—"
+        # σ to two significant digits; estimate and interval at the default σ's decimal place
+        place = row["std"]
         cells = [
             html.escape(row["name"]),
             _unit(unit),
-            _fmt(row["value"]),
-            _fmt(row["std_cr"], 3),
+            _at_sigma(row["value"], place),
+            format_sigma(row["std_cr"]),
         ]
         if scaled:
-            cells.append(_fmt(std_cr, 3))
+            cells.append(format_sigma(std_cr))
         cells += [
-            _fmt(std_col, 3) if std_col is not None and np.isfinite(std_col) else "—",
+            format_sigma(std_col) if std_col is not None and np.isfinite(std_col) else "—",
             f"<span class='high'>{ratio_text}</span>" if high else ratio_text,
-            _fmt(row["relative_percent"], 3),
-            _fmt(row["lower"]),
-            _fmt(row["upper"]),
+            _fmt(row["relative_percent"], 2),
+            _at_sigma(row["lower"], place),
+            _at_sigma(row["upper"], place),
             _fmt(row["initial"]),
-            "on a bound"
-            if row["name"] in run.estimate.at_bound
-            else ("free" if row["free"] else "fixed"),
+            _ROLE_TEXT[row["role"]],
         ]
         rows.append(cells)
         classes.append("" if row["free"] else "fixed")
@@ -487,28 +517,57 @@ def _prediction_section(run, units: dict[str, str], figures) -> str:
 
 
 def _convergence_section(run, figures) -> str:
+    """Per pass: equivalent evaluations, ln det R̂ of its residuals, the cost at the R in
+    force, and where R was re-estimated (figure and table)."""
     est = run.estimate
     updates = list(getattr(est, "noise_update_passes", ()))
     evaluations = list(est.evaluation_history)
+    log_det = list(getattr(est, "log_det_r_history", ()))
+    with_log_det = len(log_det) == len(est.cost_history) and any(np.isfinite(log_det))
     rows = []
     for i, cost in enumerate(est.cost_history):
         mark = "R re-estimated before this pass" if i in updates else ""
         evaluation = str(evaluations[i]) if i < len(evaluations) else "—"
-        rows.append([str(i), evaluation, _fmt(cost), mark])
+        ln_det = [_fmt(log_det[i], 8) if np.isfinite(log_det[i]) else "—"] if with_log_det else []
+        rows.append([str(i), evaluation, *ln_det, _fmt(cost), mark])
     tail = [u for u in updates if u >= len(est.cost_history)]
+    estimated_r = est.noise_policy != "fixed"
+    caption = (
+        "ln det R̂ per pass (top) and cost J at fixed R (bottom); dashed: R re-estimated"
+        if with_log_det
+        else "cost J per pass; dashed: R re-estimated"
+    )
+    explanation = (
+        " ln det R̂ is that of each pass's residuals: the likelihood's measure when R is "
+        "estimated, comparable across R updates; it settles at its minimum, "
+        f"ln det R = {_fmt(float(np.sum(np.log(est.r_diag))), 8)} of the final R. The cost at "
+        "fixed R falls within each stretch under one R and jumps when R is re-estimated "
+        "(under R = R̂ it is about N·n_o), so its jumps are not divergence."
+        if with_log_det and estimated_r
+        else ""
+    )
     text = [
         "<h2>Convergence</h2>",
-        _img(figures.convergence, "cost J per pass; dashed: R re-estimated", "640px")
-        if figures
-        else "",
+        _img(figures.convergence, caption, "640px") if figures else "",
         f"<p>{est.noise_cycles} R re-estimation(s) (noise policy {html.escape(est.noise_policy)})"
         + (
             "; the last one changed R by less than the tolerance and no pass followed it"
             if tail
             else ""
         )
-        + ". Costs are computed under the R in force at that pass.</p>",
-        _table(["pass", "equivalent evaluations", "cost J [–]", ""], rows),
+        + ". Costs are computed under the R in force at that pass."
+        + explanation
+        + "</p>",
+        _table(
+            [
+                "pass",
+                "equivalent evaluations",
+                *(["ln det R̂ [–]"] if with_log_det else []),
+                "cost J at fixed R [–]",
+                "",
+            ],
+            rows,
+        ),
     ]
     return "\n".join(text)
 
@@ -604,11 +663,17 @@ def _utc_now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
-def _interval(pair) -> str:
-    """ "[lower, upper]"; an open side (no limit found) shows as ∓∞, an unknown one as —."""
+def _interval(pair, sigma: float | None = None) -> str:
+    """ "[lower, upper]", both at the decimal place of σ's second significant digit
+    (``flightid.numbers``; six significant digits without a σ); an open side (no limit
+    found) shows as ∓∞, an unknown one as —."""
     lower, upper = (float(v) for v in pair)
-    low = "−∞" if lower == -np.inf else _fmt(lower) if np.isfinite(lower) else "—"
-    high = "+∞" if upper == np.inf else _fmt(upper) if np.isfinite(upper) else "—"
+
+    def bound(v: float) -> str:
+        return _fmt(v) if sigma is None else format_at_sigma(v, sigma)
+
+    low = "−∞" if lower == -np.inf else bound(lower) if np.isfinite(lower) else "—"
+    high = "+∞" if upper == np.inf else bound(upper) if np.isfinite(upper) else "—"
     return f"[{low}, {high}]"
 
 
@@ -620,9 +685,10 @@ def _accuracy_section(run) -> str:
     headers += [f"{m} interval" for m in ran]
     rows = []
     for j, name in enumerate(acc.names):
-        row = [html.escape(name), _fmt(acc.center[j]), _fmt(acc.std_scaled[j], 3)]
-        row.append(_interval(acc.ci_cr[j]))
-        row += [_interval(getattr(acc, f"ci_{m}")[j]) for m in ran]
+        sigma = float(acc.std_scaled[j])
+        row = [html.escape(name), format_at_sigma(acc.center[j], sigma), format_sigma(sigma)]
+        row.append(_interval(acc.ci_cr[j], sigma))
+        row += [_interval(getattr(acc, f"ci_{m}")[j], sigma) for m in ran]
         rows.append(row)
     n_phi = acc.nonlinearity.n_phi
     spent = ", ".join(f"{k} {v}" for k, v in acc.evaluations.items())
@@ -689,12 +755,12 @@ def _trust_section(run) -> str:
         rows = [
             [
                 html.escape(p.name),
-                _fmt(p.value),
-                _fmt(p.std_cr, 3),
-                _fmt(p.std_coloured, 3),
-                _interval(p.ci_cr),
-                _interval(p.ci_profile),
-                _fmt(p.std_profile, 3),
+                format_at_sigma(p.value, p.std_cr),
+                format_sigma(p.std_cr),
+                format_sigma(p.std_coloured),
+                _interval(p.ci_cr, p.std_cr),
+                _interval(p.ci_profile, p.std_cr),
+                format_sigma(p.std_profile),
                 "fails" if p.quadratic_fails else "holds",
             ]
             for p in weak.profiled

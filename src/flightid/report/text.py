@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from flightid.errors import InputTypeError, describe
+from flightid.numbers import format_at_sigma, format_interval, format_sigma, format_with_sigma
 
 __all__ = [
     "accuracy_summary",
@@ -83,16 +84,19 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
         elif result.free[i]:
             std = result.std[i]
             relative = abs(std / value) * 100 if value != 0 and np.isfinite(std) else np.inf
-            cr = [f"{result.std_cr[i]:.3g}"] if coloured else []
+            cr = [format_sigma(result.std_cr[i], missing="-")] if coloured else []
+            # σ to two significant digits, the estimate to σ's decimal place
+            value_text, std_text = format_with_sigma(value, std, missing="-")
             rows.append(
                 [
                     name,
-                    f"{value:.6g}",
-                    f"{std:.3g}",
-                    f"{relative:.2f}" if np.isfinite(relative) else "-",
+                    value_text,
+                    std_text,
+                    f"{relative:.2g}" if np.isfinite(relative) else "-",
                     *cr,
                     f"{result.initial[i]:.6g}",
-                    "",
+                    # a value solved from a constraint (filter error: diag(KC)_i = 1)
+                    "solved" if name in getattr(result, "solved", ()) else "",
                 ]
             )
         else:
@@ -102,9 +106,25 @@ def _parameter_rows(result, coloured: bool) -> list[list[str]]:
     return rows
 
 
+def _without_status(message: str, status: str) -> str:
+    """The message without a leading "<status>:" (the line names the status already)."""
+    prefix = f"{status}:"
+    return message[len(prefix) :].strip() if message.startswith(prefix) else message
+
+
+def _log_det_text(result) -> str:
+    """``   ln det R = …`` where R was estimated (the likelihood's measure then: J under
+    R = R̂ is about N·n_o whatever the fit), else nothing."""
+    if getattr(result, "noise_policy", "fixed") == "fixed":
+        return ""
+    log_det = float(np.sum(np.log(np.asarray(result.r_diag, dtype=float))))
+    return f"   ln det R = {log_det:.6g}"
+
+
 def estimate_summary(result) -> str:
-    """Estimates, default σ (and Cramér–Rao bounds beside it when the residuals are coloured),
-    relative σ, start values; cost and accounting."""
+    """A header naming the method (output error, filter error); estimates, default σ (and
+    Cramér–Rao bounds beside it when the residuals are coloured), relative σ, start values,
+    "solved" for values solved from a constraint; cost and accounting."""
     coloured = getattr(result, "std_kind", "cramer_rao") == "coloured"
     rows = _parameter_rows(result, coloured)
     if coloured:
@@ -115,11 +135,13 @@ def estimate_summary(result) -> str:
         )
     else:
         sigma_line = "σ: Cramér–Rao bounds (the residuals are white at lag 1)"
+    # "output-error", "filter-error": the method that produced the estimate
+    estimator = getattr(result, "estimator", "output_error").replace("_", "-")
     head = [
-        f"flightid output-error estimate — {result.model.name}",
+        f"flightid {estimator} estimate — {result.model.name}",
         f"solver {result.solver}, noise policy {result.noise_policy}, integration {result.method}",
-        f"status: {result.status} — {result.message}",
-        f"cost J = {result.cost:.6g}   iterations {result.iterations}   "
+        f"status: {result.status} — {_without_status(result.message, result.status)}",
+        f"cost J = {result.cost:.6g}{_log_det_text(result)}   iterations {result.iterations}   "
         f"equivalent evaluations {result.equivalent_evaluations} "
         f"(+{result.accuracy_evaluations} for the information matrix)   "
         f"wall time {result.wall_time_s:.3g} s",
@@ -152,10 +174,6 @@ def accuracy_summary(result) -> str:
     the Cramér–Rao, Beale (and, when run, profile and search) intervals; Δ, s², N_φ and the
     evaluations above and below the table."""
 
-    def cell(pair) -> str:
-        lo, hi = pair
-        return f"[{lo:.4g}, {hi:.4g}]"
-
     units = result.unit_map
     show_units = any(units.values())
     headers = ["parameter", *(["unit"] if show_units else [])]
@@ -167,12 +185,20 @@ def accuracy_summary(result) -> str:
         headers.append("search")
     rows = []
     for j, name in enumerate(result.names):
+        # σ to two significant digits; estimate and bounds to the decimal place of the
+        # smaller σ (the finer one the table shows)
+        sigmas = [s for s in (result.std_scaled[j], result.std_coloured[j]) if np.isfinite(s)]
+        place = min(sigmas) if sigmas else float("nan")
+
+        def cell(pair, place=place) -> str:
+            return format_interval(pair[0], pair[1], place)
+
         row = [
             name,
             *([units[name]] if show_units else []),
-            f"{result.center[j]:.6g}",
-            f"{result.std_scaled[j]:.3g}",
-            f"{result.std_coloured[j]:.3g}",
+            format_at_sigma(result.center[j], place),
+            format_sigma(result.std_scaled[j]),
+            format_sigma(result.std_coloured[j]),
             cell(result.ci_cr[j]),
             cell(result.ci_cr_beale[j]),
         ]

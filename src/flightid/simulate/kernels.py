@@ -270,7 +270,7 @@ class BatchKernel:
 
     The parallel variant is used for batches of at least ``min_parallel_samples`` samples
     in all (``PARALLEL_MIN_SAMPLES``) and compiled on the first batch that uses it; if numba
-    cannot compile it, the serial one runs instead (a ``RuntimeWarning`` says so).
+    cannot compile it, the serial one runs instead (a ``CompileWarning`` says so).
     """
 
     def __init__(self, source: Callable) -> None:
@@ -317,7 +317,8 @@ def run_parallel_variant(
     parallel: Callable, arguments: tuple, kernel_name: str, fallback: str
 ) -> tuple[bool, object]:
     """``(True, parallel(*arguments))``, or ``(False, None)`` where numba cannot compile the
-    parallel variant: a ``RuntimeWarning`` then names ``kernel_name`` and the ``fallback``
+    parallel variant: a ``CompileWarning`` (a ``RuntimeWarning``) then names ``kernel_name``
+    and the ``fallback``
     (the caller runs its serial variant). Errors that are not numba's propagate."""
     try:
         return True, parallel(*arguments)
@@ -326,9 +327,12 @@ def run_parallel_variant(
             raise
         import warnings
 
+        from flightid.errors import CompileWarning
+
+        # a FlightIdWarning: one line "flightid: warning: ..." on the terminal
         warnings.warn(
             f"the parallel {kernel_name} did not compile ({type(exc).__name__}); {fallback}",
-            RuntimeWarning,
+            CompileWarning,
             stacklevel=3,
         )
         return False, None
