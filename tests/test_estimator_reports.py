@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from data_paths import DATA, needs_data
+from flightid.numbers import format_with_sigma
 from flightid.report.page import (
     EstimateRow,
     estimates_section,
     format_interval,
-    format_value_sigma,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -78,23 +78,23 @@ def _check_page(directory: Path, residual_heading: str, fit_words: list[str]) ->
 
 def test_value_follows_sigma_to_two_significant_digits():
     # hand-written: σ 0.00033 has 2 significant digits at 5 decimals; the value follows
-    assert format_value_sigma(4.00022, 0.00033) == ("4.00022", "0.00033")
-    assert format_value_sigma(-1.513, 0.0339) == ("-1.513", "0.034")
+    assert format_with_sigma(4.00022, 0.00033) == ("4.00022", "0.00033")
+    assert format_with_sigma(-1.513, 0.0339) == ("-1.513", "0.034")
     # σ that rounds up to the next decade: 0.000996 → 0.0010, 4 decimals
-    assert format_value_sigma(2.0, 0.000996) == ("2.0000", "0.0010")
+    assert format_with_sigma(2.0, 0.000996) == ("2.0000", "0.0010")
     # σ ≥ 100: rounding to tens
-    assert format_value_sigma(1234.5, 123.0) == ("1230", "120")
+    assert format_with_sigma(1234.5, 123.0) == ("1230", "120")
     # no σ: 6 significant digits
-    assert format_value_sigma(0.123456789, None) == ("0.123457", "—")
-    assert format_value_sigma(0.123456789, float("nan")) == ("0.123457", "—")
+    assert format_with_sigma(0.123456789, None) == ("0.123457", "—")
+    assert format_with_sigma(0.123456789, float("nan")) == ("0.123457", "—")
     # a value that rounds to zero shows no minus sign
-    assert format_value_sigma(-0.00001, 0.004) == ("0.0000", "0.0040")
+    assert format_with_sigma(-0.00001, 0.004) == ("0.0000", "0.0040")
 
 
-def test_interval_ends_one_decimal_coarser_than_sigma():
+def test_interval_ends_at_the_decimal_place_of_sigma():
     half = 1.959963984540054 * 0.00033  # z_0.975 · σ
-    assert format_interval(4.00022 - half, 4.00022 + half, 0.00033) == "[3.9996, 4.0009]"
-    assert format_interval(-1.58, -1.45, 0.034) == "[-1.58, -1.45]"
+    assert format_interval(4.00022 - half, 4.00022 + half, 0.00033) == "[3.99957, 4.00087]"
+    assert format_interval(-1.58, -1.45, 0.034) == "[-1.580, -1.450]"
     assert format_interval(None, 1.0, 0.1) == "—"
 
 
@@ -104,7 +104,7 @@ def test_estimates_table_shows_both_sigma_and_the_interval():
     cells = re.findall(r"<td>(.*?)</td>", page)
     assert cells[:8] == [
         "Ma", "1/s", "4.00022", "0.00033", "0.00021", "coloured-residual", "0.0082",
-        "[3.9996, 4.0009]",
+        "[3.99957, 4.00087]",
     ]  # fmt: skip
 
 

@@ -26,13 +26,15 @@ import base64
 import csv
 import hashlib
 import html
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
+
+from flightid.numbers import format_interval as interval_at_sigma
+from flightid.numbers import format_sigma, format_with_sigma
 
 __all__ = [
     "STYLE",
@@ -44,13 +46,10 @@ __all__ = [
     "estimates_section",
     "file_sha256",
     "files_section",
-    "format_interval",
-    "format_value_sigma",
     "image",
     "provenance_rows",
     "render_page",
     "residual_section",
-    "sigma_decimals",
     "table",
     "write_estimates_csv",
 ]
@@ -106,54 +105,12 @@ def _finite(value) -> bool:
     return value is not None and not isinstance(value, bool) and np.isfinite(float(value))
 
 
-def sigma_decimals(sigma: float, significant: int = 2) -> int:
-    """Decimal places that show ``sigma`` to ``significant`` digits: 0.00033 → 5, 0.0033 →
-    4, 12.3 → 0 (negative for σ ≥ 100: 1234 → −2, rounding to hundreds)."""
-    # first significant digit of σ at 10^e, e = ⌊log10 σ⌋; the last shown one at 10^(e−s+1)
-    exponent = math.floor(math.log10(abs(float(sigma))))
-    return significant - 1 - exponent
-
-
-def _fixed(value: float, decimals: int) -> str:
-    if decimals >= 0:
-        text = f"{value:.{decimals}f}"
-    else:
-        text = f"{round(value, decimals):.0f}"
-    # no "-0.00" for a value that rounds to zero
-    return text[1:] if text.startswith("-") and float(text) == 0 else text
-
-
-def format_value_sigma(value: float, sigma: float | None) -> tuple[str, str]:
-    """(value, σ) as text: σ to 2 significant digits, the value to the same decimal place
-    (4.00022, 0.00033 → "4.00022", "0.00033"); without a finite positive σ the value to 6
-    significant digits and σ "—"."""
-    if not _finite(value):
-        return ("—" if value is None else str(value)), "—"
-    if not _finite(sigma) or float(sigma) <= 0:
-        return f"{float(value):.6g}", "—"
-    # round σ first: 0.000996 shows as 0.0010, one decimal place fewer
-    decimals = sigma_decimals(sigma)
-    rounded = round(float(sigma), decimals)
-    decimals = sigma_decimals(rounded)
-    return _fixed(float(value), decimals), _fixed(rounded, decimals)
-
-
-def format_sigma(sigma: float | None) -> str:
-    """σ to 2 significant digits ("—" when missing)."""
-    if not _finite(sigma) or float(sigma) <= 0:
-        return "—"
-    return format_value_sigma(0.0, sigma)[1]
-
-
 def format_interval(lower: float | None, upper: float | None, sigma: float | None) -> str:
-    """ "[lower, upper]" to one decimal place less than σ's 2 significant digits (the ends of
-    4.00022 ± 1.96·0.00033 → "[3.9996, 4.0009]"); "—" without the ends."""
+    """ "[lower, upper]" at σ's decimal place (``flightid.numbers.format_interval``); "—"
+    without the ends."""
     if not (_finite(lower) and _finite(upper)):
         return "—"
-    if not _finite(sigma) or float(sigma) <= 0:
-        return f"[{float(lower):.6g}, {float(upper):.6g}]"
-    decimals = sigma_decimals(round(float(sigma), sigma_decimals(sigma))) - 1
-    return f"[{_fixed(float(lower), decimals)}, {_fixed(float(upper), decimals)}]"
+    return interval_at_sigma(lower, upper, sigma)
 
 
 def _g(value, digits: int = 4) -> str:
@@ -309,7 +266,7 @@ def estimates_section(rows: Sequence[EstimateRow], confidence: float = 0.95, not
     computed = estimate_csv_rows(rows, confidence)
     cells, classes = [], []
     for row, numbers in zip(rows, computed, strict=True):
-        value, std = format_value_sigma(row.value, numbers["std"])
+        value, std = format_with_sigma(row.value, numbers["std"])
         kind = SIGMA_KINDS.get(row.std_kind, row.std_kind) if row.free else "—"
         status = row.note or ("estimated" if row.free else "fixed")
         cells.append(
