@@ -109,8 +109,8 @@ def test_report_dom_tables_and_decoded_figures(report, tmp_path):
     dom = run.stdout
     for heading in (
         "Estimates",
-        "Outputs: noise, fit, whiteness",
-        "Time histories: inputs, measured and predicted outputs, residuals",
+        "Residual analysis: noise, fit, whiteness",
+        "Fit: inputs, measured and predicted outputs, residuals",
         "Convergence",
     ):
         assert f"<h2>{heading}</h2>" in dom

@@ -196,7 +196,11 @@ def test_page_stands_alone(walk_page):
         assert source.startswith("data:image/png;base64,")
         png = base64.b64decode(source.split(",", 1)[1])
         assert png[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "href=" not in page and "<link" not in page and "<script" not in page
+    assert "<link" not in page and "<script" not in page
+    # the only links are to the files of the result folder itself, by relative name
+    hrefs = re.findall(r"href=['\"]([^'\"]*)['\"]", page)
+    assert hrefs and all((path.parent / h).is_file() for h in hrefs)
+    assert not any("://" in h or h.startswith("/") for h in hrefs)
     # the figures are also kept as files beside it
     assert (path.parent / "figures" / "convergence.png").is_file()
 

@@ -42,6 +42,7 @@ import numpy as np
 from flightid.numbers import format_at_sigma, format_sigma
 from flightid.report.diagnostics import COLOURED_RATIO_WARNING
 from flightid.report.page import STYLE as _STYLE
+from flightid.report.page import files_section
 from flightid.report.page import image as _img
 from flightid.report.page import table as _table
 
@@ -604,8 +605,14 @@ def _correlation_section(run) -> str:
     return "\n".join(parts)
 
 
-def render_html(run, figures: Figures | None, generated_utc: str | None = None) -> str:
-    """The whole report page as one self-contained HTML string (figures embedded)."""
+def render_html(
+    run,
+    figures: Figures | None,
+    generated_utc: str | None = None,
+    directory: Path | None = None,
+) -> str:
+    """The whole report page as one self-contained HTML string (figures embedded); with
+    ``directory``, the result folder, a list of links to its files."""
 
     est = run.estimate
     case = run.case
@@ -636,13 +643,18 @@ def render_html(run, figures: Figures | None, generated_utc: str | None = None) 
     )
     parts.append(_coloured_warning(coloured))
     parts.append("<h2>Run</h2>" + _table(["item", "value"], _run_facts(run), table_class="facts"))
+    # the section order of every flightid report (flightid.report.page): estimates,
+    # correlation, residual analysis, fits, then what only this estimator has
     parts.append("<h2>Estimates</h2>" + _estimates_table(run, coloured, parameter_units))
     if getattr(run, "accuracy", None) is not None:
         parts.append(_accuracy_section(run))
-    parts.append("<h2>Outputs: noise, fit, whiteness</h2>" + _outputs_table(run, units, rho_band))
+    parts.append(_correlation_section(run))
+    parts.append(
+        "<h2>Residual analysis: noise, fit, whiteness</h2>" + _outputs_table(run, units, rho_band)
+    )
     if figures is not None:
         parts.append(_img(figures.autocorrelation, "residual autocorrelation per output"))
-    parts.append("<h2>Time histories: inputs, measured and predicted outputs, residuals</h2>")
+    parts.append("<h2>Fit: inputs, measured and predicted outputs, residuals</h2>")
     if figures is None:
         parts.append("<p>Figures were switched off (<code>[output] figures = false</code>).</p>")
     else:
@@ -653,8 +665,9 @@ def render_html(run, figures: Figures | None, generated_utc: str | None = None) 
     if run.predictions:
         parts.append(_prediction_section(run, units, figures or Figures()))
     parts.append(_convergence_section(run, figures))
-    parts.append(_correlation_section(run))
     parts.append(_trust_section(run))
+    if directory is not None:
+        parts.append("<h2>Files</h2>" + files_section(directory))
     parts.append("</body></html>")
     return "\n".join(p for p in parts if p)
 
@@ -801,7 +814,7 @@ def write_files(run, directory: Path) -> Path:
             (directory / "figures" / name).write_bytes(data)
     path = directory / "report.html"
     if run.case.output.get("report", True):
-        path.write_text(render_html(run, figures), encoding="utf-8")
+        path.write_text(render_html(run, figures, directory=directory), encoding="utf-8")
     return path
 
 
