@@ -192,6 +192,7 @@ and oscillated on example 2, case 2.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -842,6 +843,7 @@ class MNRES:
     def _minimize_secant(
         self, objective: Objective, theta0: np.ndarray, state: _SecantState | None
     ) -> SolverOutcome:
+        """The secant form from θ⁰, or from the previous noise cycle's ``state``."""
         # the secant form's allowance counts the start and its first sweep
         spent_before = objective.evaluations
         start = self._secant_start(objective, theta0, state)
@@ -857,6 +859,8 @@ class MNRES:
 
     # ------------------------------------------------------------------ main loop
     def minimize(self, objective: Objective, theta0: np.ndarray, state=None) -> SolverOutcome:
+        """Minimise the objective from θ⁰ (``state``: the previous noise cycle's model, kept
+        under the new R)."""
         if self.form == "secant":
             return self._minimize_secant(objective, theta0, state)
         window = self._window(objective.problem.n_free)
@@ -1017,7 +1021,9 @@ def _next_radius(
     return radius
 
 
-def _record_accepted(objective: Objective, cost_before: float, trial: _Trial, recost) -> bool:
+def _record_accepted(
+    objective: Objective, cost_before: float, trial: _Trial, recost: Callable[[], None]
+) -> bool:
     """Log an accepted pass (MAXLIK may re-estimate R here; ``recost()`` then recomputes the
     stored costs under the new R). Returns whether cost and parameters (and R) settled."""
     conv = objective.convergence
@@ -1079,6 +1085,7 @@ class _Search:
         return conv.max_iterations * (self.objective.problem.n_free + 1)
 
     def finish(self, iterations: int, converged: bool, status: str, message: str):
+        """The outcome at the search's best point."""
         raise NotImplementedError
 
     def iteration(self) -> SolverOutcome | None:
