@@ -59,7 +59,7 @@ def _ex2_case(sigma: float):
         data = example2_data(2, seed)
         if sigma != 1e-3:  # rescale the case-2 noise (same realisation pattern)
             from flightid.paper.linear_system import linear_model
-            from flightid.simulate import simulate
+            from flightid.simulation import simulate
 
             clean = simulate(linear_model(TRUE_VALUES), data, method="euler")
             z = clean + (data.outputs - clean) * (sigma / 1e-3)

@@ -53,7 +53,7 @@ def _monte_carlo(model, data, noise_std, runs, seed, tags):
     """Estimates (runs × n_f) of ``model``'s free parameters over noisy copies of ``data``."""
     from flightid.data.flightdata import FlightData
     from flightid.estimation import MNRES, estimate
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     clean = simulate(model, data)
     inputs = {n: data.input(n) for n in data.input_names}
@@ -161,7 +161,7 @@ def example3(runs: int, seed: int, candidates: int = 6):
     from flightid.design.information import predict_accuracy
     from flightid.design.optimize import DesignProblem, InputSpec, design_input
     from flightid.paper.example3 import NOISE_STD, SIMULATION_VALUES, _truth, example3_model
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     trim, t, inputs, longitudinal, _ = _truth()
     model = example3_model(SIMULATION_VALUES)

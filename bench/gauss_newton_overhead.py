@@ -74,7 +74,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from flightid.estimation import MNR, Convergence, OutputErrorProblem, estimate  # noqa: E402
 from flightid.estimation.objective import Objective  # noqa: E402
-from flightid.simulate import Simulator, simulate  # noqa: E402
+from flightid.simulation import Simulator, simulate  # noqa: E402
 from peers import benchmark  # noqa: E402
 
 RELATIVE_STEP = 1e-6  # MNR().relative_step

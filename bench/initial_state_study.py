@@ -268,7 +268,7 @@ def _attitude_x0(theta0: float) -> dict:
 
 def _propagated_covariance(model, maneuver, result, theta0: float, var_theta0: float):
     """M_θθ⁻¹ + K var Kᵀ with K = −M_θθ⁻¹ M_θΘ0 (one column of Θ0 sensitivities)."""
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     step = 1e-4
 

@@ -49,7 +49,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from flightid.aircraft import navion  # noqa: E402
-from flightid.simulate import Simulator  # noqa: E402
+from flightid.simulation import Simulator  # noqa: E402
 from peers import OUTPUTS8, benchmark  # noqa: E402
 
 # the hand-written kernel's parameter order (θ below); mapped from the model's by name

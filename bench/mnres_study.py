@@ -28,7 +28,7 @@ import statistics  # noqa: E402
 import numpy as np  # noqa: E402
 
 from flightid.estimation import MNR, MNRES  # noqa: E402
-from flightid.simulate import simulate  # noqa: E402
+from flightid.simulation import simulate  # noqa: E402
 
 HERE = pathlib.Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("peers", HERE / "peers.py")

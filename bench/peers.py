@@ -11,7 +11,7 @@ doublets; 1000 RK4 steps of 0.02 s; 8 outputs (V, α, β, Θ, Φ, p, q, r) with 
 noise. Seed s draws the noise and a start θ₀ = θ_true·(1 + a u) + 0.01 u', u, u' ~ U(−1, 1).
 
 Every method minimises the same weighted cost J = Σ νᵀR⁻¹ν (R = diag σ², fixed) through the
-same simulator: ``flightid.simulate.Simulator.run`` is wrapped here, so every integration of
+same simulator: ``flightid.simulation.Simulator.run`` is wrapped here, so every integration of
 the system, by any method, is timed and its cost recorded in order. "sims to J*+1" is the
 number of simulations until the first one whose cost is ≤ J* + 1 (J* = the lowest cost any
 method reached on that seed), likewise for J*+0.01; "-" means never. "sim share" is the time
@@ -70,7 +70,7 @@ from flightid.aircraft.library import NAVION_TRIM_SPEED  # noqa: E402
 from flightid.data import FlightData  # noqa: E402
 from flightid.estimation import MNR, MNRES, Convergence, OutputErrorProblem, estimate  # noqa: E402
 from flightid.model import Parameter, Parameters  # noqa: E402
-from flightid.simulate import Simulator, simulate  # noqa: E402
+from flightid.simulation import Simulator, simulate  # noqa: E402
 
 # Nelson (1998) App. B, Navion lateral derivatives (per rad), as in tests/test_aircraft_equations.py
 NAVION_LATERAL = {

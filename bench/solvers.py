@@ -40,7 +40,7 @@ from flightid.paper.examples12 import (  # noqa: E402
     example2_data,
     example_model,
 )
-from flightid.simulate import simulate  # noqa: E402
+from flightid.simulation import simulate  # noqa: E402
 
 NAMES20 = (
     "k1",

@@ -75,7 +75,7 @@ from flightid.errors import FlightIdError  # noqa: E402
 from flightid.estimation import MNR, MNRES, Convergence, Estimate, estimate  # noqa: E402
 from flightid.estimation.gauss_newton import information_matrix  # noqa: E402
 from flightid.model import Parameter, Parameters, StateSpaceModel  # noqa: E402
-from flightid.simulate import simulate  # noqa: E402
+from flightid.simulation import simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("FLIGHTID_DATA", ROOT / "../shared/data"))

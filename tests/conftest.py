@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, settings
 
 from flightid.data import FlightData
 from flightid.model import Parameter, Parameters, StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 # Hypothesis: derandomised by default, so every run draws the same examples (a failure seen
 # once is seen again; no flaky red builds). HYPOTHESIS_PROFILE=explore draws fresh examples

@@ -7,7 +7,7 @@ import numpy as np
 from flightid.data import FlightData
 from flightid.estimation import MNR, estimate
 from flightid.model import Parameter, Parameters, StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 LINEAR_TRUE = (0.8, -0.5, 0.3, 1.2)
 LINEAR_SIGMA = (0.05, 0.1)

@@ -141,7 +141,7 @@ def test_example2_noisy_profile_matches_a_long_search():
     from flightid.estimation import MNR, estimate
     from flightid.paper.examples12 import example2_data, example_model
     from flightid.paper.linear_system import TRUE_VALUES, linear_model
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     base = example2_data(2, 1)
     clean = simulate(linear_model(TRUE_VALUES), base, method="euler")

@@ -214,7 +214,7 @@ import sys
 import numpy as np
 from flightid.cases.alpha_q import alpha_q_model, structure_from_terms, zero_parameters
 from flightid.data.flightdata import FlightData
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 MODELS = {
     "A": ({"CZ": ["1", "alpha"], "Cm": ["alpha", "qhat", "de"]}, dict(mass=1000.0, S=10.0,

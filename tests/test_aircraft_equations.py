@@ -25,7 +25,7 @@ from flightid.aircraft import (
 from flightid.aircraft.library import NAVION_TRIM_SPEED
 from flightid.data import FlightData
 from flightid.errors import InputError
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 G = 9.80665
 # Nelson (1998) App. B, Navion lateral derivatives (per rad): a realistic, stable lateral model

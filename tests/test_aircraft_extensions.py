@@ -35,7 +35,7 @@ from flightid.errors import InputError
 from flightid.estimation import MNRES
 from flightid.estimation.driver import estimate
 from flightid.model.terms import TermError, parse_term
-from flightid.simulate.simulator import simulate
+from flightid.simulation.simulator import simulate
 
 G = 9.80665
 ROOT = Path(__file__).resolve().parents[1]

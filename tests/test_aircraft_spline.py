@@ -9,7 +9,7 @@ from flightid.aircraft.library import NAVION_TRIM_SPEED, navion_longitudinal_aer
 from flightid.data.flightdata import FlightData
 from flightid.estimation import MNRES, estimate
 from flightid.model.terms import Spline, TermError, parse_term
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 
 @pytest.mark.parametrize(

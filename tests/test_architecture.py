@@ -274,10 +274,10 @@ def test_the_package_import_graph_has_no_cycle():
 
 def test_the_checks_see_lazy_imports_and_cycles(tmp_path):
     """The reader finds an import inside a function, and Tarjan finds a three-cycle."""
-    tree = ast.parse("def f():\n    from flightid.simulate import simulate\n")
+    tree = ast.parse("def f():\n    from flightid.simulation import simulate\n")
     node = tree.body[0].body[0]
-    known = {"flightid.simulate": None, "flightid.model.check": None}
-    assert _targets(node, "flightid.model.check", False, known) == ["flightid.simulate"]
+    known = {"flightid.simulation": None, "flightid.model.check": None}
+    assert _targets(node, "flightid.model.check", False, known) == ["flightid.simulation"]
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert strongly_connected(graph) == [["a", "b", "c"]]
     assert strongly_connected({"a": {"b"}, "b": set()}) == []

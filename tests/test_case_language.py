@@ -184,7 +184,7 @@ def _alpha_q_flight(directory: Path) -> None:
     from flightid.cases.alpha_q import alpha_q_model, structure_from_terms
     from flightid.data.flightdata import FlightData
     from flightid.model.parameters import Parameter, Parameters
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     structure = structure_from_terms(
         {"CZ": ["1", "alpha", "de"], "Cm": ["1", "alpha", "qhat", "de"]}
@@ -357,7 +357,7 @@ def test_regression_knows_nothing_about_cases_or_simulation():
     code = (
         "import sys, flightid.regression, flightid.regression.pipeline; "
         "print(sorted(m for m in sys.modules if m.startswith(('flightid.cases', "
-        "'flightid.simulate'))))"
+        "'flightid.simulation'))))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

@@ -9,7 +9,7 @@ from conftest import PENDULUM_TRUE, pendulum_data, pendulum_model
 from flightid.data import FlightData
 from flightid.errors import SimulationError
 from flightid.model import Parameters, StateSpaceModel
-from flightid.simulate import Simulator, simulate
+from flightid.simulation import Simulator, simulate
 
 
 @pytest.mark.parametrize("method", ["rk4", "euler"])

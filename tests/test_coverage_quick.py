@@ -90,7 +90,7 @@ def test_airplane_simulator_equals_scipy_and_flightid_calm_model(study):
     expected = np.column_stack([np.hypot(u, w), np.arctan2(w, u), q, theta])
     ours = study.simulate_airplane(truth, de)
     np.testing.assert_allclose(ours, expected, rtol=0, atol=1e-7)
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     model = study.airplane_model(truth)
     flightid_outputs = simulate(model, study.airplane_data(t, de, ours))

@@ -39,7 +39,7 @@ from flightid.design.signals import (
 from flightid.errors import InputError
 from flightid.model.parameters import Parameter, Parameters
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 # ------------------------------------------------------------------------------- signals
 

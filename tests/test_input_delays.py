@@ -17,7 +17,7 @@ from flightid.data import FlightData
 from flightid.errors import InputError
 from flightid.estimation import MNR, MNRES, OutputErrorProblem, estimate
 from flightid.model import Parameters, StateSpaceModel
-from flightid.simulate import Simulator
+from flightid.simulation import Simulator
 
 DT = 0.02  # s
 TAU_TRUE = 0.07  # s: 3.5 samples, not a multiple of DT

@@ -18,7 +18,7 @@ from flightid.data import FlightData
 from flightid.errors import InputError
 from flightid.estimation import OutputErrorProblem
 from flightid.model import Parameters, StateSpaceModel
-from flightid.simulate import Simulator, simulate
+from flightid.simulation import Simulator, simulate
 
 
 def lag_f(t, x, u, theta):

@@ -19,9 +19,9 @@ from flightid.data import FlightData
 from flightid.errors import InputError
 from flightid.model import StateSpaceModel
 from flightid.model.forms import as_out_form, kernel_function
-from flightid.simulate import Simulator
-from flightid.simulate.kernels import make_kernel
-from flightid.simulate.sensitivity import make_sensitivity_kernel
+from flightid.simulation import Simulator
+from flightid.simulation.kernels import make_kernel
+from flightid.simulation.sensitivity import make_sensitivity_kernel
 
 
 def _oscillator_return(t, x, u, theta):
@@ -331,7 +331,7 @@ _ALLOCATION_SCRIPT = textwrap.dedent(
     from numba.core.runtime import rtsys
     from flightid.data import FlightData
     from flightid.model import StateSpaceModel
-    from flightid.simulate import Simulator
+    from flightid.simulation import Simulator
 
     def f(t, x, u, th, out):
         out[0] = x[1]
@@ -429,7 +429,7 @@ def test_a_parallel_variant_numba_cannot_compile_falls_back_to_serial_with_a_war
     trying the parallel one, when numba rejects the parallel variant; other errors propagate."""
     from numba.core.errors import TypingError
 
-    from flightid.simulate.kernels import run_parallel_variant
+    from flightid.simulation.kernels import run_parallel_variant
 
     def numba_rejects(*arguments):
         raise TypingError("parallel variant rejected (test)")

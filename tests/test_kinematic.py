@@ -14,7 +14,7 @@ from flightid.compat import OUTPUTS, QUANTITIES, kinematic_model, kinematic_spec
 from flightid.data import FlightData
 from flightid.errors import InputError, InputTypeError
 from flightid.estimation import MNR, estimate
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 G = 9.80
 ACC = np.array([-1.010, 0.886, 0.103])  # m, CASES.md §4

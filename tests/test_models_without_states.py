@@ -16,7 +16,7 @@ from flightid.errors import InputTypeError, ModelError
 from flightid.estimation.driver import estimate
 from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.simulator import Simulator, simulate
+from flightid.simulation.simulator import Simulator, simulate
 
 N = 300
 

@@ -27,7 +27,7 @@ from flightid.accuracy.nonlinearity import beale_nonlinearity
 from flightid.errors import InputError
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.results import check_level, contour_level, residual_variance_factor
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 from test_accuracy_models import exp_estimate, exp_model, linear_estimate
 
 

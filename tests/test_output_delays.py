@@ -15,7 +15,7 @@ from flightid.data import FlightData
 from flightid.errors import InputError
 from flightid.estimation import MNR, MNRES, OutputErrorProblem, estimate
 from flightid.model import Parameters, StateSpaceModel
-from flightid.simulate import Simulator
+from flightid.simulation import Simulator
 
 DT = 0.02  # s
 TAUS = [0.0, 0.3 * DT, DT, 2.5 * DT, -0.7 * DT]  # s

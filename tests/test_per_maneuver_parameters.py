@@ -21,7 +21,7 @@ from flightid.data import FlightData
 from flightid.errors import InputError, InputTypeError
 from flightid.estimation import MNR, MNRES, OutputErrorProblem, estimate
 from flightid.model import Parameters, StateSpaceModel
-from flightid.simulate import Simulator
+from flightid.simulation import Simulator
 
 DT = 0.02  # s
 

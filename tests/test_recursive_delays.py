@@ -3,7 +3,7 @@ the model u(t − τ) from a delay line (``flightid.recursive.delay.InputDelayLi
 regresses on the delayed input.
 
 The delay line is compared with the time-domain simulator's whole-record rule
-(``flightid.simulate.delayed_inputs``, a separate implementation of both conventions) and
+(``flightid.simulation.delayed_inputs``, a separate implementation of both conventions) and
 with numpy's own interpolation. The rate-loop data are those of test_frequency_delays.py
 (scipy.signal.lsim fed the exactly delayed multisine).
 """
@@ -28,7 +28,7 @@ from flightid.recursive import (
     UnscentedKalmanFilter,
 )
 from flightid.recursive.delay import InputDelayLine
-from flightid.simulate.simulator import delayed_inputs
+from flightid.simulation.simulator import delayed_inputs
 from test_frequency_delays import DT, TAU, WN, ZETA, loop_f, loop_h, multisine, rate_loop_record
 
 

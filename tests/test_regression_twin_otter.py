@@ -157,7 +157,7 @@ def staged_run():
 
 
 def test_regression_to_output_error_stage_and_prediction(staged_run):
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     result = staged_run.pipeline
     run = staged_run.output_error

@@ -40,7 +40,7 @@ from flightid.cases import load_case, prepare_case
 from flightid.data import FlightData
 from flightid.estimation import MNR, MNRES, Convergence, estimate
 from flightid.model import Parameter, Parameters, StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("FLIGHTID_DATA", ROOT / "../shared/data"))

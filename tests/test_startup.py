@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 HEAVY = ("numpy", "scipy", "numba", "matplotlib", "pandas")
-HEAVY_FLIGHTID = ("flightid.estimation", "flightid.simulate", "flightid.cases", "flightid.data")
+HEAVY_FLIGHTID = ("flightid.estimation", "flightid.simulation", "flightid.cases", "flightid.data")
 
 
 def _modules_after(code: str) -> list[str]:
@@ -64,10 +64,11 @@ def test_import_flightid_is_light_and_exports_resolve_lazily():
         "from flightid import FPS, MNR, MNRES, Convergence, Estimate, estimate, FlightData\n"
         "from flightid import Parameter, Parameters, StateSpaceModel, Simulator, simulate\n"
         "import flightid.estimation\n"
-        "from flightid.simulate import simulator as sim\n"
+        "from flightid.simulation import simulator as sim\n"
         "assert estimate is flightid.estimation.estimate\n"
         "assert Simulator is sim.Simulator\n"
-        # `flightid.simulate` stays the function although a sub-package of that name is loaded
+        # `flightid.simulate` is the function; the package is `flightid.simulation`
+        "import flightid.simulation\n"
         "assert simulate is sim.simulate and flightid.simulate is sim.simulate\n"
     )
     assert "numpy" in modules and "flightid.estimation" in modules
@@ -111,7 +112,7 @@ module = importlib.util.module_from_spec(spec)
 if sys.argv[2] == "register":  # as flightid.cases.usermodel does
     sys.modules["startup_model"] = module
 spec.loader.exec_module(module)
-from flightid.simulate import kernels, sensitivity
+from flightid.simulation import kernels, sensitivity
 kernel, compiled = kernels.make_kernel(module.f, module.h)
 t = np.arange(5) * 0.1
 u = np.ones((5, 1))

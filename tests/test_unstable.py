@@ -27,7 +27,7 @@ from flightid.model.unstable import (
     with_multiple_shooting,
     with_stabilizing_gain,
 )
-from flightid.simulate import Simulator
+from flightid.simulation import Simulator
 
 U0 = 44.5695  # m/s, CASES.md §3
 DT = 0.05  # s

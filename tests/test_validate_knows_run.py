@@ -298,7 +298,7 @@ def test_a_model_numba_cannot_compile_is_named_by_its_line(walk, capsys):
 
 def test_the_fall_back_is_a_compile_warning_in_the_python_api(walk):
     from flightid.errors import CompileWarning
-    from flightid.simulate import Simulator
+    from flightid.simulation import Simulator
 
     case, number = _uncompilable(walk, 1.5)
     prepared = prepare_case(load_case(case))

@@ -1,5 +1,5 @@
 """Every warning the user sees is one ``flightid: warning: ...`` line (flightid.cli.main),
-the numba fall-back to the serial kernel included (flightid.simulate.kernels)."""
+the numba fall-back to the serial kernel included (flightid.simulation.kernels)."""
 
 import io
 import warnings
@@ -8,7 +8,7 @@ import pytest
 
 from flightid.cli.main import _one_line_warnings, warning_line
 from flightid.errors import CompileWarning, FlightIdWarning
-from flightid.simulate.kernels import run_parallel_variant
+from flightid.simulation.kernels import run_parallel_variant
 
 
 class _NumbaLikeError(Exception):
@@ -50,7 +50,7 @@ def test_every_warning_is_one_line_without_a_path():
         show(
             CompileWarning("the parallel batch kernel did not compile (X); running serially"),
             CompileWarning,
-            "/usr/lib/python3/site-packages/flightid/simulate/kernels.py",
+            "/usr/lib/python3/site-packages/flightid/simulation/kernels.py",
             330,
             stream,
         )

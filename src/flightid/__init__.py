@@ -12,8 +12,6 @@ numba, so that ``flightid --help`` starts quickly.
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 from typing import TYPE_CHECKING, Any
 
 from flightid import results as _results
@@ -31,16 +29,17 @@ _LAZY_EXPORTS: dict[str, str] = {
     "Parameter": "flightid.model",
     "Parameters": "flightid.model",
     "StateSpaceModel": "flightid.model",
-    "Simulator": "flightid.simulate",
+    "Simulator": "flightid.simulation",
+    "simulate": "flightid.simulation",
 }
 
-__all__ = [*_LAZY_EXPORTS, "simulate", "__version__"]
+__all__ = [*_LAZY_EXPORTS, "__version__"]
 
 if TYPE_CHECKING:  # static tools see the eager imports (re-exported through __all__)
     from flightid.data import FlightData  # noqa: F401
     from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate  # noqa: F401
     from flightid.model import Parameter, Parameters, StateSpaceModel  # noqa: F401
-    from flightid.simulate import Simulator, simulate  # noqa: F401
+    from flightid.simulation import Simulator, simulate  # noqa: F401
 
 
 def _result_summary(result: Any) -> str:
@@ -73,23 +72,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY_EXPORTS) | {"simulate"})
-
-
-class _FlightidModule(types.ModuleType):
-    """``flightid.simulate`` is the function ``simulate`` (as with the eager imports before),
-    although a sub-package of the same name exists: when the import system loads
-    ``flightid.simulate`` it binds the sub-package here, which would shadow the function."""
-
-    @property
-    def simulate(self) -> Any:
-        return importlib.import_module("flightid.simulate").simulate
-
-    @simulate.setter
-    def simulate(self, value: Any) -> None:
-        # the import system binding the sub-package: the public name stays the function, and
-        # the sub-package stays reachable through sys.modules["flightid.simulate"]
-        pass
-
-
-sys.modules[__name__].__class__ = _FlightidModule
+    return sorted(set(globals()) | set(_LAZY_EXPORTS))

@@ -53,7 +53,7 @@ class CompileWarning(FlightIdWarning, RuntimeWarning):
     """numba could not compile a model's functions, which then run in pure Python (several
     times slower; the message names the line of the model that caused it and how to avoid
     it: ``flightid.model.compilation``), or a kernel's parallel variant, whose serial variant
-    then runs (``flightid.simulate.kernels.run_parallel_variant``)."""
+    then runs (``flightid.simulation.kernels.run_parallel_variant``)."""
 
 
 def describe(value: object) -> str:

@@ -47,7 +47,7 @@ def dask_available() -> bool:
 
 def worker_environment(n_workers: int) -> dict[str, str]:
     """Environment of the LocalCluster's worker processes: numba's thread pool (the parallel
-    batch kernels of ``flightid.simulate.kernels``) shares the cores among the workers,
+    batch kernels of ``flightid.simulation.kernels``) shares the cores among the workers,
     ``NUMBA_NUM_THREADS = max(1, cores // n_workers)``, unless it is set already. Without
     it, N workers would each start one thread per core and contend for them."""
     if "NUMBA_NUM_THREADS" in os.environ:

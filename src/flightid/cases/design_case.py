@@ -284,7 +284,7 @@ def _reference(case: Case, problem: DesignProblem, data_dir: Path | None, settin
         method=problem.method,
         input_interpolation=problem.input_interpolation,
     )
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     steady = FlightData(
         maneuver.time, {n: np.full(maneuver.n_samples, first[n]) for n in first}, name="trim"

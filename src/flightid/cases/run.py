@@ -59,7 +59,7 @@ from flightid.estimation.problem import OutputErrorProblem
 from flightid.estimation.shooting import estimate_multiple_shooting
 from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 if TYPE_CHECKING:
     from flightid.compat.kinematic import KinematicSpec

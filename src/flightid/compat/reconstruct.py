@@ -35,7 +35,7 @@ from flightid.compat.kinematic import GROUND_OUTPUTS, OUTPUTS, SENSOR_INPUTS, Ki
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputError
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 __all__ = ["Reconstruction", "reconstruct", "write_reconstruction", "reconstruction_file_name"]
 
@@ -98,8 +98,8 @@ def reconstruct(
             and parameters must come first, as ``flightid.cases.build`` arranges them).
         maneuvers: the maneuvers the model was fitted to.
         theta: full parameter vector (default: the model's values).
-        method: integration method, as in ``flightid.simulate``.
-        input_interpolation: "linear" or "zoh", as in ``flightid.simulate``.
+        method: integration method, as in ``flightid.simulation``.
+        input_interpolation: "linear" or "zoh", as in ``flightid.simulation``.
         compiled: run the compiled kernel.
     """
     theta = model.parameters.values if theta is None else np.asarray(theta, dtype=float)

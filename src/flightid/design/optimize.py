@@ -284,7 +284,7 @@ def trim_state(model: StateSpaceModel, inputs: Mapping[str, float]) -> np.ndarra
 
 
 def _outputs(problem: DesignProblem, perturbations: np.ndarray) -> np.ndarray:
-    from flightid.simulate import simulate
+    from flightid.simulation import simulate
 
     return simulate(
         problem.model,

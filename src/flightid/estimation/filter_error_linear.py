@@ -24,7 +24,7 @@ from flightid.filtering.linear import (
     matrix_derivatives,
     system_matrices,
 )
-from flightid.simulate.simulator import SimulationBatch
+from flightid.simulation.simulator import SimulationBatch
 
 
 class LinearFilterErrorProblem(FilterErrorProblem):

@@ -19,8 +19,8 @@ from flightid.estimation.problem import OutputErrorProblem
 from flightid.filtering.kalman import RiccatiError, linearise, steady_state_gain
 from flightid.model.forms import kernel_function, out_form_of
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.kernels import RK4, make_step, record_sample, step_buffers
-from flightid.simulate.simulator import SimulationBatch
+from flightid.simulation.kernels import RK4, make_step, record_sample, step_buffers
+from flightid.simulation.simulator import SimulationBatch
 
 __all__ = [
     "FilterErrorProblem",
@@ -47,7 +47,7 @@ def process_noise_name(state_index: int) -> str:
 
 def _filter_source(f_out: Callable, h_out: Callable, jit: Callable = lambda fn: fn) -> Callable:
     """The filter-pass loop over a batch, closed over the out-form model functions (no
-    allocation per step: ``flightid.simulate.kernels``)."""
+    allocation per step: ``flightid.simulation.kernels``)."""
     step = jit(make_step(f_out))
     buffers_for = jit(step_buffers)
     record = jit(record_sample)

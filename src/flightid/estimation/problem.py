@@ -35,7 +35,7 @@ from flightid.data.flightdata import FlightData
 from flightid.errors import FlightIdError, InputError, ModelError, SimulationError
 from flightid.model.binding import as_data_list
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.simulator import SimulationBatch, Simulator
+from flightid.simulation.simulator import SimulationBatch, Simulator
 
 __all__ = ["OutputErrorProblem", "FiniteDifferences", "estimate_noise_covariance"]
 
@@ -95,7 +95,7 @@ class OutputErrorProblem:
         method: ``"rk4"`` or ``"euler"``.
         compiled: use the numba kernel.
         input_interpolation: the input between samples in the RK4 stages, ``"linear"``
-            (default) or ``"zoh"`` (zero-order hold); see ``flightid.simulate.Simulator``.
+            (default) or ``"zoh"`` (zero-order hold); see ``flightid.simulation.Simulator``.
     """
 
     def __init__(
@@ -516,7 +516,7 @@ class OutputErrorProblem:
         self, theta_free: np.ndarray, relative_step: float = 1e-7
     ) -> tuple[np.ndarray, np.ndarray]:
         """G_i and outputs at ``theta_free`` from the integrated sensitivity equations
-        (1 + n_s + n_f equivalent evaluations; see ``flightid.simulate.sensitivity``).
+        (1 + n_s + n_f equivalent evaluations; see ``flightid.simulation.sensitivity``).
 
         Returns:
             (G of shape (N, n_o, n_f), outputs of shape (N, n_o)).

@@ -36,7 +36,7 @@ __all__ = [
     "check_method",
 ]
 
-# the fixed-step integration methods of flightid.simulate (names as case files write them)
+# the fixed-step integration methods of flightid.simulation (names as case files write them)
 INTEGRATION_METHODS = ("euler", "rk4")
 
 

@@ -27,13 +27,13 @@ specification per maneuver.
 Output time delays: ``output_delays={"r": "tau_r"}`` delays the simulated output ``r`` by the
 parameter ``tau_r`` (s), which can then be fixed or estimated like any parameter; the rule
 between samples is ``delay_convention`` ("fractional" or "two_sample", see
-``flightid.simulate.simulator.apply_output_delays`` and docs/method.md, "Time delays").
+``flightid.simulation.simulator.apply_output_delays`` and docs/method.md, "Time delays").
 
 Input time delays: ``input_delays={"de": "tau_de"}`` feeds the model the input ``de`` at
 t − τ (τ = the parameter ``tau_de``, s): the delayed input samples ũ_k = u(t_k − τ) follow the
 same rule as a delayed output (``delay_convention``; per maneuver, end values held), and the
 integration treats ũ as the input samples (``input_interpolation`` between them); see
-``flightid.simulate.simulator.delayed_inputs``.
+``flightid.simulation.simulator.delayed_inputs``.
 
 Parameters per maneuver: ``f`` and ``h`` index θ in the order ``function_parameters``
 (default: the names of ``parameters``). A name of ``function_parameters`` that is a key of
@@ -66,7 +66,7 @@ __all__ = [
 ]
 
 InitialState = Sequence[float | str]
-# how a delayed output is formed between samples (flightid.simulate.simulator):
+# how a delayed output is formed between samples (flightid.simulation.simulator):
 # "fractional": s(t_k − τ), linear between the bracketing samples, any τ;
 # "two_sample": the reference's rule (τ/dt)·s_{k−1} + (1 − τ/dt)·s_k
 DELAY_CONVENTIONS = ("fractional", "two_sample")
@@ -114,11 +114,11 @@ class StateSpaceModel:
         output_delays: ``{output name: parameter name}``: the simulated output is delayed by
             that parameter's value (s); default none.
         delay_convention: ``"fractional"`` (default) or ``"two_sample"`` (the reference's
-            rule); see ``flightid.simulate.simulator.apply_output_delays``. It applies to
+            rule); see ``flightid.simulation.simulator.apply_output_delays``. It applies to
             output and input delays alike.
         input_delays: ``{input name: parameter name}``: the model receives that input at
             t − τ, τ = the parameter's value (s); default none
-            (``flightid.simulate.simulator.delayed_inputs``).
+            (``flightid.simulation.simulator.delayed_inputs``).
         function_parameters: names, in the order in which ``f`` and ``h`` index θ; default
             the names of ``parameters``. Every name is a parameter or a key of
             ``maneuver_parameters``.

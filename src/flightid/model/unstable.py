@@ -9,7 +9,7 @@ linearisation fails. Each option here keeps the simulated trajectory near the da
 sample, after y_k = h(x_k, u_k), the state is corrected x_k ← x_k + S (z_k − y_k) (S:
 n_s × n_o, constant); the residual z_k − y_k keeps the output before the correction (Q16).
 The correction runs in every simulation, perturbed or not, and in the sensitivity equations
-(``flightid.simulate.feedback``).
+(``flightid.simulation.feedback``).
 
 ``with_eigenvalue_shift(model, σ)`` and ``exponentially_weighted(maneuvers, σ)`` — eigenvalue
 transformation (TC10, CASES.md §3e): for a linear model ẋ = A x + B u, y = C x + D u, the

@@ -65,7 +65,7 @@ from flightid.errors import InputError
 from flightid.estimation import MNRES, Convergence, Estimate, estimate
 from flightid.model.parameters import Parameter, Parameters
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 __all__ = [
     "LATERAL_TERMS",

@@ -28,7 +28,7 @@ from flightid.errors import InputError
 from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate
 from flightid.model import Parameter, Parameters
 from flightid.paper.linear_system import NAMES, START_VALUES, TRUE_VALUES, linear_model
-from flightid.simulate import simulate
+from flightid.simulation import simulate
 
 __all__ = [
     "PAPER_TABLE_II",

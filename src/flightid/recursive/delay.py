@@ -4,7 +4,7 @@ the samples fed so far.
 A model with ``input_delays`` receives each delayed input at t − τ (τ ≥ 0, a fixed value in
 s). Fed one sample at a time, the line keeps the few past samples the delay reaches back to
 and returns, per input channel, the value of the model's ``delay_convention``, the same rule
-the time-domain simulator applies to a whole record (``flightid.simulate.delayed_inputs``):
+the time-domain simulator applies to a whole record (``flightid.simulation.delayed_inputs``):
 
 * ``"fractional"``: ũ_k = u(t_k − τ), linear between the two samples that bracket t_k − τ;
   before the first sample the first value is held;

@@ -1,5 +1,5 @@
 """Fixed-step simulation (Euler, RK4) of state-space models, compiled or pure Python."""
 
-from flightid.simulate.simulator import SimulationBatch, Simulator, simulate
+from flightid.simulation.simulator import SimulationBatch, Simulator, simulate
 
 __all__ = ["SimulationBatch", "Simulator", "simulate"]

@@ -29,7 +29,7 @@ left as NaN for the caller to report — they never reach an estimate.
 
 ``make_step`` is the stepping routine (Euler or RK4, with the input rule above) of the
 feedback, filter and sensitivity kernels (the latter steps the stacked (x, S) with the
-sensitivity equations, ``flightid.simulate.sensitivity``). The plain state kernel writes the
+sensitivity equations, ``flightid.simulation.sensitivity``). The plain state kernel writes the
 same stages out in its loop, with the same arithmetic (bit-identical results): a call of the
 step per sample cost as much as a cheap model's f (issue 14).
 

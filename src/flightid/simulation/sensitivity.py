@@ -6,7 +6,7 @@ For S = ∂x/∂θ (n_s × n_f, the free parameters) [RP-1153 §6, "analytic" MN
     G_i   = ∂y_i/∂θ = h_x S_i + h_θ
 
 integrated with the same fixed-step scheme as the states (Euler or RK4, the input between
-samples by the same ``input_interpolation`` rule as ``flightid.simulate.kernels``: "linear",
+samples by the same ``input_interpolation`` rule as ``flightid.simulation.kernels``: "linear",
 u at the half step the mean of the neighbouring samples, or "zoh", u held at u_k). The
 Jacobians f_x, f_θ, h_x, h_θ come from forward differences of the user's f and h at every
 stage (step ``relative_step`` × max(|v|, 1) for a state, × max(|θ_j|, typical_j) for a
@@ -27,7 +27,7 @@ f_θ columns. Every column is computed with the same operations in the same orde
 the split, so the result is bit-identical to one block.
 
 The same kernel applies the state correction of the stabilised output error
-(``flightid.simulate.feedback``) when it is given a gain.
+(``flightid.simulation.feedback``) when it is given a gain.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from collections.abc import Callable
 import numpy as np
 from numba import prange
 
-from flightid.simulate.kernels import (
+from flightid.simulation.kernels import (
     PARALLEL_MIN_SAMPLES,
     _identity,
     make_step,
@@ -186,7 +186,7 @@ def _build(f_out: Callable, h_out: Callable, jit: Callable) -> Callable:
 
     The states and sensitivities are stepped together as one vector z = (x, vec S) (S row by
     row) by the state kernel's own ``make_step``, so Euler / RK4 and the input rule are those
-    of ``flightid.simulate.kernels``; the free parameters are split into ``n_blocks`` blocks
+    of ``flightid.simulation.kernels``; the free parameters are split into ``n_blocks`` blocks
     (a ``prange``: in parallel where compiled with ``parallel=True``).
     """
     jac_h = jit(_jacobian(h_out))
@@ -280,7 +280,7 @@ def make_sensitivity_kernel(f_out: Callable, h_out: Callable, compiled: bool = T
     y_out, g_out)`` (``method``: 0 Euler, 1 RK4; ``interpolation``: 0 linear, 1 zoh)
     fills y_out (N, n_o) and g_out (N, n_o, n_f) and returns −1, or the sample index at which
     the state or the outputs became non-finite. Given also ``z`` and ``gain`` it applies the
-    state correction of the stabilised output error (``flightid.simulate.feedback``).
+    state correction of the stabilised output error (``flightid.simulation.feedback``).
     """
     from flightid.model.forms import kernel_function, out_form_of
 

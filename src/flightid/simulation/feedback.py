@@ -9,7 +9,7 @@ multiple shooting (docs/unstable.md).
 
 A constant output-feedback gain keeps an unstable model's simulation near the measured
 trajectory; the residual keeps the output of step 1 (before the correction, CASES.md Q16).
-With S = 0 this is the plain simulation of ``flightid.simulate.kernels``.
+With S = 0 this is the plain simulation of ``flightid.simulation.kernels``.
 
 The sensitivity equations carry the same correction: with G_k = ∂y_k/∂θ = h_x S_k + h_θ
 (S_k = ∂x_k/∂θ here the state sensitivity), step 2 gives
@@ -25,8 +25,8 @@ defect of an interval is x_end(interval m) − x0(interval m + 1).
 Both kernels are numba-compiled like the plain ones (disk cache by digest,
 ``flightid.model.kernel_cache``) and take the out-form model functions; the loops allocate
 nothing per step. The batch loop of the state kernel is a ``prange`` (parallel for batches of
-several trajectories, ``flightid.simulate.kernels.BatchKernel``); the sensitivity kernel is
-the one of ``flightid.simulate.sensitivity``, given the gain and the measured outputs.
+several trajectories, ``flightid.simulation.kernels.BatchKernel``); the sensitivity kernel is
+the one of ``flightid.simulation.sensitivity``, given the gain and the measured outputs.
 """
 
 from __future__ import annotations
@@ -36,14 +36,14 @@ from collections.abc import Callable
 import numpy as np
 from numba import prange
 
-from flightid.simulate.kernels import (
+from flightid.simulation.kernels import (
     BatchKernel,
     _identity,
     make_step,
     record_sample,
     step_buffers,
 )
-from flightid.simulate.sensitivity import make_sensitivity_kernel
+from flightid.simulation.sensitivity import make_sensitivity_kernel
 
 __all__ = ["make_feedback_kernel", "make_feedback_sensitivity_kernel"]
 
@@ -107,7 +107,7 @@ def make_feedback_kernel(f_out: Callable, h_out: Callable, compiled: bool = True
     ``h_out``.
 
     ``kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at, z,
-    gain, x_end)``: as the plain kernel (``flightid.simulate.kernels``), plus the measured
+    gain, x_end)``: as the plain kernel (``flightid.simulation.kernels``), plus the measured
     outputs ``z`` (N, n_o) and the gain ``gain`` (n_s, n_o) of the correction (a (0, 0)
     array: none), and ``x_end`` (B, n_s) receiving each trajectory's state at its last sample
     (NaN where it diverged).
@@ -128,7 +128,7 @@ def make_feedback_kernel(f_out: Callable, h_out: Callable, compiled: bool = True
 def make_feedback_sensitivity_kernel(
     f_out: Callable, h_out: Callable, compiled: bool = True
 ) -> Callable:
-    """The sensitivity kernel (``flightid.simulate.sensitivity``) with the state correction.
+    """The sensitivity kernel (``flightid.simulation.sensitivity``) with the state correction.
 
     ``kernel(theta, x0, s0, free_index, steps, rel, t, u, method, interpolation, n_outputs,
     y_out, g_out, z, gain)``; returns −1 or the sample where the state or the outputs became

@@ -14,7 +14,7 @@ model: a ``stabilizing_gain`` S (n_s × n_o) corrects the state at every sample,
 x_k ← x_k + S (z_k − y_k), with z the maneuver's measured outputs; ``shooting`` splits each
 maneuver into intervals that start from their own initial-state parameters, and ``run``
 returns the continuity defects x_end(interval m) − x0(interval m + 1) beside the outputs
-(``SimulationBatch.defects``). Both run through ``flightid.simulate.feedback``.
+(``SimulationBatch.defects``). Both run through ``flightid.simulation.feedback``.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from flightid.model.binding import (
 )
 from flightid.model.compilation import is_compile_error, warn_pure_python
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulate.feedback import make_feedback_kernel
-from flightid.simulate.kernels import EULER, INTERPOLATIONS, RK4, make_kernel
+from flightid.simulation.feedback import make_feedback_kernel
+from flightid.simulation.kernels import EULER, INTERPOLATIONS, RK4, make_kernel
 
 __all__ = [
     "Simulator",
@@ -466,7 +466,7 @@ class Simulator:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Outputs (N_total, n_o) and sensitivities G (N_total, n_o, n_f) for one full
         parameter vector, by integrating the sensitivity equations
-        (``flightid.simulate.sensitivity``).
+        (``flightid.simulation.sensitivity``).
 
         ``steps`` are the finite-difference steps of the free parameters in the Jacobians.
         Counts 1 + n_s + n_f equivalent evaluations (the calls of f per stage, relative to a
@@ -474,8 +474,8 @@ class Simulator:
         central differences, ``_input_delay_columns``). Raises ``SimulationError`` if the
         trajectory becomes non-finite.
         """
-        from flightid.simulate.feedback import make_feedback_sensitivity_kernel
-        from flightid.simulate.sensitivity import make_sensitivity_kernel
+        from flightid.simulation.feedback import make_feedback_sensitivity_kernel
+        from flightid.simulation.sensitivity import make_sensitivity_kernel
 
         if self.n_defects:
             raise SimulationError(
