@@ -302,6 +302,17 @@ class LeastSquaresResult(ResultSurface):
         }
 
 
+def _pse_sigma2_max(sigma2_max: float | None, z: np.ndarray, error: type[Exception]) -> float:
+    """σ²_max of PSE: the given value (a non-negative finite number, else ``error``) or, by
+    default, the variance of z about its mean."""
+    if sigma2_max is None:
+        # σ²_max = mean((z − z̄)²)
+        return float(np.mean((z - z.mean()) ** 2))
+    if not (np.isfinite(sigma2_max) and sigma2_max >= 0):
+        raise error(f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}")
+    return float(sigma2_max)
+
+
 def _readonly(array: np.ndarray) -> np.ndarray:
     array = np.array(array, dtype=float)
     array.flags.writeable = False
@@ -476,12 +487,7 @@ def least_squares(
     # Cov(θ̂) = s² (XᵀX)⁻¹
     covariance = s2 * xtx_inv
     std = np.sqrt(np.diag(covariance))
-    if sigma2_max is None:
-        sigma2_max = float(np.mean((z - z.mean()) ** 2))
-    elif not (np.isfinite(sigma2_max) and sigma2_max >= 0):
-        raise LeastSquaresError(
-            f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}"
-        )
+    sigma2_max = _pse_sigma2_max(sigma2_max, z, LeastSquaresError)
     sigma = _default_sigma(X, residuals, xtx_inv, covariance, coloured, maneuver_index)
     return LeastSquaresResult(
         names=names,
@@ -500,7 +506,7 @@ def least_squares(
         n_samples=n,
         n_parameters=p,
         has_constant=has_constant,
-        sigma2_max=float(sigma2_max),
+        sigma2_max=sigma2_max,
         condition_number=condition,
         vif=_readonly(_vif(X, constant)),
         units=tuple(str(units.get(n, "")) for n in names) if units else (),

@@ -64,6 +64,7 @@ from flightid.regression.least_squares import (
     LeastSquaresError,
     LeastSquaresResult,
     _constant_columns,
+    _pse_sigma2_max,
     _readonly,
     _vif,
     checked_regression_inputs,
@@ -236,12 +237,7 @@ def total_least_squares(
     cov_ols = s2 * xtx_inv
     cov_eiv = _eiv_covariance(X, residuals, theta)
     chosen = cov_ols if covariance == "ols" else cov_eiv
-    if sigma2_max is None:
-        sigma2_max = float(np.mean((z - z.mean()) ** 2))
-    elif not (np.isfinite(sigma2_max) and sigma2_max >= 0):
-        raise TotalLeastSquaresError(
-            f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}"
-        )
+    sigma2_max = _pse_sigma2_max(sigma2_max, z, TotalLeastSquaresError)
     return TotalLeastSquaresResult(
         names=names,
         estimates=_readonly(theta),
@@ -254,7 +250,7 @@ def total_least_squares(
         n_samples=n,
         n_parameters=p,
         has_constant=has_constant,
-        sigma2_max=float(sigma2_max),
+        sigma2_max=sigma2_max,
         condition_number=condition,
         vif=_readonly(_vif(X, constant)),
         units=tuple(str(units.get(n, "")) for n in names) if units else (),
