@@ -302,6 +302,22 @@ class LeastSquaresResult(ResultSurface):
         }
 
 
+def _fit_sums(
+    X: np.ndarray, z: np.ndarray, theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, bool, float]:
+    """(fitted X θ, residuals z − X θ, RSS, mask of constant columns, whether there is one,
+    TSS) of the fit θ: TSS about the mean of z with a constant regressor, else about 0."""
+    fitted = X @ theta
+    residuals = z - fitted
+    # RSS = Σ (z − X θ)²
+    rss = float(residuals @ residuals)
+    constant = _constant_columns(X)
+    has_constant = bool(constant.any())
+    # TSS = Σ (z − z̄)² (with a constant regressor) or Σ z²
+    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    return fitted, residuals, rss, constant, has_constant, tss
+
+
 def _pse_sigma2_max(sigma2_max: float | None, z: np.ndarray, error: type[Exception]) -> float:
     """σ²_max of PSE: the given value (a non-negative finite number, else ``error``) or, by
     default, the variance of z about its mean."""
@@ -474,12 +490,7 @@ def least_squares(
     # θ_s = R⁻¹ Qᵀ z, θ = θ_s / norms   (equivalent to (XᵀX)⁻¹Xᵀz, [3.4])
     theta_scaled = np.linalg.solve(R, Q.T @ z)
     theta = theta_scaled / norms
-    fitted = X @ theta
-    residuals = z - fitted
-    rss = float(residuals @ residuals)
-    constant = _constant_columns(X)
-    has_constant = bool(constant.any())
-    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    fitted, residuals, rss, constant, has_constant, tss = _fit_sums(X, z, theta)
     s2 = rss / (n - p)
     # (XᵀX)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹ with D = diag(norms)
     R_inv = np.linalg.solve(R, np.eye(p))

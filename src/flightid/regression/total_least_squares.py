@@ -63,7 +63,7 @@ import numpy as np
 from flightid.regression.least_squares import (
     LeastSquaresError,
     LeastSquaresResult,
-    _constant_columns,
+    _fit_sums,
     _pse_sigma2_max,
     _readonly,
     _vif,
@@ -217,12 +217,7 @@ def total_least_squares(
         )
     # θ̂_TLS = −v_{1..n} / v_{n+1}
     theta = -v[:-1] / v[-1]
-    fitted = X @ theta
-    residuals = z - fitted
-    rss = float(residuals @ residuals)
-    constant = _constant_columns(X)
-    has_constant = bool(constant.any())
-    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    fitted, residuals, rss, constant, has_constant, tss = _fit_sums(X, z, theta)
     Xs = X / norms
     singular_x = np.linalg.svd(Xs, compute_uv=False)
     condition = float(singular_x[0] / singular_x[-1]) if singular_x[-1] > 0 else float("inf")
