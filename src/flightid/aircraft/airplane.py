@@ -94,6 +94,16 @@ class Airplane:
     rotation: int = 1
 
     def __post_init__(self) -> None:
+        self._check_sizes()
+        self._check_offsets()
+        self._check_thrust_arm()
+        self._check_density()
+        self._check_channel_names()
+        self._check_engine_and_rotation()
+
+    def _check_sizes(self) -> None:
+        """mass, inertias, reference sizes and g: positive finite numbers (floats); Ix and Iz
+        both or neither."""
         for field in ("mass", "Ix", "Iy", "Iz", "S", "b", "cbar", "g"):
             value = getattr(self, field)
             if value is None and field not in _REQUIRED and field != "g":
@@ -113,6 +123,10 @@ class Airplane:
                 f"Airplane.Ix, Iz: give both or neither (a longitudinal-only airplane), got "
                 f"Ix={self.Ix}, Iz={self.Iz}"
             )
+
+    def _check_offsets(self) -> None:
+        """Ixz, the thrust point, engine momentum and thrust inclination: finite numbers
+        (floats); Γ = Ix·Iz − Ixz² positive."""
         for field in ("Ixz", "thrust_x", "thrust_z", "engine_momentum", "thrust_inclination"):
             value = getattr(self, field)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -125,6 +139,9 @@ class Airplane:
                 f"Airplane.Ixz: Γ = Ix·Iz − Ixz² must be positive, got Ix={self.Ix}, "
                 f"Iz={self.Iz}, Ixz={self.Ixz}"
             )
+
+    def _check_thrust_arm(self) -> None:
+        """thrust_arm: None or a finite number (float), and then no thrust point."""
         if self.thrust_arm is not None:
             if not isinstance(self.thrust_arm, (int, float)) or not math.isfinite(self.thrust_arm):
                 raise InputError(
@@ -138,6 +155,9 @@ class Airplane:
                     f"x_T={self.thrust_x}, z_T={self.thrust_z}"
                 )
             object.__setattr__(self, "thrust_arm", float(self.thrust_arm))
+
+    def _check_density(self) -> None:
+        """density: None or a finite number ≥ 0 kg/m³."""
         if self.density is not None and not (
             isinstance(self.density, (int, float)) and math.isfinite(self.density)
         ):
@@ -147,6 +167,9 @@ class Airplane:
             )
         if self.density is not None and self.density < 0:
             raise InputError(f"Airplane.density: must be ≥ 0 kg/m³, got {self.density}")
+
+    def _check_channel_names(self) -> None:
+        """Input channel fields: None or a channel name."""
         for field in ("thrust_input", "engine_momentum_input", "propeller_torque_input"):
             value = getattr(self, field)
             if value is not None and (not isinstance(value, str) or not value.isidentifier()):
@@ -154,6 +177,9 @@ class Airplane:
                     f"Airplane.{field}: expected an input channel name or None, "
                     f"got {describe(value)}"
                 )
+
+    def _check_engine_and_rotation(self) -> None:
+        """Engine momentum as a constant or a channel, not both; rotation ±1."""
         if self.engine_momentum_input is not None and self.engine_momentum != 0.0:
             raise InputError(
                 "Airplane.engine_momentum: give the engine angular momentum as a constant or "

@@ -281,9 +281,10 @@ def _wind_body_state(x, X):
 
 
 @register_jitable
-def _body_f(x, u, theta, src_state, src_input, wind_index, deriv_index, extra_input, idx, tc,
-            tp, fs, fsig, fpow, fspl, fknot, consts, extra, out):  # fmt: skip
-    """dx/dt of a body-axis model into ``out``: the chosen entries of dX/dt."""
+def _body_f(x, u, theta, src_state, src_input, wind_index, deriv_index, out_index, out_scale,
+            extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out):  # fmt: skip
+    """dx/dt of a body-axis model into ``out``: the chosen entries of dX/dt (arguments as
+    ``_body_h``'s, ``_kernel_arguments``)."""
     work = np.empty(9 + 18 + extra_input.shape[0] + _BODY_WORK)
     X = work[:9]
     # full body state X = (u, v, w, p, q, r, l_xz, l_yz, l_zz) from states and inputs
@@ -297,8 +298,8 @@ def _body_f(x, u, theta, src_state, src_input, wind_index, deriv_index, extra_in
 
 
 @register_jitable
-def _body_h(x, u, theta, src_state, src_input, wind_index, out_index, out_scale, extra_input,
-            idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out):  # fmt: skip
+def _body_h(x, u, theta, src_state, src_input, wind_index, deriv_index, out_index, out_scale,
+            extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out):  # fmt: skip
     """y of a body-axis model into ``out``: the chosen outputs, each times its scale
     (accelerometer sign and unit; 1 for the other outputs, see Accelerometer)."""
     work = np.empty(9 + 14 + 18 + extra_input.shape[0] + _BODY_WORK)
@@ -312,117 +313,6 @@ def _body_h(x, u, theta, src_state, src_input, wind_index, out_index, out_scale,
     body_outputs_into(X, F, sig, consts, D[3], D[4], D[5], full)
     for i in range(out_index.shape[0]):
         out[i] = full[out_index[i]] * out_scale[i]
-
-
-def _body_functions(src_state, src_input, wind_index, deriv_index, out_index, out_scale,
-                    extra_input, idx, tables, consts, extra):  # fmt: skip
-    """f and h closures of a body-axis model (6-DOF or decoupled), return form carrying
-    their out forms (``flightid.model.forms``)."""
-    tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
-    fsig, fpow = tables.factor_signal, tables.factor_power
-    fspl, fknot = tables.factor_spline, tables.factor_knot
-    n_states = deriv_index.shape[0]
-    n_outputs = out_index.shape[0]
-
-    def f_out(t, x, u, theta, out):
-        _body_f(
-            x,
-            u,
-            theta,
-            src_state,
-            src_input,
-            wind_index,
-            deriv_index,
-            extra_input,
-            idx,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
-            extra,
-            out,
-        )
-
-    def h_out(t, x, u, theta, out):
-        _body_h(
-            x,
-            u,
-            theta,
-            src_state,
-            src_input,
-            wind_index,
-            out_index,
-            out_scale,
-            extra_input,
-            idx,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
-            extra,
-            out,
-        )
-
-    def f(t, x, u, theta):
-        out = np.empty(n_states)
-        _body_f(
-            x,
-            u,
-            theta,
-            src_state,
-            src_input,
-            wind_index,
-            deriv_index,
-            extra_input,
-            idx,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
-            extra,
-            out,
-        )
-        return out
-
-    def h(t, x, u, theta):
-        out = np.empty(n_outputs)
-        _body_h(
-            x,
-            u,
-            theta,
-            src_state,
-            src_input,
-            wind_index,
-            out_index,
-            out_scale,
-            extra_input,
-            idx,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
-            extra,
-            out,
-        )
-        return out
-
-    return with_out_form(f, f_out), with_out_form(h, h_out)
 
 
 @register_jitable
@@ -470,9 +360,9 @@ def _wind_solution(x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, 
 
 
 @register_jitable
-def _wind_f(x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra,
-            out):  # fmt: skip
-    """d(V, α, Θ, q)/dt of the wind-axis model into ``out``."""
+def _wind_f(x, u, theta, out_index, out_scale, extra_input, idx, tc, tp, fs, fsig, fpow, fspl,
+            fknot, consts, extra, out):  # fmt: skip
+    """d(V, α, Θ, q)/dt of the wind-axis model into ``out`` (arguments as ``_wind_h``'s)."""
     work = np.empty(9 + 18 + extra_input.shape[0] + _BODY_WORK)
     _, _, _, D = _wind_solution(
         x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, work
@@ -497,77 +387,11 @@ def _wind_h(x, u, theta, out_index, out_scale, extra_input, idx, tc, tp, fs, fsi
         out[i] = full[out_index[i]] * out_scale[i]
 
 
-def _wind_functions(out_index, out_scale, extra_input, idx, tables, consts, extra):
-    """f and h closures of the wind-axis longitudinal model (states V, α, Θ, q), return form
-    carrying their out forms."""
-    tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
-    fsig, fpow = tables.factor_signal, tables.factor_power
-    fspl, fknot = tables.factor_spline, tables.factor_knot
-    n_outputs = out_index.shape[0]
-
-    def f_out(t, x, u, theta, out):
-        _wind_f(
-            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out
-        )
-
-    def h_out(t, x, u, theta, out):
-        _wind_h(
-            x,
-            u,
-            theta,
-            out_index,
-            out_scale,
-            extra_input,
-            idx,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
-            extra,
-            out,
-        )
-
-    def f(t, x, u, theta):
-        out = np.empty(4)
-        _wind_f(
-            x, u, theta, extra_input, idx, tc, tp, fs, fsig, fpow, fspl, fknot, consts, extra, out
-        )
-        return out
-
-    def h(t, x, u, theta):
-        out = np.empty(n_outputs)
-        _wind_h(
-            x,
-            u,
-            theta,
-            out_index,
-            out_scale,
-            extra_input,
-            idx,
-            tc,
-            tp,
-            fs,
-            fsig,
-            fpow,
-            fspl,
-            fknot,
-            consts,
-            extra,
-            out,
-        )
-        return out
-
-    return with_out_form(f, f_out), with_out_form(h, h_out)
-
-
 @register_jitable
-def _alpha_q_f(x, u, theta, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out):
+def _alpha_q_f(x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, fknot, consts,
+               out):  # fmt: skip
     """d(α, q)/dt of the α–q model into ``out``: signals (α, q̂, inputs…), then C_Z, C_m from
-    the aero tables [2.16] (equations.alpha_q_derivatives)."""
+    the aero tables [2.16] (equations.alpha_q_derivatives; arguments as ``_alpha_q_h``'s)."""
     work = np.empty(10 + u.shape[0])
     sig = work[: 2 + u.shape[0]]
     C = work[2 + u.shape[0] :]
@@ -591,32 +415,60 @@ def _alpha_q_h(x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, 
         out[i] = full[out_index[i]] * out_scale[i]
 
 
-def _alpha_q_functions(out_index, out_scale, tables, consts):
-    """f and h closures of the α–q model (states α, q; inputs V, q̄, Θ, Φ, a_x, p, r,
-    controls…; equations.alpha_q_derivatives), return form carrying their out forms."""
-    tc, tp, fs = tables.term_coef, tables.term_param, tables.factor_start
-    fsig, fpow = tables.factor_signal, tables.factor_power
-    fspl, fknot = tables.factor_spline, tables.factor_knot
-    n_outputs = out_index.shape[0]
+# the table path's f and h kernels by model kind: out form, arguments (x, u, θ, the
+# ``_kernel_arguments`` of the model, out)
+_TABLE_KERNELS = {
+    "alpha_q": (_alpha_q_f, _alpha_q_h),
+    "wind": (_wind_f, _wind_h),
+    "6dof": (_body_f, _body_h),
+    "longitudinal": (_body_f, _body_h),
+    "lateral": (_body_f, _body_h),
+}
+
+
+def _kernel_arguments(spec: ModelSpec) -> tuple:
+    """The arguments of the model's table-path kernels after (x, u, θ): the index maps and
+    output scales of ``spec`` its kind has, the aerodynamic tables, ``equations.CONSTANTS``
+    and (but α–q) ``EXTRA_CONSTANTS`` values."""
+    tables = spec.tables
+    aero = (
+        tables.term_coef, tables.term_param, tables.factor_start, tables.factor_signal,
+        tables.factor_power, tables.factor_spline, tables.factor_knot,
+    )  # fmt: skip
+    if spec.kind == "alpha_q":
+        return (spec.out_index, spec.out_scale, *aero, spec.consts)
+    engine = (spec.extra_input, spec.idx, *aero, spec.consts, spec.extra)
+    if spec.kind == "wind":
+        return (spec.out_index, spec.out_scale, *engine)
+    return (
+        spec.src_state, spec.src_input, spec.wind_index, spec.deriv_index, spec.out_index,
+        spec.out_scale, *engine,
+    )  # fmt: skip
+
+
+def _table_functions(spec: ModelSpec, n_states: int):
+    """f and h closures of the table path (``_TABLE_KERNELS`` over ``_kernel_arguments``),
+    in return form carrying their out forms (``flightid.model.forms``). The arguments are
+    one constant tuple, unpacked into the call: numba compiles the same calls as with the
+    arrays named one by one."""
+    f_kernel, h_kernel = _TABLE_KERNELS[spec.kind]
+    args = _kernel_arguments(spec)
+    n_outputs = spec.out_index.shape[0]
 
     def f_out(t, x, u, theta, out):
-        _alpha_q_f(x, u, theta, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out)
+        f_kernel(x, u, theta, *args, out)
 
     def h_out(t, x, u, theta, out):
-        _alpha_q_h(
-            x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out
-        )
+        h_kernel(x, u, theta, *args, out)
 
     def f(t, x, u, theta):
-        out = np.empty(2)
-        _alpha_q_f(x, u, theta, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out)
+        out = np.empty(n_states)
+        f_kernel(x, u, theta, *args, out)
         return out
 
     def h(t, x, u, theta):
         out = np.empty(n_outputs)
-        _alpha_q_h(
-            x, u, theta, out_index, out_scale, tc, tp, fs, fsig, fpow, fspl, fknot, consts, out
-        )
+        h_kernel(x, u, theta, *args, out)
         return out
 
     return with_out_form(f, f_out), with_out_form(h, h_out)
@@ -912,7 +764,7 @@ def _model_functions(
     """f and h of the model from the index maps from names to positions, the aerodynamic
     tables and the airplane constants: generated straight-line code (``code="generated"``,
     where ``codegen`` covers the model) or the table path closing over them
-    (``_alpha_q_functions``, ``_wind_functions``, ``_body_functions``)."""
+    (``_table_functions``)."""
     if kind == "alpha_q":
         # signal list: α, q̂, then every input (V, q̄, Θ, Φ, a_x, p, r, controls…)
         tables = aero.tables(("alpha", "qhat", *inputs), parameters)
@@ -921,9 +773,7 @@ def _model_functions(
         # per output: s_z·k for az (Accelerometer.factors), 1 for alpha and q
         out_scale = np.array([az_scale if o == "az" else 1.0 for o in outputs])
         spec = ModelSpec(kind, tables, _constants(airplane), out_index, out_scale)
-        return _chosen_functions(
-            spec, code, lambda: _alpha_q_functions(out_index, out_scale, tables, spec.consts)
-        )
+        return _chosen_functions(spec, code, len(states))
     # signal list: the standard signals, then the non-standard inputs (controls, thrust)
     extra = [i for i, n in enumerate(inputs) if n not in SIGNALS]
     signal_names = SIGNALS + tuple(inputs[i] for i in extra)
@@ -955,12 +805,7 @@ def _model_functions(
         spec = ModelSpec(
             kind, tables, consts, out_index, out_scale, extra_consts, extra_input, idx
         )  # fmt: skip
-        return _chosen_functions(
-            spec, code,
-            lambda: _wind_functions(
-                out_index, out_scale, extra_input, idx, tables, consts, extra_consts
-            ),
-        )  # fmt: skip
+        return _chosen_functions(spec, code, len(states))
     src_state = np.array(
         [states.index(s) if s in states else -1 for s in BODY_STATES], dtype=np.int64
     )
@@ -977,23 +822,17 @@ def _model_functions(
         kind, tables, consts, out_index, out_scale, extra_consts, extra_input, idx, src_state,
         src_input, wind_index, deriv_index,
     )  # fmt: skip
-    return _chosen_functions(
-        spec, code,
-        lambda: _body_functions(
-            src_state, src_input, wind_index, deriv_index, out_index, out_scale, extra_input,
-            idx, tables, consts, extra_consts,
-        ),
-    )  # fmt: skip
+    return _chosen_functions(spec, code, len(states))
 
 
 # the two implementations of a built-in model's f and h (builders' ``code`` argument)
 MODEL_CODES = ("generated", "tables")
 
 
-def _chosen_functions(spec: ModelSpec, code: str, table_functions):
+def _chosen_functions(spec: ModelSpec, code: str, n_states: int):
     """f and h (return form carrying the out form) of the model ``spec``: the generated
     straight-line module (``codegen``, ``generated``) where ``code`` is "generated" and
-    ``codegen.uncovered(spec)`` is None, else the table path ``table_functions()``. Each
+    ``codegen.uncovered(spec)`` is None, else the table path (``_table_functions``). Each
     function says which in its attribute ``model_code`` ("generated" or "tables")."""
     if code == "generated" and uncovered(spec) is None:
         module = load_source(model_source(spec))
@@ -1001,7 +840,7 @@ def _chosen_functions(spec: ModelSpec, code: str, table_functions):
         h = with_out_form(module.h, module.h_out)
         f.model_code = h.model_code = "generated"
         return f, h
-    f, h = table_functions()
+    f, h = _table_functions(spec, n_states)
     f.model_code = h.model_code = "tables"
     return f, h
 

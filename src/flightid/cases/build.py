@@ -571,7 +571,7 @@ def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
     """f, h with the state and output biases added (numba-compilable closures), in return
     form carrying their out forms (``flightid.model.forms``; built on the base model's out
     forms, so that a base without allocation stays without)."""
-    from flightid.model.forms import as_out_form, kernel_function, with_out_form
+    from flightid.model.forms import as_out_form, kernel_function
 
     f_out = kernel_function(getattr(f, "out_form", None) or as_out_form(f), compiled)
     h_out = kernel_function(getattr(h, "out_form", None) or as_out_form(h), compiled)
@@ -581,39 +581,107 @@ def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
         f = f if hasattr(f, "py_func") else numba.njit(cache=False)(f)
         h = h if hasattr(h, "py_func") else numba.njit(cache=False)(h)
 
-    def f_biased(t, x, u, theta):
+    # ẋ_j = f_j + b_x,j ;  y_j = h_j + b_y,j
+    return (
+        _with_biases(f, f_out, n_x, n_u, bx, per_maneuver),
+        _with_biases(h, h_out, n_y, n_u, by, per_maneuver),
+    )
+
+
+def _with_biases(fn, fn_out, n, n_u, b, per_maneuver):
+    """``fn`` (return form, out form ``fn_out``) with the biases θ[b[m, j]] added to its n
+    values (none where b[m, j] < 0; m the maneuver number from the extra input channel when
+    ``per_maneuver``), in return form carrying its out form (numba-compilable closures)."""
+    from flightid.model.forms import with_out_form
+
+    def biased(t, x, u, theta):
         m = int(u[n_u] + 0.5) if per_maneuver else 0
-        dx = f(t, x, u[:n_u], theta)
-        out = np.empty(n_x)
-        for j in range(n_x):
-            # ẋ_j = f_j + b_x,j
-            out[j] = dx[j] + (theta[bx[m, j]] if bx[m, j] >= 0 else 0.0)
+        v = fn(t, x, u[:n_u], theta)
+        out = np.empty(n)
+        for j in range(n):
+            # v_j + b_j
+            out[j] = v[j] + (theta[b[m, j]] if b[m, j] >= 0 else 0.0)
         return out
 
-    def h_biased(t, x, u, theta):
+    def biased_out(t, x, u, theta, out):
         m = int(u[n_u] + 0.5) if per_maneuver else 0
-        y = h(t, x, u[:n_u], theta)
-        out = np.empty(n_y)
-        for j in range(n_y):
-            # y_j = h_j + b_y,j
-            out[j] = y[j] + (theta[by[m, j]] if by[m, j] >= 0 else 0.0)
-        return out
+        fn_out(t, x, u[:n_u], theta, out)
+        for j in range(n):
+            # v_j + b_j
+            out[j] = out[j] + (theta[b[m, j]] if b[m, j] >= 0 else 0.0)
 
-    def f_biased_out(t, x, u, theta, out):
-        m = int(u[n_u] + 0.5) if per_maneuver else 0
-        f_out(t, x, u[:n_u], theta, out)
-        for j in range(n_x):
-            # ẋ_j = f_j + b_x,j
-            out[j] = out[j] + (theta[bx[m, j]] if bx[m, j] >= 0 else 0.0)
+    return with_out_form(biased, biased_out)
 
-    def h_biased_out(t, x, u, theta, out):
-        m = int(u[n_u] + 0.5) if per_maneuver else 0
-        h_out(t, x, u[:n_u], theta, out)
-        for j in range(n_y):
-            # y_j = h_j + b_y,j
-            out[j] = out[j] + (theta[by[m, j]] if by[m, j] >= 0 else 0.0)
 
-    return with_out_form(f_biased, f_biased_out), with_out_form(h_biased, h_biased_out)
+def _model_and_delay_parameters(
+    case: Case,
+    base: StateSpaceModel,
+    delays: Mapping[str, str],
+    input_delays: Mapping[str, str],
+) -> tuple[list[Parameter], list[Parameter], list[str]]:
+    """The model's parameters with ``[parameters]`` applied, the delay parameters the model
+    does not have, and those new delay names.
+
+    Delay parameters the model does not have are new parameters τ (s), start 0, free, put
+    after the biases and initial states (output delays', then input delays' new names);
+    ``[parameters]`` sets them like any other."""
+    new_delays = [
+        n
+        for n in dict.fromkeys([*delays.values(), *input_delays.values()])
+        if n not in base.parameters
+    ]
+    section = {k: v for k, v in case.parameters.items() if k not in new_delays}
+    params = _apply_parameters(base.parameters, section)
+    delay_params = (
+        _apply_parameters(
+            Parameters([Parameter(n, 0.0) for n in new_delays]),
+            {k: v for k, v in case.parameters.items() if k in new_delays},
+        )
+        if new_delays
+        else []
+    )
+    return params, delay_params, new_delays
+
+
+def _biased_model_functions(case: Case, base: StateSpaceModel, bx, by, per_maneuver: bool):
+    """The base model's f and h with the biases added: wrappers around the compiled f and h
+    (their own out forms where they carry one) when the case compiles and compiling works,
+    else around the Python functions (then carrying the compile failure for the simulator's
+    fall-back message)."""
+    n_u = len(base.inputs)
+    jitted = (
+        [_compiled(fn, len(base.states), n_u, len(base.parameters)) for fn in (base.f, base.h)]
+        if case.estimation.get("compiled", True)
+        else [None]
+    )
+    compiled = not any(fn is None or isinstance(fn, BaseException) for fn in jitted)
+    failure = next((fn for fn in jitted if isinstance(fn, BaseException)), None)
+    # the wrappers call the compiled f and h (their own out forms where they carry one)
+    f_base, h_base = (
+        [
+            fn if getattr(fn, "out_form", None) is not None else fn_jit
+            for fn, fn_jit in zip((base.f, base.h), jitted, strict=True)
+        ]
+        if compiled
+        else (base.f, base.h)
+    )
+    f, h = _biased_functions(
+        f_base,
+        h_base,
+        len(base.states),
+        len(base.outputs),
+        n_u,
+        bx,
+        by,
+        per_maneuver,
+        compiled,
+    )
+    if failure is not None:
+        # the simulator's fall-back to Python names the user's line from this error (its
+        # own error would name the wrappers)
+        for fn in (f, h):
+            fn.out_form.compile_failure = failure
+    return f, h
 
 
 def build_model(
@@ -634,24 +702,7 @@ def build_model(
     _check_channels(base, maneuvers)
     delays = dict(case.model.get("output_delays", {}))
     input_delays = dict(case.model.get("input_delays", {}))
-    # delay parameters the model does not have: new parameters τ (s), start 0, free, put
-    # after the biases and initial states (output delays', then input delays' new names);
-    # [parameters] sets them like any other
-    new_delays = [
-        n
-        for n in dict.fromkeys([*delays.values(), *input_delays.values()])
-        if n not in base.parameters
-    ]
-    section = {k: v for k, v in case.parameters.items() if k not in new_delays}
-    params = _apply_parameters(base.parameters, section)
-    delay_params = (
-        _apply_parameters(
-            Parameters([Parameter(n, 0.0) for n in new_delays]),
-            {k: v for k, v in case.parameters.items() if k in new_delays},
-        )
-        if new_delays
-        else []
-    )
+    params, delay_params, new_delays = _model_and_delay_parameters(case, base, delays, input_delays)
     n_m = len(maneuvers)
     per_names = _per_maneuver_names(case.parameters, base.parameters, new_delays)
     bx, by, bias_params, per_maneuver = _biases(base, case.biases, n_m)
@@ -677,39 +728,7 @@ def build_model(
         raise CaseError(f"parameters: {exc}") from None
     f, h, inputs = base.f, base.h, base.inputs
     if bias_params:
-        n_u = len(base.inputs)
-        jitted = (
-            [_compiled(fn, len(base.states), n_u, len(base.parameters)) for fn in (base.f, base.h)]
-            if case.estimation.get("compiled", True)
-            else [None]
-        )
-        compiled = not any(fn is None or isinstance(fn, BaseException) for fn in jitted)
-        failure = next((fn for fn in jitted if isinstance(fn, BaseException)), None)
-        # the wrappers call the compiled f and h (their own out forms where they carry one)
-        f_base, h_base = (
-            [
-                fn if getattr(fn, "out_form", None) is not None else fn_jit
-                for fn, fn_jit in zip((base.f, base.h), jitted, strict=True)
-            ]
-            if compiled
-            else (base.f, base.h)
-        )
-        f, h = _biased_functions(
-            f_base,
-            h_base,
-            len(base.states),
-            len(base.outputs),
-            n_u,
-            bx,
-            by,
-            per_maneuver,
-            compiled,
-        )
-        if failure is not None:
-            # the simulator's fall-back to Python names the user's line from this error (its
-            # own error would name the wrappers)
-            for fn in (f, h):
-                fn.out_form.compile_failure = failure
+        f, h = _biased_model_functions(case, base, bx, by, per_maneuver)
         if per_maneuver:
             inputs = (*base.inputs, MANEUVER_CHANNEL)
             maneuvers = [_with_maneuver_channel(m, k) for k, m in enumerate(maneuvers)]

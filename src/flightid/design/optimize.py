@@ -112,6 +112,23 @@ class DesignProblem:
     input_interpolation: str = "linear"
 
     def __post_init__(self) -> None:
+        self._check_signal_and_times()
+        self._check_inputs()
+        self._check_held()
+        self._check_limits()
+        if (
+            isinstance(self.candidates, bool)
+            or not isinstance(self.candidates, int)
+            or self.candidates < 1
+        ):
+            raise InputError(f"candidates: expected a positive integer, got {self.candidates!r}")
+        self._check_timing()
+        self._check_bands()
+        self._check_parameters()
+
+    def _check_signal_and_times(self) -> None:
+        """A known signal and criterion (``"parameters"`` with names), positive
+        ``duration_s`` and ``dt_s`` giving at least 10 samples."""
         if self.signal not in SIGNALS:
             raise InputError(f"signal: expected one of {list(SIGNALS)}, got {self.signal!r}")
         if self.criterion not in CRITERIA:
@@ -127,6 +144,10 @@ class DesignProblem:
                 f"dt_s: {self.dt_s} s gives fewer than 10 samples over duration_s = "
                 f"{self.duration_s} s"
             )
+
+    def _check_inputs(self) -> None:
+        """At least one designed input, each an input of the model; every other model input
+        held."""
         names = [s.name for s in self.inputs]
         if not names:
             raise InputError("inputs: expected at least one designed input")
@@ -142,6 +163,9 @@ class DesignProblem:
                 f"inputs: the model inputs {missing} are neither designed nor held; give them "
                 "an amplitude or a constant value"
             )
+
+    def _check_held(self) -> None:
+        """Each held input a finite constant or one finite value per sample of ``time``."""
         for name, value in self.held.items():
             shape = np.shape(value)
             if shape not in ((), (self.n_intervals + 1,)) or not np.all(np.isfinite(value)):
@@ -149,6 +173,9 @@ class DesignProblem:
                     f"held.{name}: expected a finite constant or {self.n_intervals + 1} samples "
                     f"(one per sample of time), got shape {shape}"
                 )
+
+    def _check_limits(self) -> None:
+        """Each limit a positive number on an output of the model."""
         for output, limit in self.limits.items():
             if output not in self.model.outputs:
                 raise InputError(
@@ -157,14 +184,9 @@ class DesignProblem:
                 )
             if not np.isfinite(limit) or limit <= 0:
                 raise InputError(f"limits.{output}: expected a positive limit, got {limit!r}")
-        if (
-            isinstance(self.candidates, bool)
-            or not isinstance(self.candidates, int)
-            or self.candidates < 1
-        ):
-            raise InputError(f"candidates: expected a positive integer, got {self.candidates!r}")
-        self._check_timing()
-        self._check_bands()
+
+    def _check_parameters(self) -> None:
+        """The ``parameters`` criterion's names are free parameters of the model."""
         for parameter in self.parameters:
             if parameter not in self.model.parameters.free_names:
                 raise InputError(

@@ -113,6 +113,82 @@ class FilterPoint:
     kc: np.ndarray  # diag(KC) (n_x,)
 
 
+def _check_filter_model(
+    model: StateSpaceModel, linearisation: str, process_noise: Mapping[str, str]
+) -> None:
+    """The filter error method's needs: states, no time delays, a known linearisation and
+    a process-noise element for at least one state."""
+    if not model.has_states:
+        raise InputError("model: the filter error method needs a model with states")
+    if model.output_delays or model.input_delays:
+        raise InputError(
+            "model: time delays (output_delays / input_delays) are not supported by the "
+            "filter error method; estimate them by output error first and fix them"
+        )
+    if linearisation not in LINEARISATIONS:
+        raise InputError(
+            f"linearisation: expected one of {list(LINEARISATIONS)}, got {linearisation!r}"
+        )
+    if not isinstance(process_noise, Mapping) or not process_noise:
+        raise InputError(
+            "process_noise: expected {state: parameter name} for at least one state, "
+            f"got {process_noise!r}"
+        )
+
+
+def _process_noise_indices(
+    model: StateSpaceModel, process_noise: Mapping[str, str]
+) -> tuple[list[int], list[int]]:
+    """(state indices, parameter indices) of the process-noise elements {state: parameter}."""
+    names = model.parameters.names
+    noise_states: list[int] = []
+    noise_parameters: list[int] = []
+    for state, parameter in process_noise.items():
+        if state not in model.states:
+            raise InputError(
+                f"process_noise: {state!r} is not a state of the model {list(model.states)}"
+            )
+        if parameter not in names:
+            raise InputError(
+                f"process_noise.{state}: {parameter!r} is not a parameter of the model"
+            )
+        noise_states.append(model.states.index(state))
+        noise_parameters.append(names.index(parameter))
+    return noise_states, noise_parameters
+
+
+def _uniform_interval(maneuvers: Sequence[FlightData]) -> float:
+    """The one sampling interval Δt (s) of all maneuvers (the steady-state gain needs it)."""
+    steps = [np.diff(m.time) for m in maneuvers if m.n_samples > 1]
+    dt = float(np.mean(steps[0])) if steps else 0.0
+    if not dt > 0 or any(not np.allclose(s, dt, rtol=1e-6, atol=0) for s in steps):
+        raise InputError(
+            "data: the filter error method needs one uniform sampling interval over all "
+            f"maneuvers; got intervals {sorted({float(np.round(s.mean(), 9)) for s in steps})}"
+        )
+    return dt
+
+
+def _maneuver_arrays(
+    model: StateSpaceModel, maneuvers: Sequence[FlightData]
+) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Per maneuver the contiguous time (N,), inputs (N, n_u) and measured outputs (N, n_o)
+    in the model's channel order."""
+    times, inputs, measured = [], [], []
+    for maneuver in maneuvers:
+        times.append(np.ascontiguousarray(maneuver.time, dtype=float))
+        u = (
+            np.column_stack([maneuver.channel(n) for n in model.inputs])
+            if model.inputs
+            else np.zeros((maneuver.n_samples, 0))
+        )
+        inputs.append(np.ascontiguousarray(u, dtype=float))
+        measured.append(
+            np.ascontiguousarray(np.column_stack([maneuver.output(n) for n in model.outputs]))
+        )
+    return times, inputs, measured
+
+
 class FilterErrorProblem(OutputErrorProblem):
     """Output-error interface over filter passes: outputs are the filtered predictions ỹ.
 
@@ -149,76 +225,20 @@ class FilterErrorProblem(OutputErrorProblem):
         super().__init__(
             model, data, method=method, compiled=compiled, input_interpolation=input_interpolation
         )
-        if not model.has_states:
-            raise InputError("model: the filter error method needs a model with states")
-        if model.output_delays or model.input_delays:
-            raise InputError(
-                "model: time delays (output_delays / input_delays) are not supported by the "
-                "filter error method; estimate them by output error first and fix them"
-            )
-        if linearisation not in LINEARISATIONS:
-            raise InputError(
-                f"linearisation: expected one of {list(LINEARISATIONS)}, got {linearisation!r}"
-            )
-        if not isinstance(process_noise, Mapping) or not process_noise:
-            raise InputError(
-                "process_noise: expected {state: parameter name} for at least one state, "
-                f"got {process_noise!r}"
-            )
-        names = model.parameters.names
-        self.noise_states: list[int] = []
-        self.noise_parameters: list[int] = []
-        for state, parameter in process_noise.items():
-            if state not in model.states:
-                raise InputError(
-                    f"process_noise: {state!r} is not a state of the model {list(model.states)}"
-                )
-            if parameter not in names:
-                raise InputError(
-                    f"process_noise.{state}: {parameter!r} is not a parameter of the model"
-                )
-            self.noise_states.append(model.states.index(state))
-            self.noise_parameters.append(names.index(parameter))
+        _check_filter_model(model, linearisation, process_noise)
+        self.noise_states, self.noise_parameters = _process_noise_indices(model, process_noise)
         self.process_noise = dict(process_noise)
-        self.pinned: list[int] = []  # positions in noise_states / noise_parameters
-        for state in pinned:
-            if state not in self.process_noise:
-                raise InputError(f"pinned: {state!r} has no process-noise element")
-            position = list(self.process_noise).index(state)
-            if self.free_mask[self.noise_parameters[position]]:
-                raise InputError(
-                    f"pinned: the F element of {state!r} ({self.process_noise[state]}) is "
-                    "solved from its constraint; it must not be a free parameter"
-                )
-            self.pinned.append(position)
+        self.pinned: list[int] = self._pinned_positions(pinned)
         self._pin_start: dict[int, float] = {}
         self.linearisation = linearisation
         self.linearisation_step = float(linearisation_step)
-        steps = [np.diff(m.time) for m in self.maneuvers if m.n_samples > 1]
-        dt = float(np.mean(steps[0])) if steps else 0.0
-        if not dt > 0 or any(not np.allclose(s, dt, rtol=1e-6, atol=0) for s in steps):
-            raise InputError(
-                "data: the filter error method needs one uniform sampling interval over all "
-                f"maneuvers; got intervals {sorted({float(np.round(s.mean(), 9)) for s in steps})}"
-            )
-        self.dt = dt
+        self.dt = _uniform_interval(self.maneuvers)
         n_o = len(model.outputs)
         self.gain_r = np.ones(n_o) if gain_r is None else np.asarray(gain_r, dtype=float)
         self.filter_passes = 0
         self._method = _METHODS[method]
         self._interpolation = 0 if input_interpolation == "linear" else 1
-        self._times, self._inputs, self._measured = [], [], []
-        for maneuver in self.maneuvers:
-            self._times.append(np.ascontiguousarray(maneuver.time, dtype=float))
-            u = (
-                np.column_stack([maneuver.channel(n) for n in model.inputs])
-                if model.inputs
-                else np.zeros((maneuver.n_samples, 0))
-            )
-            self._inputs.append(np.ascontiguousarray(u, dtype=float))
-            self._measured.append(
-                np.ascontiguousarray(np.column_stack([maneuver.output(n) for n in model.outputs]))
-            )
+        self._times, self._inputs, self._measured = _maneuver_arrays(model, self.maneuvers)
         self._x0_maps = [
             model.initial_state_maps(i if model.per_maneuver_x0 else 0)
             for i in range(len(self.maneuvers))
@@ -228,6 +248,22 @@ class FilterErrorProblem(OutputErrorProblem):
             for i in range(len(self.maneuvers))
         ]
         self._kernel = _filter_kernel(model.f, model.h, compiled and self.simulator.compiled)
+
+    def _pinned_positions(self, pinned: Sequence[str]) -> list[int]:
+        """Positions in noise_states / noise_parameters of the ``pinned`` states, whose F
+        elements must be fixed parameters (they are solved from their constraint)."""
+        positions = []
+        for state in pinned:
+            if state not in self.process_noise:
+                raise InputError(f"pinned: {state!r} has no process-noise element")
+            position = list(self.process_noise).index(state)
+            if self.free_mask[self.noise_parameters[position]]:
+                raise InputError(
+                    f"pinned: the F element of {state!r} ({self.process_noise[state]}) is "
+                    "solved from its constraint; it must not be a free parameter"
+                )
+            positions.append(position)
+        return positions
 
     # ------------------------------------------------------------------ accounting
     @property
@@ -392,3 +428,6 @@ class FilterErrorProblem(OutputErrorProblem):
             "filter passes (MNR) or from MNRES's surface; sensitivities = 'equations' is for "
             "output error"
         )
+
+
+# ---------------------------------------------------------------------- the estimator

@@ -35,6 +35,16 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg
 
+# the per-sample steps of the filter and sensitivity loops: compiled inlined into the loops
+# (numba IR inlining), as fast as written out in them
+try:
+    from numba.extending import register_jitable
+except ImportError:  # pragma: no cover - the kernels then run as plain Python
+
+    def register_jitable(**options) -> Callable:
+        return lambda function: function
+
+
 from flightid.errors import EstimationError, InputError
 
 #: relative tolerance of the linearity check of f and h in x and u
@@ -143,45 +153,73 @@ def covariance_derivative(
     return 0.5 * (dp + dp.T)
 
 
+@register_jitable(inline="always")
+def _filtered_output(c, d, by, x, u, z, k, y, e):  # pragma: no cover - numba
+    """ỹ_k = C x̃_k + D u_k + b_y into y[k], and the innovation e_k = z_k − ỹ_k into e."""
+    n_x, n_o, n_u = c.shape[1], c.shape[0], u.shape[1]
+    for i in range(n_o):
+        # ỹ_k = C x̃_k + D u_k + b_y
+        acc = by[i]
+        for j in range(n_x):
+            acc += c[i, j] * x[j]
+        for j in range(n_u):
+            acc += d[i, j] * u[k, j]
+        y[k, i] = acc
+        e[i] = z[k, i] - acc
+
+
+@register_jitable(inline="always")
+def _corrected_state(x, gain, e, xhat):  # pragma: no cover - numba
+    """x̂_k = x̃_k + K e_k into xhat."""
+    for i in range(x.shape[0]):
+        acc = x[i]
+        for j in range(e.shape[0]):
+            acc += gain[i, j] * e[j]
+        xhat[i] = acc
+
+
+@register_jitable(inline="always")
+def _input_drive(b, bx, u, k, ubar, drive):  # pragma: no cover - numba
+    """ū_k = (u_k + u_{k+1})/2 into ubar, and B ū_k + b_x into drive."""
+    n_u = u.shape[1]
+    for j in range(n_u):
+        ubar[j] = 0.5 * (u[k, j] + u[k + 1, j])
+    for i in range(bx.shape[0]):
+        acc = bx[i]
+        for j in range(n_u):
+            acc += b[i, j] * ubar[j]
+        drive[i] = acc
+
+
+@register_jitable(inline="always")
+def _predicted_state(phi, psi, xhat, drive, x):  # pragma: no cover - numba
+    """x̃_{k+1} = Φ x̂_k + Ψ (B ū_k + b_x) into x."""
+    for i in range(x.shape[0]):
+        acc = 0.0
+        for j in range(x.shape[0]):
+            acc += phi[i, j] * xhat[j] + psi[i, j] * drive[j]
+        x[i] = acc
+
+
 def _filter_loop(phi, psi, b, bx, c, d, by, gain, x0, u, z, y):  # pragma: no cover - numba
     n, n_x, n_o, n_u = u.shape[0], phi.shape[0], c.shape[0], u.shape[1]
     x = x0.copy()
     xhat = np.empty(n_x)
     e = np.empty(n_o)
+    ubar = np.empty(n_u)
     drive = np.empty(n_x)
     for k in range(n):
-        # ỹ_k = C x̃_k + D u_k + b_y
-        for i in range(n_o):
-            acc = by[i]
-            for j in range(n_x):
-                acc += c[i, j] * x[j]
-            for j in range(n_u):
-                acc += d[i, j] * u[k, j]
-            y[k, i] = acc
-            e[i] = z[k, i] - acc
-        # x̂_k = x̃_k + K e_k
-        for i in range(n_x):
-            acc = x[i]
-            for j in range(n_o):
-                acc += gain[i, j] * e[j]
-            xhat[i] = acc
+        _filtered_output(c, d, by, x, u, z, k, y, e)
+        _corrected_state(x, gain, e, xhat)
         if k + 1 < n:
-            # x̃_{k+1} = Φ x̂_k + Ψ (B (u_k + u_{k+1})/2 + b_x)
-            for i in range(n_x):
-                acc = bx[i]
-                for j in range(n_u):
-                    acc += b[i, j] * 0.5 * (u[k, j] + u[k + 1, j])
-                drive[i] = acc
-            for i in range(n_x):
-                acc = 0.0
-                for j in range(n_x):
-                    acc += phi[i, j] * xhat[j] + psi[i, j] * drive[j]
-                x[i] = acc
+            _input_drive(b, bx, u, k, ubar, drive)
+            _predicted_state(phi, psi, xhat, drive, x)
 
 
 def _sensitivity_loop(
     phi, psi, dphi, dpsi, b, bx, c, d, by, db, dbx, dc, dd, dby, gain, dgain, x0, dx0, u, z, y, g
 ):  # pragma: no cover - numba
+    """The filter loop (same helpers) and, beside it, the state and output sensitivities."""
     n, n_x, n_o, n_u = u.shape[0], phi.shape[0], c.shape[0], u.shape[1]
     n_p = dphi.shape[2]
     x = x0.copy()
@@ -193,15 +231,8 @@ def _sensitivity_loop(
     drive = np.empty(n_x)
     ddrive = np.empty((n_x, n_p))
     for k in range(n):
+        _filtered_output(c, d, by, x, u, z, k, y, e)
         for i in range(n_o):
-            # ỹ_k = C x̃_k + D u_k + b_y
-            acc = by[i]
-            for j in range(n_x):
-                acc += c[i, j] * x[j]
-            for j in range(n_u):
-                acc += d[i, j] * u[k, j]
-            y[k, i] = acc
-            e[i] = z[k, i] - acc
             # ∂ỹ_k = ∂C x̃_k + C S̃_k + ∂D u_k + ∂b_y
             for p in range(n_p):
                 acc = dby[i, p]
@@ -210,12 +241,8 @@ def _sensitivity_loop(
                 for j in range(n_u):
                     acc += dd[i, j, p] * u[k, j]
                 g[k, i, p] = acc
+        _corrected_state(x, gain, e, xhat)
         for i in range(n_x):
-            # x̂_k = x̃_k + K e_k
-            acc = x[i]
-            for j in range(n_o):
-                acc += gain[i, j] * e[j]
-            xhat[i] = acc
             # ∂x̂_k = S̃_k + ∂K e_k − K ∂ỹ_k
             for p in range(n_p):
                 acc = s[i, p]
@@ -223,25 +250,16 @@ def _sensitivity_loop(
                     acc += dgain[i, j, p] * e[j] - gain[i, j] * g[k, j, p]
                 shat[i, p] = acc
         if k + 1 < n:
-            for j in range(n_u):
-                ubar[j] = 0.5 * (u[k, j] + u[k + 1, j])
-            # B ū_k + b_x and its derivative ∂B ū_k + ∂b_x
+            _input_drive(b, bx, u, k, ubar, drive)
+            # ∂(B ū_k + b_x) = ∂B ū_k + ∂b_x
             for i in range(n_x):
-                acc = bx[i]
-                for j in range(n_u):
-                    acc += b[i, j] * ubar[j]
-                drive[i] = acc
                 for p in range(n_p):
                     acc = dbx[i, p]
                     for j in range(n_u):
                         acc += db[i, j, p] * ubar[j]
                     ddrive[i, p] = acc
+            _predicted_state(phi, psi, xhat, drive, x)
             for i in range(n_x):
-                # x̃_{k+1} = Φ x̂_k + Ψ (B ū_k + b_x)
-                acc = 0.0
-                for j in range(n_x):
-                    acc += phi[i, j] * xhat[j] + psi[i, j] * drive[j]
-                x[i] = acc
                 # S̃_{k+1} = ∂Φ x̂_k + Φ ∂x̂_k + ∂Ψ (B ū_k + b_x) + Ψ (∂B ū_k + ∂b_x)
                 for p in range(n_p):
                     acc = 0.0

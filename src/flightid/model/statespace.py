@@ -347,6 +347,28 @@ class StateSpaceModel:
         model is returned unchanged.
         """
         names = list(_names(names, "names"))
+        self._check_per_maneuver_request(names, n_maneuvers)
+        if n_maneuvers == 1 or not names:
+            return self
+        self._check_expandable(names)
+        # parameters: the others in order, then maneuver-major copies
+        chosen = [p for p in self.parameters if p.name in names]
+        parameters = [p for p in self.parameters if p.name not in names]
+        for k in range(1, n_maneuvers + 1):
+            parameters += [replace(p, name=per_maneuver_name(p.name, k)) for p in chosen]
+        per = {
+            p.name: tuple(per_maneuver_name(p.name, k) for k in range(1, n_maneuvers + 1))
+            for p in chosen
+        }
+        return replace(
+            self,
+            parameters=Parameters(parameters),
+            function_parameters=self.function_parameters,
+            maneuver_parameters=per,
+        )
+
+    def _check_per_maneuver_request(self, names: list[str], n_maneuvers: int) -> None:
+        """``names`` are parameters of the model; ``n_maneuvers`` an integer ≥ 1."""
         unknown = [n for n in names if n not in self.parameters]
         if unknown:
             raise InputError(
@@ -357,8 +379,10 @@ class StateSpaceModel:
             raise InputTypeError(f"n_maneuvers: expected an integer, got {describe(n_maneuvers)}")
         if n_maneuvers < 1:
             raise InputError(f"n_maneuvers: expected at least 1, got {n_maneuvers}")
-        if n_maneuvers == 1 or not names:
-            return self
+
+    def _check_expandable(self, names: list[str]) -> None:
+        """No per-maneuver parameters yet, and none of ``names`` a time delay or an initial
+        state (only parameters that f and h read can be per maneuver)."""
         if self.maneuver_parameters:
             raise InputError(
                 "names: the model already has per-maneuver parameters "
@@ -376,21 +400,6 @@ class StateSpaceModel:
                 f"names: {used} are time delays or initial states; only parameters that f and "
                 f"h read can be per maneuver"
             )
-        # parameters: the others in order, then maneuver-major copies
-        chosen = [p for p in self.parameters if p.name in names]
-        parameters = [p for p in self.parameters if p.name not in names]
-        for k in range(1, n_maneuvers + 1):
-            parameters += [replace(p, name=per_maneuver_name(p.name, k)) for p in chosen]
-        per = {
-            p.name: tuple(per_maneuver_name(p.name, k) for k in range(1, n_maneuvers + 1))
-            for p in chosen
-        }
-        return replace(
-            self,
-            parameters=Parameters(parameters),
-            function_parameters=self.function_parameters,
-            maneuver_parameters=per,
-        )
 
     # ----------------------------------------------------------------- initial state
     def _check_x0(self, spec: InitialState, maneuver: int | None) -> list:

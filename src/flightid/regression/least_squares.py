@@ -302,6 +302,33 @@ class LeastSquaresResult(ResultSurface):
         }
 
 
+def _fit_sums(
+    X: np.ndarray, z: np.ndarray, theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, bool, float]:
+    """(fitted X θ, residuals z − X θ, RSS, mask of constant columns, whether there is one,
+    TSS) of the fit θ: TSS about the mean of z with a constant regressor, else about 0."""
+    fitted = X @ theta
+    residuals = z - fitted
+    # RSS = Σ (z − X θ)²
+    rss = float(residuals @ residuals)
+    constant = _constant_columns(X)
+    has_constant = bool(constant.any())
+    # TSS = Σ (z − z̄)² (with a constant regressor) or Σ z²
+    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    return fitted, residuals, rss, constant, has_constant, tss
+
+
+def _pse_sigma2_max(sigma2_max: float | None, z: np.ndarray, error: type[Exception]) -> float:
+    """σ²_max of PSE: the given value (a non-negative finite number, else ``error``) or, by
+    default, the variance of z about its mean."""
+    if sigma2_max is None:
+        # σ²_max = mean((z − z̄)²)
+        return float(np.mean((z - z.mean()) ** 2))
+    if not (np.isfinite(sigma2_max) and sigma2_max >= 0):
+        raise error(f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}")
+    return float(sigma2_max)
+
+
 def _readonly(array: np.ndarray) -> np.ndarray:
     array = np.array(array, dtype=float)
     array.flags.writeable = False
@@ -463,12 +490,7 @@ def least_squares(
     # θ_s = R⁻¹ Qᵀ z, θ = θ_s / norms   (equivalent to (XᵀX)⁻¹Xᵀz, [3.4])
     theta_scaled = np.linalg.solve(R, Q.T @ z)
     theta = theta_scaled / norms
-    fitted = X @ theta
-    residuals = z - fitted
-    rss = float(residuals @ residuals)
-    constant = _constant_columns(X)
-    has_constant = bool(constant.any())
-    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    fitted, residuals, rss, constant, has_constant, tss = _fit_sums(X, z, theta)
     s2 = rss / (n - p)
     # (XᵀX)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹ with D = diag(norms)
     R_inv = np.linalg.solve(R, np.eye(p))
@@ -476,12 +498,7 @@ def least_squares(
     # Cov(θ̂) = s² (XᵀX)⁻¹
     covariance = s2 * xtx_inv
     std = np.sqrt(np.diag(covariance))
-    if sigma2_max is None:
-        sigma2_max = float(np.mean((z - z.mean()) ** 2))
-    elif not (np.isfinite(sigma2_max) and sigma2_max >= 0):
-        raise LeastSquaresError(
-            f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}"
-        )
+    sigma2_max = _pse_sigma2_max(sigma2_max, z, LeastSquaresError)
     sigma = _default_sigma(X, residuals, xtx_inv, covariance, coloured, maneuver_index)
     return LeastSquaresResult(
         names=names,
@@ -500,7 +517,7 @@ def least_squares(
         n_samples=n,
         n_parameters=p,
         has_constant=has_constant,
-        sigma2_max=float(sigma2_max),
+        sigma2_max=sigma2_max,
         condition_number=condition,
         vif=_readonly(_vif(X, constant)),
         units=tuple(str(units.get(n, "")) for n in names) if units else (),

@@ -63,7 +63,8 @@ import numpy as np
 from flightid.regression.least_squares import (
     LeastSquaresError,
     LeastSquaresResult,
-    _constant_columns,
+    _fit_sums,
+    _pse_sigma2_max,
     _readonly,
     _vif,
     checked_regression_inputs,
@@ -216,12 +217,7 @@ def total_least_squares(
         )
     # θ̂_TLS = −v_{1..n} / v_{n+1}
     theta = -v[:-1] / v[-1]
-    fitted = X @ theta
-    residuals = z - fitted
-    rss = float(residuals @ residuals)
-    constant = _constant_columns(X)
-    has_constant = bool(constant.any())
-    tss = float(np.sum((z - z.mean()) ** 2)) if has_constant else float(z @ z)
+    fitted, residuals, rss, constant, has_constant, tss = _fit_sums(X, z, theta)
     Xs = X / norms
     singular_x = np.linalg.svd(Xs, compute_uv=False)
     condition = float(singular_x[0] / singular_x[-1]) if singular_x[-1] > 0 else float("inf")
@@ -236,12 +232,7 @@ def total_least_squares(
     cov_ols = s2 * xtx_inv
     cov_eiv = _eiv_covariance(X, residuals, theta)
     chosen = cov_ols if covariance == "ols" else cov_eiv
-    if sigma2_max is None:
-        sigma2_max = float(np.mean((z - z.mean()) ** 2))
-    elif not (np.isfinite(sigma2_max) and sigma2_max >= 0):
-        raise TotalLeastSquaresError(
-            f"sigma2_max: expected a non-negative finite number, got {sigma2_max!r}"
-        )
+    sigma2_max = _pse_sigma2_max(sigma2_max, z, TotalLeastSquaresError)
     return TotalLeastSquaresResult(
         names=names,
         estimates=_readonly(theta),
@@ -254,7 +245,7 @@ def total_least_squares(
         n_samples=n,
         n_parameters=p,
         has_constant=has_constant,
-        sigma2_max=float(sigma2_max),
+        sigma2_max=sigma2_max,
         condition_number=condition,
         vif=_readonly(_vif(X, constant)),
         units=tuple(str(units.get(n, "")) for n in names) if units else (),
