@@ -293,10 +293,6 @@ def _blocks(block):
         yield from _blocks(inner)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="functions above 25 remain until the complexity refactors in progress are merged",
-)
 def test_no_function_is_more_complex_than_25():
     complexity = pytest.importorskip("radon.complexity")
     above = []
