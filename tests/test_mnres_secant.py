@@ -396,3 +396,55 @@ def test_the_first_trial_on_a_later_sweep_is_the_full_gauss_newton_step(monkeypa
     assert result.converged
     assert radii, "no later sweep happened: the test needs a start that takes two sweeps"
     assert all(r == np.inf for r in radii), radii
+
+
+def test_damped_step_on_a_zero_radius_is_named_not_a_division_by_zero():
+    from flightid.estimation.solvers.mnres import _damped_step, _TrustRadiusCollapsed
+
+    normal = np.array([[2.0, 0.5], [0.5, 1.0]])
+    gradient = np.array([1.0, -1.0])
+    moving = np.array([True, True])
+    with pytest.raises(_TrustRadiusCollapsed):
+        _damped_step(normal, gradient, moving, 0.0)
+    # a positive radius still gives the step on the radius: ‖Δϑ‖ = Δ
+    step = _damped_step(normal, gradient, moving, 0.1)
+    assert np.linalg.norm(step) == pytest.approx(0.1, rel=1e-5)
+
+
+def test_collapsed_trust_radius_stops_the_secant_search_as_stalled(monkeypatch):
+    """Example 2, case 2, with tolerances no step can meet: the rejected trials halve the
+    radius until a step no longer moves θ and the radius becomes 0. The search ends as
+    stalled with the radius it reached (it raised ZeroDivisionError before)."""
+    import flightid.estimation.driver as driver
+    from flightid.estimation import Convergence
+    from flightid.paper.examples12 import example2_data
+
+    seen = []
+    confirm = driver.confirm_convergence
+
+    def recording(objective, outcome, *args, **kwargs):
+        seen.append((outcome.status, outcome.converged, outcome.message))
+        return confirm(objective, outcome, *args, **kwargs)
+
+    monkeypatch.setattr(driver, "confirm_convergence", recording)
+    result = estimate(
+        example_model(),
+        example2_data(2),
+        MNRES(fresh_rejections=40),
+        noise="fixed",
+        convergence=Convergence(cost_rtol=1e-15, param_rtol=1e-15, max_iterations=60),
+    )
+    ((status, converged, message),) = seen
+    assert status == "stalled" and not converged
+    assert message.startswith("stalled: the trust radius collapsed")
+    assert "no step lowered the cost down to a radius of " in message
+    assert "in ϑ = θ / scale" in message
+    # the last positive radius tried: below double precision relative to θ (the steps it
+    # allows no longer change θ), not the 0 it ended at
+    radius = float(message.split("radius of ")[1].split(" ")[0])
+    assert 0.0 < radius < 1e-15
+    # the driver judges a stalled solver's end point by central differences (as every
+    # stall): the estimate is converged only where that test holds, and says the solver stalled
+    assert result.status in ("converged", "stalled")
+    if result.converged:
+        assert "where the solver stalled" in result.message

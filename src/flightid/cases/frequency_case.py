@@ -36,6 +36,7 @@ import numpy as np
 
 from flightid.cases.checks import CaseError, _bool, _integer, _known, _number, _string, _table
 from flightid.errors import InputError
+from flightid.numbers import format_sigma, format_with_sigma
 from flightid.results import ResultSurface, finite_or_none
 
 __all__ = [
@@ -265,9 +266,11 @@ class FrequencyResult(ResultSurface):
         for row in self._frame_rows():
             if row["free"]:
                 cr = row["std_cr"]
-                cr_text = f"{cr:>12.3g}" if np.isfinite(cr) else f"{'—':>12}"
+                cr_text = f"{format_sigma(cr):>12}" if np.isfinite(cr) else f"{'—':>12}"
+                # σ to two significant digits, the estimate to σ's decimal place
+                value_text, std_text = format_with_sigma(row["value"], row["std"])
                 lines.append(
-                    f"{row['name']:<12}{row['value']:>14.6g}{row['std']:>12.3g}"
+                    f"{row['name']:<12}{value_text:>14}{std_text:>12}"
                     f"{cr_text}{row['initial']:>12.6g}"
                 )
             else:

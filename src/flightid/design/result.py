@@ -19,6 +19,7 @@ import numpy as np
 from flightid.design.information import PredictedAccuracy
 from flightid.design.optimize import Candidate, DesignProblem
 from flightid.design.signals import relative_peak_factor
+from flightid.numbers import format_sigma, format_with_sigma
 
 __all__ = ["DesignResult"]
 
@@ -92,10 +93,12 @@ class DesignResult:
         for j, name in enumerate(accuracy.names):
             value, sigma = accuracy.values[j], accuracy.std[j]
             percent = 100 * sigma / abs(value) if value != 0 else float("nan")
-            row = f"  {name:<12}{value:>13.6g}{sigma:>14.4g}{percent:>9.2f}"
+            # σ to two significant digits, the value to the predicted σ's decimal place
+            value_text, sigma_text = format_with_sigma(value, sigma)
+            row = f"  {name:<12}{value_text:>13}{sigma_text:>14}{percent:>9.2f}"
             if reference is not None:
                 ref = reference[0].std_of(name)
-                row += f"{ref:>14.4g}{sigma / ref:>8.3f}"
+                row += f"{format_sigma(ref):>14}{sigma / ref:>8.3f}"
             lines.append(row)
         if reference is not None:
             facts = reference[1]

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from flightid.errors import InputError
+from flightid.numbers import format_at_sigma, format_with_sigma
 from flightid.results import ResultSurface, t_intervals
 
 __all__ = ["RecursiveResult", "report_rows"]
@@ -203,10 +204,13 @@ class RecursiveResult(ResultSurface):
         ]
         for row in self._frame_rows():
             initial = "" if row["initial"] is None else f"{row['initial']:12.6g}"
-            std = f"{row['std']:12.4g}" if np.isfinite(row["std"]) else f"{'—':>12}"
+            # σ to two significant digits, each value to its σ's decimal place (six
+            # significant digits where the filter gives no σ)
+            value, std = format_with_sigma(row["value"], row["std"])
+            std = f"{std:>12}" if np.isfinite(row["std"]) else f"{'—':>12}"
+            last = format_at_sigma(row["last_filtered"], row["last_filtered_std"])
             lines.append(
-                f"{row['name']:<12} {row['value']:14.6g} {std} "
-                f"{row['last_filtered']:14.6g} {initial:>12}  {row['unit']}"
+                f"{row['name']:<12} {value:>14} {std} {last:>14} {initial:>12}  {row['unit']}"
             )
         if not self.has_standard_error:
             scales = ", ".join(

@@ -51,6 +51,7 @@ from flightid.coloured import (
     sigma_ratio,
 )
 from flightid.errors import InputError, describe
+from flightid.numbers import format_with_sigma
 from flightid.results import ResultSurface, check_method, finite_or_none, t_intervals
 
 __all__ = ["LeastSquaresResult", "least_squares", "LeastSquaresError"]
@@ -253,8 +254,10 @@ class LeastSquaresResult(ResultSurface):
         for j, name in enumerate(self.names):
             vif = self.vif[j]
             vif_text = "" if np.isnan(vif) else f"{vif:9.3g}"
+            # σ to two significant digits, the estimate to σ's decimal place
+            value_text, std_text = format_with_sigma(self.estimates[j], self.std[j])
             lines.append(
-                f"{name:<16s}{self.estimates[j]:>14.6g}{self.std[j]:>13.4g}"
+                f"{name:<16s}{value_text:>14s}{std_text:>13s}"
                 f"{self.t_values[j]:>10.3g}{self.partial_f[j]:>12.4g}"
                 f"{self.p_values[j]:>8.3f}{vif_text:>9s}"
                 + (f"  {units[name]}" if show_units else "")

@@ -394,6 +394,11 @@ def _secant_kernel():
     return _KERNEL[0]
 
 
+class _TrustRadiusCollapsed(Exception):
+    """The damped step was asked for on a trust radius that is 0 in floating point (a
+    trial step too short to change θ halves the radius to 0): no step can be formed."""
+
+
 def _damped_step(
     normal: np.ndarray, gradient: np.ndarray, moving: np.ndarray, radius: float
 ) -> np.ndarray:
@@ -407,6 +412,8 @@ def _damped_step(
     weighted outputs, so the damping does not depend on the units of ϑ (an output bias's
     unit is its output's σ). Measured on hard40 seed 6 (see the module docstring): damped
     with D = I instead, 1470 simulations to J* + 0.01; with D, 528.
+
+    Raises _TrustRadiusCollapsed when Δ·min_j d_j is 0 (the bracket below has no upper end).
     """
     m = normal[np.ix_(moving, moving)]
     diagonal = np.diag(m).copy()
@@ -421,7 +428,10 @@ def _damped_step(
 
     # ‖Δϑ(μ)‖ ≤ ‖Vᵀ D⁻¹c‖ / (μ min_j d_j): the upper end of the bracket is inside the radius
     low = max(1e-16 * float(lam[-1]), 1e-300)
-    high = float(np.linalg.norm(projected)) / (radius * float(d.min())) + float(lam[-1])
+    reach = radius * float(d.min())
+    if reach == 0.0:
+        raise _TrustRadiusCollapsed
+    high = float(np.linalg.norm(projected)) / reach + float(lam[-1])
     for _ in range(200):
         if high / low < 1.0 + 1e-6:
             break
@@ -1170,6 +1180,7 @@ class _SecantSearch(_Search):
 
     current: _SecantState | None = None
     fresh_failures: int = 0  # rejected trials in a row on freshly swept sensitivities
+    tried_radius: float = math.inf  # the last positive trust radius a pass tried (ϑ units)
 
     def finish(self, iterations: int, converged: bool, status: str, message: str):
         current = self.current
@@ -1218,7 +1229,10 @@ class _SecantSearch(_Search):
         return self.sweep()
 
     def iteration(self) -> SolverOutcome | None:
-        model = self.linearise()
+        try:
+            model = self.linearise()
+        except _TrustRadiusCollapsed:
+            return self.radius_collapsed()
         current = self.current
         gn_step = GaussNewtonStep(model.gn * model.scale, -1, math.nan, model.gn_drop)
         conv = self.objective.convergence
@@ -1270,6 +1284,8 @@ class _SecantSearch(_Search):
         # fresh model near the optimum often reaches it in one step)
         full_step_trial = current.fresh and self.fresh_failures == 0 and current.sweeps > 0
         radius = math.inf if full_step_trial else current.radius
+        if radius > 0.0:
+            self.tried_radius = radius
         # after a rejected trial on swept sensitivities: the damped step if the radius has
         # become a small part of the Gauss–Newton step (_secant_step)
         damped = current.fresh and self.fresh_failures > 0
@@ -1326,6 +1342,18 @@ class _SecantSearch(_Search):
             return None
         trusted = trial.was_fresh or current.proven
         return self.converge_or_sweep(trusted, self.passes, _CHANGES_SETTLED)
+
+    def radius_collapsed(self) -> SolverOutcome:
+        """The end of a search whose trust radius fell to 0: the shortest trials no longer
+        moved θ in floating point, and none of the longer ones lowered the cost."""
+        return self.finish(
+            self.passes,
+            False,
+            "stalled",
+            f"stalled: the trust radius collapsed — no step lowered the cost down to a radius "
+            f"of {self.tried_radius:.2g} in ϑ = θ / scale (scale = max(|θ|, floor) per "
+            "parameter); shorter steps no longer change θ in floating point",
+        )
 
     def reject_fresh(self, model: _SecantModel) -> SolverOutcome | None:
         """A rejected trial on freshly swept sensitivities: after ``fresh_rejections`` in a
