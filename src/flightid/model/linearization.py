@@ -9,7 +9,8 @@ The Jacobians are central differences of the model's f and h, step
 δ = 1e-6·max(|v|, 1) per state or input v — exact to rounding for a model linear in x and u.
 
 Covariance of the entries (delta method): with e(θ) = vec(A, B, C, D) (row-major A, then B, C,
-D) and J = ∂e/∂θ_free by central differences in θ (step 1e-4·max(|θ_j|, typical_j)),
+D) and J = ∂e/∂θ_free by central differences in θ (step max(1e-4·max(|θ_j|, typical_j),
+0.1·σ_j), σ_j = √P_jj),
 
     Cov e ≈ J P Jᵀ
 
@@ -312,9 +313,12 @@ def _entry_covariance(
             "covariance cannot be given"
         )
     typical = np.array([1e-3 if q.scale is None else q.scale for q in parameters])
+    sigma = np.sqrt(np.maximum(np.diag(p), 0.0))
     columns = []
-    for j in free_index:
-        step = PARAMETER_STEP * max(abs(theta[j]), typical[j])
+    for k, j in enumerate(free_index):
+        # δ_j = max(1e-4·max(|θ_j|, typical_j), 0.1·σ_j): on the scale of the uncertainty
+        # where that is larger, so that rounding in the inner differences stays small
+        step = max(PARAMETER_STEP * max(abs(theta[j]), typical[j]), 0.1 * sigma[k])
         plus, minus = theta.copy(), theta.copy()
         plus[j] += step
         minus[j] -= step
