@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from data_paths import ROOT, needs_data
 from flightid.model.linearization import LinearModel, linearize
 from flightid.model.modes import ModeError, Modes
 from flightid.model.parameters import Parameters
@@ -167,3 +168,39 @@ def test_general_models_number_their_modes_and_zero_eigenvalues_are_neutral():
     assert "neutral" in neutral.names
     text = modes.summary()
     assert "omega_n [rad/s]" in text and "mode 2" in text
+
+
+@needs_data("fvsysid/hfb320_1_10.asc")
+@pytest.mark.filterwarnings("ignore:.*outlier")
+def test_hfb320_modes_and_their_sigma_against_a_monte_carlo():
+    from flightid.cases.run import run_case
+
+    run = run_case(ROOT / "examples" / "cases" / "hfb320_longitudinal.toml", accuracy="none")
+    result, data = run.estimate, run.maneuvers[0]
+    linear = result.linearize(at=data)
+    modes = linear.modes()
+    assert modes.names == ["short period", "phugoid"]
+    sp, ph = modes["short period"], modes["phugoid"]
+    # regression values of this estimate (not an independent reference)
+    assert sp.natural_frequency == pytest.approx(2.05, abs=0.02)
+    assert sp.damping_ratio == pytest.approx(0.41, abs=0.01)
+    assert ph.natural_frequency == pytest.approx(0.140, abs=0.002)
+    # Monte Carlo: θ ~ N(θ̂, P) over the free parameters, each draw linearized at the same point
+    free = np.asarray(result.free, dtype=bool)
+    draws = np.random.default_rng(3).multivariate_normal(
+        result.values[free], result.covariance_default, size=300
+    )
+    wn_sp, zeta_sp, wn_ph = [], [], []
+    for draw in draws:
+        theta = np.array(result.values, dtype=float)
+        theta[free] = draw
+        model = result.model.with_parameters(result.model.parameters.with_values(theta))
+        lam = np.linalg.eigvals(linearize(model, linear.x0, linear.u0).A)
+        lam = sorted(lam[lam.imag > 0], key=abs)
+        wn_ph.append(abs(lam[0]))
+        wn_sp.append(abs(lam[1]))
+        zeta_sp.append(-lam[1].real / abs(lam[1]))
+    # 300 draws: sample σ within ±4 % (1σ); accept 15 %
+    assert np.std(wn_sp, ddof=1) == pytest.approx(sp.natural_frequency_std, rel=0.15)
+    assert np.std(zeta_sp, ddof=1) == pytest.approx(sp.damping_ratio_std, rel=0.15)
+    assert np.std(wn_ph, ddof=1) == pytest.approx(ph.natural_frequency_std, rel=0.15)

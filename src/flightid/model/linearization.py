@@ -164,7 +164,8 @@ class LinearModel:
 
     # ------------------------------------------------------------------ reports
     def summary(self) -> str:
-        """The matrices with σ of every entry, the operating point and the modes."""
+        """The matrices with σ of every entry (where it is not 0), the operating point and
+        the modes."""
         lines = [f"{self.name}: {len(self.states)} states, {len(self.inputs)} inputs, "]
         lines[0] += f"{len(self.outputs)} outputs"
         if self.operating_point:
@@ -189,7 +190,7 @@ class LinearModel:
             for i, row in enumerate(rows[block]):
                 cells = [
                     f"{matrix[i, j]:11.4g}"
-                    + ("" if np.isnan(sigma[i, j]) else f" ±{sigma[i, j]:.2g}")
+                    + (f" ±{sigma[i, j]:.2g}" if sigma[i, j] > 0 else "")
                     for j in range(matrix.shape[1])
                 ]
                 lines.append(f"  {row:<8}" + "  ".join(cells))
