@@ -98,7 +98,7 @@ class Mode:
 
     @property
     def dominant_state(self) -> str:
-        return max(self.participation, key=self.participation.get)
+        return _dominant(self.participation)
 
     def to_dict(self) -> dict:
         entry: dict = {
@@ -242,6 +242,36 @@ def _axis(participation: dict[str, float]) -> str:
     return "longitudinal" if longitudinal >= lateral else "lateral"
 
 
+def _dominant(participation: dict[str, float]) -> str:
+    return max(participation, key=participation.get) if participation else ""
+
+
+def _name_longitudinal(names, eigenvalues, chosen, states) -> None:
+    """Oscillatory longitudinal modes by ω_n descending: short period, then phugoid (when a
+    speed state is among the states)."""
+    oscillatory = [k for k in chosen if eigenvalues[k].imag > 0]
+    if oscillatory:
+        names[oscillatory[0]] = "short period"
+    if len(oscillatory) > 1 and any(s in states for s in SPEED_STATES):
+        names[oscillatory[1]] = "phugoid"
+
+
+def _name_lateral(names, eigenvalues, participations, chosen, states) -> None:
+    """Dutch roll (fastest oscillatory), roll subsidence (real, p dominant, most p), spiral
+    (the slowest other real mode, when phi is a state)."""
+    oscillatory = [k for k in chosen if eigenvalues[k].imag > 0]
+    if oscillatory:
+        names[oscillatory[0]] = "Dutch roll"
+    real = [k for k in chosen if eigenvalues[k].imag == 0]
+    roll = [k for k in real if _dominant(participations[k]) == "p"]
+    if roll:
+        picked = max(roll, key=lambda k: participations[k]["p"])
+        names[picked] = "roll subsidence"
+        real.remove(picked)
+    if real and "phi" in states:
+        names[min(real, key=lambda k: abs(eigenvalues[k]))] = "spiral"
+
+
 def mode_names(
     eigenvalues: list[complex], participations: list[dict[str, float]], states: tuple[str, ...]
 ) -> list[str]:
@@ -252,27 +282,11 @@ def mode_names(
     for k, lam in enumerate(eigenvalues):
         if abs(lam) <= NEUTRAL_TOLERANCE * top:
             names[k] = "neutral"
-    free = [k for k in range(len(eigenvalues)) if names[k] != "neutral"]
-    longitudinal = [k for k in free if axes[k] == "longitudinal" and eigenvalues[k].imag > 0]
-    if longitudinal:
-        names[longitudinal[0]] = "short period"
-        if len(longitudinal) > 1 and any(s in states for s in SPEED_STATES):
-            names[longitudinal[1]] = "phugoid"
-    lateral_osc = [k for k in free if axes[k] == "lateral" and eigenvalues[k].imag > 0]
-    if lateral_osc:
-        names[lateral_osc[0]] = "Dutch roll"
-    lateral_real = [k for k in free if axes[k] == "lateral" and eigenvalues[k].imag == 0]
-    roll = [
-        k
-        for k in lateral_real
-        if "p" in participations[k] and max(participations[k], key=participations[k].get) == "p"
-    ]
-    if roll:
-        chosen = max(roll, key=lambda k: participations[k]["p"])
-        names[chosen] = "roll subsidence"
-        lateral_real.remove(chosen)
-    if lateral_real and "phi" in states:
-        names[min(lateral_real, key=lambda k: abs(eigenvalues[k]))] = "spiral"
+    moving = [k for k in range(len(eigenvalues)) if names[k] != "neutral"]
+    _name_longitudinal(names, eigenvalues, [k for k in moving if axes[k] == "longitudinal"], states)
+    _name_lateral(
+        names, eigenvalues, participations, [k for k in moving if axes[k] == "lateral"], states
+    )
     return names
 
 
