@@ -185,3 +185,36 @@ def test_band_needs_bands_and_a_level_inside_0_1(fitted):
     np.testing.assert_allclose(cr, banded.predicted_std, rtol=1e-12)
     with pytest.raises(ValueError, match="std"):
         result.predict(held_out, bands=True, std="beale")
+
+
+def test_parameters_per_maneuver_need_as_many_maneuvers(fitted):
+    result, estimation, held_out = fitted
+    per = short_period(x0=[(0.0, 0.0), (0.0, 0.0)]).with_per_maneuver(["Mde"], 2)
+    with pytest.raises(PredictionError, match="parameters per estimation maneuver"):
+        replace(result, model=per).predict(held_out)
+    # as many maneuvers: maneuver k takes the k-th copies (here equal, so the same outputs)
+    both = replace(result, model=per).predict([estimation, held_out])
+    np.testing.assert_allclose(
+        both[1].predicted, short_period_prediction(held_out), rtol=0, atol=1e-14
+    )
+
+
+def short_period_prediction(data: FlightData) -> np.ndarray:
+    """The true model from the first measured states (the prediction's default x0)."""
+    x0 = (data.output("alpha")[0], data.output("q")[0])
+    return simulate(short_period(x0=x0), data)
+
+
+def test_a_multiple_shooting_model_predicts_each_maneuver_in_one_integration(fitted):
+    from flightid.model.unstable import with_multiple_shooting
+
+    result, estimation, held_out = fitted
+    shooting = with_multiple_shooting(short_period(), estimation, 3)
+    assert shooting.shooting is not None
+    values = dict(zip(shooting.parameters.names, shooting.parameters.values, strict=True))
+    values.update(dict(zip(result.names, result.values, strict=True)))
+    shooting = shooting.with_parameters(shooting.parameters.with_values(values))
+    prediction = replace(result, model=shooting).predict(held_out)
+    np.testing.assert_allclose(
+        prediction.predicted, result.predict(held_out).predicted, rtol=0, atol=1e-14
+    )

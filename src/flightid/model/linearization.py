@@ -189,8 +189,7 @@ class LinearModel:
             lines.append(f"{block} (rows {list(rows[block])}, columns {list(cols[block])}):")
             for i, row in enumerate(rows[block]):
                 cells = [
-                    f"{matrix[i, j]:11.4g}"
-                    + (f" ±{sigma[i, j]:.2g}" if sigma[i, j] > 0 else "")
+                    f"{matrix[i, j]:11.4g}" + (f" ±{sigma[i, j]:.2g}" if sigma[i, j] > 0 else "")
                     for j in range(matrix.shape[1])
                 ]
                 lines.append(f"  {row:<8}" + "  ".join(cells))
@@ -344,6 +343,15 @@ def _delay_notes(model: StateSpaceModel) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def _maneuver_notes(model: StateSpaceModel, maneuver: int) -> tuple[str, ...]:
+    if not model.maneuver_parameters:
+        return ()
+    return (
+        f"parameters per maneuver {list(model.maneuver_parameters)}: those of maneuver "
+        f"{maneuver + 1}",
+    )
+
+
 def linearize(
     model: StateSpaceModel,
     x: Sequence[float] | Mapping[str, float] | np.ndarray,
@@ -398,6 +406,6 @@ def linearize(
         input_units=tuple(units.get(n, "") or "" for n in model.inputs),
         output_units=tuple(units.get(n, "") or "" for n in model.outputs),
         operating_point=operating_point,
-        notes=_delay_notes(model),
+        notes=_delay_notes(model) + _maneuver_notes(model, maneuver),
         name=name or model.name,
     )

@@ -237,7 +237,9 @@ def prediction_model(
     maneuvers: Sequence[FlightData],
     x0: Sequence | Mapping | np.ndarray | None = None,
 ) -> StateSpaceModel:
-    """The model with fixed numeric initial states for ``maneuvers`` (``initial_states``).
+    """The model with fixed numeric initial states for ``maneuvers`` (``initial_states``),
+    integrated from them over each whole maneuver (without the multiple-shooting intervals of
+    the estimation; a stabilizing gain stays and needs the measured outputs).
 
     Raises ``PredictionError`` for a model with parameters per estimation maneuver unless
     the maneuvers are as many (then maneuver k takes the k-th copies)."""
@@ -250,7 +252,12 @@ def prediction_model(
         )
     starts = initial_states(model, maneuvers, x0)
     spec = tuple(tuple(float(v) for v in s) for s in starts)
-    return replace(model, x0=spec if len(spec) > 1 else spec[0])
+    fixed = replace(model, x0=spec if len(spec) > 1 else spec[0])
+    if getattr(fixed, "shooting", None) is not None:
+        # the shooting intervals belong to the estimation maneuvers: a prediction is one
+        # integration of each maneuver from its initial state
+        fixed = replace(fixed, shooting=None)
+    return fixed
 
 
 def output_sensitivities(
@@ -302,31 +309,27 @@ def predict_maneuvers(
     method: str = "rk4",
     input_interpolation: str = "linear",
     covariance: np.ndarray | None = None,
-    measured: bool = True,
 ) -> list[Prediction]:
     """One ``Prediction`` per maneuver of ``data``, simulated with ``model`` at its parameter
     values from the initial states of ``initial_states``.
 
     Args:
         model: the model at the values to predict with.
-        data: maneuvers carrying the model's inputs (and its outputs when ``measured``).
+        data: maneuvers carrying the model's inputs and outputs.
         x0: initial states (``initial_states``).
         method, input_interpolation: integration, as in ``Simulator``.
         covariance: P of the free parameters (n_f, n_f): with it each prediction carries
             ``predicted_std`` (delta method, module docstring); None: no band.
-        measured: compare with the data's outputs (False: ``measured`` is NaN, as for inputs
-            without measurements).
     """
     maneuvers = _as_data_list(data)
-    if measured:
-        for k, maneuver in enumerate(maneuvers):
-            missing = [n for n in model.outputs if n not in maneuver.output_names]
-            if missing:
-                raise PredictionError(
-                    f"data[{k}] ({maneuver.name or 'unnamed'}): the model's outputs {missing} "
-                    f"are not output channels of the data (outputs "
-                    f"{list(maneuver.output_names)}); use simulate for inputs alone"
-                )
+    for k, maneuver in enumerate(maneuvers):
+        missing = [n for n in model.outputs if n not in maneuver.output_names]
+        if missing:
+            raise PredictionError(
+                f"data[{k}] ({maneuver.name or 'unnamed'}): the model's outputs {missing} "
+                f"are not output channels of the data (outputs "
+                f"{list(maneuver.output_names)}); use simulate for inputs alone"
+            )
     fixed = prediction_model(model, maneuvers, x0)
     simulator = Simulator(fixed, maneuvers, method=method, input_interpolation=input_interpolation)
     theta = fixed.parameters.values
@@ -343,11 +346,7 @@ def predict_maneuvers(
     for maneuver in maneuvers:
         stop = start + maneuver.n_samples
         y = outputs[start:stop]
-        z = (
-            np.column_stack([maneuver.output(n) for n in model.outputs])
-            if measured
-            else np.full_like(y, np.nan)
-        )
+        z = np.column_stack([maneuver.output(n) for n in model.outputs])
         prediction = Prediction.from_outputs(maneuver.name, maneuver.time, z, y, model.outputs)
         predictions.append(
             replace(
