@@ -173,3 +173,22 @@ def test_to_control_gives_a_named_state_space(fitted):
     np.testing.assert_array_equal(system.A, linear.A)
     assert list(system.state_labels) == ["alpha", "q"]
     assert list(system.input_labels) == ["de"]
+
+
+def test_measured_states_as_inputs_and_delays_are_noted():
+    # ṗ = L_p p + L_β β_m with β a measured input: A is the roll subsystem only
+    def f(t, x, u, th):
+        return np.array([th[0] * x[0] + th[1] * u[0]])
+
+    def h(t, x, u, th):
+        return np.array([x[0]])
+
+    parameters = Parameters({"Lp": -2.0, "Lb": -10.0, "tau": 0.05})
+    model = StateSpaceModel(("p",), ("beta",), ("p",), f, h, parameters, output_delays={"p": "tau"})
+    linear = linearize(model, [0.0], [0.0])
+    assert any("['beta'] are measured states" in n for n in linear.notes)
+    assert any("delayed by tau = 0.05 s" in n for n in linear.notes)
+    assert "measured states" in linear.modes().summary()
+    assert linear.to_dict()["notes"] == list(linear.notes)
+    plain = StateSpaceModel(("p",), ("da",), ("p",), f, h, Parameters({"Lp": -2.0, "Lb": 1.0}))
+    assert linearize(plain, [0.0], [0.0]).notes == ()

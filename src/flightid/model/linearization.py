@@ -193,8 +193,8 @@ class LinearModel:
                     for j in range(matrix.shape[1])
                 ]
                 lines.append(f"  {row:<8}" + "  ".join(cells))
-        lines.extend(f"note: {n}" for n in self.notes)
         lines.append("")
+        # the modes' table ends with the notes (what A leaves out)
         lines.append(self.modes().summary())
         return "\n".join(lines)
 
@@ -343,6 +343,26 @@ def _delay_notes(model: StateSpaceModel) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def _measured_state_notes(model: StateSpaceModel) -> tuple[str, ...]:
+    """A note when inputs are measured states (an airplane state name, or a state's name with
+    ``_m``): then A holds the dynamics of the other states with those held as inputs — its
+    modes are not those of the free airplane."""
+    from flightid.model.modes import LATERAL_STATES, LONGITUDINAL_STATES
+
+    airplane = set(LONGITUDINAL_STATES) | set(LATERAL_STATES)
+    measured = [
+        n
+        for n in model.inputs
+        if n in airplane or n in model.states or (n.endswith("_m") and n[:-2] in model.states)
+    ]
+    if not measured:
+        return ()
+    return (
+        f"inputs {measured} are measured states: A holds the dynamics of {list(model.states)} "
+        f"with them held as inputs; its modes are not those of the free airplane",
+    )
+
+
 def _maneuver_notes(model: StateSpaceModel, maneuver: int) -> tuple[str, ...]:
     if not model.maneuver_parameters:
         return ()
@@ -406,6 +426,6 @@ def linearize(
         input_units=tuple(units.get(n, "") or "" for n in model.inputs),
         output_units=tuple(units.get(n, "") or "" for n in model.outputs),
         operating_point=operating_point,
-        notes=_delay_notes(model) + _maneuver_notes(model, maneuver),
+        notes=_delay_notes(model) + _measured_state_notes(model) + _maneuver_notes(model, maneuver),
         name=name or model.name,
     )

@@ -128,6 +128,7 @@ class Modes:
 
     modes: tuple[Mode, ...]
     states: tuple[str, ...]
+    notes: tuple[str, ...] = ()  # the linear model's notes (what its A leaves out)
 
     def __iter__(self) -> Iterator[Mode]:
         return iter(self.modes)
@@ -168,6 +169,7 @@ class Modes:
                 cells.append(f"{cell:>{22 if attribute == 'natural_frequency' else 20}}")
             cells.append(f"  {mode.dominant_state}")
             lines.append("".join(cells))
+        lines.extend(f"note: {n}" for n in self.notes)
         return "\n".join(lines)
 
     def to_dict(self) -> list[dict]:
@@ -315,4 +317,4 @@ def modes_of(linear) -> Modes:
         if cov_a is None:
             sigma_im = math.nan
         modes.append(Mode(name, lam, (sigma_re, sigma_im), participation=share, **numbers))
-    return Modes(tuple(modes), tuple(linear.states))
+    return Modes(tuple(modes), tuple(linear.states), tuple(linear.notes))
