@@ -192,3 +192,21 @@ def test_measured_states_as_inputs_and_delays_are_noted():
     assert linear.to_dict()["notes"] == list(linear.notes)
     plain = StateSpaceModel(("p",), ("da",), ("p",), f, h, Parameters({"Lp": -2.0, "Lb": 1.0}))
     assert linearize(plain, [0.0], [0.0]).notes == ()
+
+
+def test_an_undetermined_parameter_leaves_the_entries_without_sigma(fitted):
+    from dataclasses import replace
+
+    result, _ = fitted
+    covariance = np.array(result.covariance)
+    covariance[0, :] = covariance[:, 0] = np.inf
+    std = np.array(result.std)
+    std[0] = np.inf
+    undetermined = replace(
+        result, covariance=covariance, std_cr=std, std=std, covariance_default=None
+    )
+    linear = undetermined.linearize()
+    assert linear.covariance is None and np.isnan(linear.block_std("A")).all()
+    assert any("['Za'] are undetermined" in n for n in linear.notes)
+    np.testing.assert_allclose(linear.A, result.linearize().A, rtol=1e-12)
+    assert np.isnan(linear.modes()[0].natural_frequency_std)

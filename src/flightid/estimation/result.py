@@ -365,7 +365,8 @@ class Estimate(ResultSurface):
                 nonlinear one give the point); a ``FlightData`` — the initial state of that
                 maneuver (as ``predict`` starts it) and the mean of each input over it;
                 or ``(x, u)`` — values per state and per input (sequences or mappings).
-            std: which covariance: ``"default"`` or ``"cr"``.
+            std: which covariance: ``"default"`` or ``"cr"``. Where it is not finite (an
+                undetermined parameter) the entries have no σ and ``notes`` says why.
 
         Returns:
             A ``LinearModel`` (``modes()``, ``to_scipy()``, ``to_control()``).
@@ -391,14 +392,21 @@ class Estimate(ResultSurface):
             raise LinearizationError(
                 f"at: expected None, a FlightData or (x, u), got {type(at).__name__}"
             )
+        covariance, notes = self._covariance_for(std), ()
+        if not np.all(np.isfinite(covariance)):
+            # undetermined parameters (σ = inf): the matrices without σ, and why
+            undetermined = [n for n, s in zip(self.names, self.std, strict=True) if s == np.inf]
+            covariance = None
+            notes = (f"no σ of the entries: the parameters {undetermined} are undetermined",)
         return linearize(
             self.model,
             x,
             u,
-            covariance=self._covariance_for(std),
+            covariance=covariance,
             units=units,
             operating_point=point,
             name=self.model.name,
+            notes=notes,
         )
 
     # ------------------------------------------------------------------ reports

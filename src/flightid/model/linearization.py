@@ -383,6 +383,7 @@ def linearize(
     units: Mapping[str, str] | None = None,
     operating_point: str = "",
     name: str = "",
+    notes: Sequence[str] = (),
 ) -> LinearModel:
     """The linear model of ``model`` at its parameter values about (x, u) (module docstring).
 
@@ -397,6 +398,7 @@ def linearize(
         units: ``{channel: unit}`` for the states, inputs and outputs.
         operating_point: how the point was chosen, in words (for reports).
         name: label (default: the model's name).
+        notes: further lines for ``LinearModel.notes``.
     Raises:
         LinearizationError: a point of the wrong size or not finite, a covariance of the
             wrong shape or with non-finite entries.
@@ -426,6 +428,9 @@ def linearize(
         input_units=tuple(units.get(n, "") or "" for n in model.inputs),
         output_units=tuple(units.get(n, "") or "" for n in model.outputs),
         operating_point=operating_point,
-        notes=_delay_notes(model) + _measured_state_notes(model) + _maneuver_notes(model, maneuver),
+        notes=_delay_notes(model)
+        + _measured_state_notes(model)
+        + _maneuver_notes(model, maneuver)
+        + tuple(notes),
         name=name or model.name,
     )
