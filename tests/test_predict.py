@@ -218,3 +218,13 @@ def test_a_multiple_shooting_model_predicts_each_maneuver_in_one_integration(fit
     np.testing.assert_allclose(
         prediction.predicted, result.predict(held_out).predicted, rtol=0, atol=1e-14
     )
+
+
+def test_bands_do_not_depend_on_the_batch_size(fitted, monkeypatch):
+    import importlib
+
+    prediction = importlib.import_module("flightid.simulate.prediction")
+    result, _, held_out = fitted
+    whole = result.predict(held_out, bands=True).predicted_std
+    monkeypatch.setattr(prediction, "BATCH_BYTES", 1)  # one parameter per batch
+    np.testing.assert_array_equal(result.predict(held_out, bands=True).predicted_std, whole)

@@ -45,6 +45,8 @@ __all__ = [
 
 # relative step of the central differences of the outputs in θ: δ_j = 1e-5·max(|θ_j|, typ_j)
 SENSITIVITY_STEP = 1e-5
+# perturbed outputs held at once while differencing (bytes)
+BATCH_BYTES = 16 * 2**20
 
 
 class PredictionError(InputError):
@@ -264,21 +266,29 @@ def output_sensitivities(
     simulator: Simulator, theta: np.ndarray, free_index: np.ndarray, typical: np.ndarray
 ) -> np.ndarray:
     """S = ∂y/∂θ_free (N, n_o, n_f) by central differences of whole simulations,
-    δ_j = SENSITIVITY_STEP·max(|θ_j|, typical_j); raises ``SimulationError`` if a perturbed
-    simulation diverges."""
+    δ_j = SENSITIVITY_STEP·max(|θ_j|, typical_j), run in batches of at most
+    ``BATCH_BYTES`` of perturbed outputs; raises ``SimulationError`` if a perturbed simulation
+    diverges."""
     theta = np.asarray(theta, dtype=float)
     steps = SENSITIVITY_STEP * np.maximum(np.abs(theta[free_index]), typical)
-    n_f = free_index.size
-    rows = np.repeat(theta[None, :], 2 * n_f, axis=0)
-    rows[np.arange(n_f), free_index] += steps
-    rows[n_f + np.arange(n_f), free_index] -= steps
-    batch = simulator.run(rows)
-    if batch.diverged.any():
-        first = int(np.flatnonzero(batch.diverged)[0])
-        raise SimulationError(f"output sensitivities: {batch.messages[first]}")
-    # S_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
-    columns = (batch.outputs[:n_f] - batch.outputs[n_f:]) / (2.0 * steps[:, None, None])
-    return np.moveaxis(columns, 0, -1)
+    n_out = len(simulator.model.outputs)
+    sensitivities = np.empty((simulator.n_samples, n_out, free_index.size))
+    trajectory = max(2 * simulator.n_samples * n_out * 8, 1)
+    per_batch = max(1, BATCH_BYTES // trajectory)
+    for first in range(0, free_index.size, per_batch):
+        chosen = np.arange(first, min(first + per_batch, free_index.size))
+        n = chosen.size
+        rows = np.repeat(theta[None, :], 2 * n, axis=0)
+        rows[np.arange(n), free_index[chosen]] += steps[chosen]
+        rows[n + np.arange(n), free_index[chosen]] -= steps[chosen]
+        batch = simulator.run(rows)
+        if batch.diverged.any():
+            bad = int(np.flatnonzero(batch.diverged)[0])
+            raise SimulationError(f"output sensitivities: {batch.messages[bad]}")
+        # S_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
+        columns = (batch.outputs[:n] - batch.outputs[n:]) / (2.0 * steps[chosen, None, None])
+        sensitivities[:, :, chosen] = np.moveaxis(columns, 0, -1)
+    return sensitivities
 
 
 def output_std(sensitivities: np.ndarray, covariance: np.ndarray) -> np.ndarray:
