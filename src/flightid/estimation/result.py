@@ -347,6 +347,109 @@ class Estimate(ResultSurface):
         """RMS residual per output, in the outputs' units."""
         return np.sqrt(np.mean(self.residuals**2, axis=0))
 
+    # ------------------------------------------------------------------ the model in use
+    def _covariance_for(self, std: str) -> np.ndarray:
+        """The covariance of the free estimates behind ``std`` ("default" or "cr")."""
+        check_method(std, ("default", "cr"), "std")
+        return self.covariance_default if std == "default" else self.covariance
+
+    def predict(self, data, x0=None, *, bands: bool = False, std: str = "default"):
+        """The estimated model on other data: outputs, residuals and fit numbers (RMS error
+        and R² per output), as the prediction check of a case reports them
+        (``flightid.simulation.prediction``).
+
+        Args:
+            data: a ``FlightData`` (returns one ``Prediction``) or a list of them (returns a
+                tuple, one per maneuver), with the model's inputs and outputs.
+            x0: initial states: one value per state or ``{state: value}`` (or a list, one per
+                maneuver); states not given start at the first sample of the data's channel
+                of that name, else at the model's initial state.
+            bands: also give ``Prediction.predicted_std``, σ of the outputs from the
+                parameter covariance (delta method; ``Prediction.band(level)``).
+            std: which covariance: ``"default"`` (the one behind ``std``) or ``"cr"``.
+        """
+        from flightid.data.flightdata import FlightData
+        from flightid.simulation.prediction import predict_maneuvers
+
+        covariance = self._covariance_for(std) if bands else None
+        predictions = predict_maneuvers(
+            self.model,
+            data,
+            x0,
+            method=self.method,
+            input_interpolation=self.input_interpolation,
+            covariance=covariance,
+        )
+        return predictions[0] if isinstance(data, FlightData) else tuple(predictions)
+
+    def simulate(self, inputs, x0=None) -> np.ndarray:
+        """Outputs (N_total, n_o) of the estimated model driven by the inputs of ``inputs``
+        (a ``FlightData`` or a list; outputs are not needed), from the initial states ``x0``
+        (as in ``predict``), with the estimation's integration and input interpolation."""
+        from flightid.simulation import simulate
+        from flightid.simulation.prediction import prediction_model
+        from flightid.simulation.simulator import _as_data_list
+
+        maneuvers = _as_data_list(inputs)
+        model = prediction_model(self.model, maneuvers, x0)
+        return simulate(
+            model, maneuvers, method=self.method, input_interpolation=self.input_interpolation
+        )
+
+    def linearize(self, at=None, *, std: str = "default"):
+        """The estimated model linearized about an operating point, with the covariance of
+        A, B, C, D from the parameter covariance (``flightid.model.linearization``).
+
+        Args:
+            at: the operating point: ``None`` — the initial state of the first estimation
+                maneuver and all inputs 0 (exact for a model linear in x and u; for a
+                nonlinear one give the point); a ``FlightData`` — the initial state of that
+                maneuver (as ``predict`` starts it) and the mean of each input over it;
+                or ``(x, u)`` — values per state and per input (sequences or mappings).
+            std: which covariance: ``"default"`` or ``"cr"``. Where it is not finite (an
+                undetermined parameter) the entries have no σ and ``notes`` says why.
+
+        Returns:
+            A ``LinearModel`` (``modes()``, ``to_scipy()``, ``to_control()``).
+        """
+        from flightid.data.flightdata import FlightData
+        from flightid.model.linearization import LinearizationError, linearize
+        from flightid.simulation.prediction import initial_states
+
+        units = dict(self.output_unit_map)
+        if at is None:
+            x = self.model.initial_state(np.asarray(self.values, dtype=float), 0)
+            u = np.zeros(len(self.model.inputs))
+            point = "initial state of the first estimation maneuver, inputs 0"
+        elif isinstance(at, FlightData):
+            (x,) = initial_states(self.model, [at], None)
+            u = np.array([float(np.mean(at.channel(n))) for n in self.model.inputs])
+            units = {**units, **dict(at.units)}
+            point = f"initial state and mean inputs of maneuver {at.name or '(unnamed)'}"
+        elif isinstance(at, (tuple, list)) and len(at) == 2:
+            x, u = at
+            point = "given"
+        else:
+            raise LinearizationError(
+                f"at: expected None, a FlightData or (x, u), got {type(at).__name__}"
+            )
+        covariance, notes = self._covariance_for(std), ()
+        if not np.all(np.isfinite(covariance)):
+            # undetermined parameters (σ = inf): the matrices without σ, and why
+            undetermined = [n for n, s in zip(self.names, self.std, strict=True) if s == np.inf]
+            covariance = None
+            notes = (f"no σ of the entries: the parameters {undetermined} are undetermined",)
+        return linearize(
+            self.model,
+            x,
+            u,
+            covariance=covariance,
+            units=units,
+            operating_point=point,
+            name=self.model.name,
+            notes=notes,
+        )
+
     # ------------------------------------------------------------------ reports
     def summary(self) -> str:
         """A readable table of the estimates with their default σ (and the Cramér–Rao

@@ -1,0 +1,371 @@
+"""Prediction with a model at given parameter values: outputs, residuals, fit numbers and,
+on request, output bands from the parameter covariance.
+
+Fit numbers per output o over the N samples of one maneuver:
+
+    RMS error   e_o = √( (1/N) Σ_i (z_io − y_io)² )
+    R²_o        = 1 − Σ_i (z_io − y_io)² / Σ_i (z_io − z̄_o)²
+
+Prediction bands (delta method): with the output sensitivities S_k = ∂y_k/∂θ (n_o × n_f, the
+free parameters, central differences of whole simulations) and the covariance P of the free
+estimates,
+
+    Var y_k,o ≈ (S_k P S_kᵀ)_oo
+
+— the spread of the model output that the parameter uncertainty alone causes (measurement
+noise is not in it); exact to first order in the parameter deviations.
+
+Initial states of a predicted maneuver (``initial_states``): the values given, else the first
+sample of the data's channel named like the state, else the model's own initial state (when
+it is one specification for every maneuver); anything else is refused with the state named.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.stats import norm
+
+from flightid.data.flightdata import FlightData
+from flightid.errors import InputError, SimulationError
+from flightid.model.statespace import StateSpaceModel
+from flightid.simulation.simulator import Simulator, _as_data_list
+
+__all__ = [
+    "Prediction",
+    "PredictionError",
+    "initial_states",
+    "output_sensitivities",
+    "output_std",
+    "predict_maneuvers",
+    "prediction_model",
+]
+
+# relative step of the central differences of the outputs in θ: δ_j = 1e-5·max(|θ_j|, typ_j)
+SENSITIVITY_STEP = 1e-5
+# perturbed outputs held at once while differencing (bytes)
+BATCH_BYTES = 16 * 2**20
+
+
+class PredictionError(InputError):
+    """A prediction that cannot be made as asked (initial state unknown, data unsuitable)."""
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Measured and predicted outputs of one maneuver, with fit numbers.
+
+    Attributes:
+        name: maneuver name.
+        time: (N,) s.
+        measured, predicted: (N, n_o) in the outputs' units.
+        output_names: the n_o outputs.
+        rms: RMS error per output (outputs' units).
+        r2: R² per output (1 − residual sum of squares / spread about the mean).
+        inputs, input_names, units: the maneuver's inputs (N, n_u) and channel units, for
+            figures.
+        predicted_std: (N, n_o) σ of the predicted outputs from the parameter covariance
+            (delta method, module docstring), or None when no band was asked for.
+    """
+
+    name: str
+    time: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    output_names: tuple[str, ...]
+    rms: np.ndarray
+    r2: np.ndarray
+    inputs: np.ndarray | None = None
+    input_names: tuple[str, ...] = ()
+    units: dict = field(default_factory=dict)
+    predicted_std: np.ndarray | None = None
+
+    @classmethod
+    def from_outputs(
+        cls,
+        name: str,
+        time: np.ndarray,
+        measured: np.ndarray,
+        predicted: np.ndarray,
+        output_names: Sequence[str],
+    ) -> Prediction:
+        """The prediction of one maneuver with its RMS error and R² per output.
+
+        Args:
+            name: maneuver name.
+            time: (N,) s.
+            measured: (N, n_o) measured outputs, in the outputs' units.
+            predicted: (N, n_o) model outputs, in the outputs' units.
+            output_names: the n_o outputs.
+        """
+        residual = measured - predicted
+        # RMS error e_o = √((1/N) Σ_i (z_io − y_io)²)
+        rms = np.sqrt(np.mean(residual**2, axis=0))
+        # R²_o = 1 − Σ_i (z_io − y_io)² / Σ_i (z_io − z̄_o)²
+        total = np.sum((measured - measured.mean(axis=0)) ** 2, axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r2 = 1.0 - np.sum(residual**2, axis=0) / total
+        return cls(name, time, measured, predicted, tuple(output_names), rms, r2)
+
+    @property
+    def residuals(self) -> np.ndarray:
+        """z − y (N, n_o), in the outputs' units."""
+        return self.measured - self.predicted
+
+    def band(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (N, n_o): y ± z_{(1+c)/2}·σ_y, the two-sided normal band at level c.
+
+        Raises ``PredictionError`` when the prediction has no σ (made without bands)."""
+        if self.predicted_std is None:
+            raise PredictionError("band: this prediction has no output σ; predict with bands=True")
+        if not 0.0 < level < 1.0:
+            raise PredictionError(f"level: expected a number in (0, 1), got {level!r}")
+        # half width z_{(1+c)/2}·σ_y
+        half = norm.ppf(0.5 + 0.5 * level) * self.predicted_std
+        return self.predicted - half, self.predicted + half
+
+    def summary(self) -> str:
+        """One line per output: RMS error, R² (and the mean band σ when present)."""
+        lines = [f"prediction {self.name or '(unnamed)'}: {self.time.shape[0]} samples"]
+        for o, name in enumerate(self.output_names):
+            unit = self.units.get(name, "") or ""
+            line = f"  {name:<12} RMS {self.rms[o]:.4g} {unit}".rstrip()
+            line += f"   R² {self.r2[o]:.4f}"
+            if self.predicted_std is not None:
+                line += f"   mean σ_y {np.mean(self.predicted_std[:, o]):.3g}"
+            lines.append(line)
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        entry = {
+            "maneuver": self.name,
+            "samples": int(self.time.shape[0]),
+            "outputs": list(self.output_names),
+            "rms_error": [float(v) for v in self.rms],
+            "r2": [float(v) for v in self.r2],
+        }
+        if self.predicted_std is not None:
+            # the band's size per output: RMS over the samples of σ_y
+            entry["predicted_std_rms"] = [
+                float(v) for v in np.sqrt(np.mean(self.predicted_std**2, axis=0))
+            ]
+        return entry
+
+
+def _state_values(
+    spec: Sequence[float] | Mapping[str, float] | np.ndarray, states: Sequence[str], where: str
+) -> dict[str, float]:
+    """{state: value} from a sequence (one value per state) or a mapping by state name."""
+    if isinstance(spec, Mapping):
+        unknown = [k for k in spec if k not in states]
+        if unknown:
+            raise PredictionError(f"{where}: {unknown} are not states of the model {list(states)}")
+        items = dict(spec)
+    else:
+        values = np.asarray(spec, dtype=float).ravel()
+        if values.size != len(states):
+            raise PredictionError(
+                f"{where}: expected {len(states)} values (one per state {list(states)}), "
+                f"got {values.size}"
+            )
+        items = dict(zip(states, values, strict=True))
+    out = {}
+    for state, value in items.items():
+        number = float(value)
+        if not np.isfinite(number):
+            raise PredictionError(f"{where}[{state!r}]: must be finite, got {value!r}")
+        out[state] = number
+    return out
+
+
+def _per_maneuver_spec(x0: object) -> bool:
+    """True for a list of initial-state specifications (one per maneuver), False for one."""
+    if isinstance(x0, np.ndarray):
+        return x0.ndim == 2
+    return (
+        isinstance(x0, (list, tuple))
+        and len(x0) > 0
+        and all(isinstance(e, (Mapping, list, tuple, np.ndarray)) for e in x0)
+    )
+
+
+def initial_states(
+    model: StateSpaceModel,
+    maneuvers: Sequence[FlightData],
+    x0: Sequence | Mapping | np.ndarray | None = None,
+) -> list[np.ndarray]:
+    """x0 (n_s,) of each maneuver (module docstring): given values (one specification for
+    all maneuvers, or a list with one per maneuver), else the first sample of the data's
+    channel of the state's name, else the model's initial state at its parameter values (only
+    when the model gives one specification for every maneuver)."""
+    states = model.states
+    per_maneuver = _per_maneuver_spec(x0)
+    if per_maneuver and len(x0) != len(maneuvers):
+        raise PredictionError(
+            f"x0: {len(x0)} initial-state specifications for {len(maneuvers)} maneuvers; give "
+            f"one for all or one per maneuver"
+        )
+    own = None if model.per_maneuver_x0 else model.initial_state()
+    result = []
+    for k, maneuver in enumerate(maneuvers):
+        spec = x0[k] if per_maneuver else x0
+        given = {} if spec is None else _state_values(spec, states, "x0")
+        values = np.empty(len(states))
+        for s, state in enumerate(states):
+            if state in given:
+                values[s] = given[state]
+            elif state in maneuver.input_names or state in maneuver.output_names:
+                values[s] = float(maneuver.channel(state)[0])
+            elif own is not None:
+                values[s] = own[s]
+            else:
+                raise PredictionError(
+                    f"x0: the initial state {state!r} of maneuver {k} "
+                    f"({maneuver.name or 'unnamed'}) is not given, the data has no channel "
+                    f"{state!r}, and the model's initial states are per estimation maneuver; "
+                    f"give x0"
+                )
+        if not np.all(np.isfinite(values)):
+            bad = [s for s, v in zip(states, values, strict=True) if not np.isfinite(v)]
+            raise PredictionError(f"x0: the initial states {bad} are not finite (first samples)")
+        result.append(values)
+    return result
+
+
+def prediction_model(
+    model: StateSpaceModel,
+    maneuvers: Sequence[FlightData],
+    x0: Sequence | Mapping | np.ndarray | None = None,
+) -> StateSpaceModel:
+    """The model with fixed numeric initial states for ``maneuvers`` (``initial_states``),
+    integrated from them over each whole maneuver (without the multiple-shooting intervals of
+    the estimation; a stabilizing gain stays and needs the measured outputs).
+
+    Raises ``PredictionError`` for a model with parameters per estimation maneuver unless
+    the maneuvers are as many (then maneuver k takes the k-th copies)."""
+    n_per = model.n_parameter_maneuvers
+    if n_per and n_per != len(maneuvers):
+        raise PredictionError(
+            f"data: the model has parameters per estimation maneuver "
+            f"{list(model.maneuver_parameters)} ({n_per} maneuvers); a prediction needs as many "
+            f"maneuvers, got {len(maneuvers)}"
+        )
+    starts = initial_states(model, maneuvers, x0)
+    spec = tuple(tuple(float(v) for v in s) for s in starts)
+    fixed = replace(model, x0=spec if len(spec) > 1 else spec[0])
+    if getattr(fixed, "shooting", None) is not None:
+        # the shooting intervals belong to the estimation maneuvers: a prediction is one
+        # integration of each maneuver from its initial state
+        fixed = replace(fixed, shooting=None)
+    return fixed
+
+
+def output_sensitivities(
+    simulator: Simulator, theta: np.ndarray, free_index: np.ndarray, typical: np.ndarray
+) -> np.ndarray:
+    """S = ∂y/∂θ_free (N, n_o, n_f) by central differences of whole simulations,
+    δ_j = SENSITIVITY_STEP·max(|θ_j|, typical_j), run in batches of at most
+    ``BATCH_BYTES`` of perturbed outputs; raises ``SimulationError`` if a perturbed simulation
+    diverges."""
+    theta = np.asarray(theta, dtype=float)
+    steps = SENSITIVITY_STEP * np.maximum(np.abs(theta[free_index]), typical)
+    n_out = len(simulator.model.outputs)
+    sensitivities = np.empty((simulator.n_samples, n_out, free_index.size))
+    trajectory = max(2 * simulator.n_samples * n_out * 8, 1)
+    per_batch = max(1, BATCH_BYTES // trajectory)
+    for first in range(0, free_index.size, per_batch):
+        chosen = np.arange(first, min(first + per_batch, free_index.size))
+        n = chosen.size
+        rows = np.repeat(theta[None, :], 2 * n, axis=0)
+        rows[np.arange(n), free_index[chosen]] += steps[chosen]
+        rows[n + np.arange(n), free_index[chosen]] -= steps[chosen]
+        batch = simulator.run(rows)
+        if batch.diverged.any():
+            bad = int(np.flatnonzero(batch.diverged)[0])
+            raise SimulationError(f"output sensitivities: {batch.messages[bad]}")
+        # S_j = (y(θ + δ_j e_j) − y(θ − δ_j e_j)) / (2 δ_j)
+        columns = (batch.outputs[:n] - batch.outputs[n:]) / (2.0 * steps[chosen, None, None])
+        sensitivities[:, :, chosen] = np.moveaxis(columns, 0, -1)
+    return sensitivities
+
+
+def output_std(sensitivities: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """σ_y (N, n_o) = √diag(S_k P S_kᵀ) for sensitivities (N, n_o, n_f) and P (n_f, n_f)."""
+    # Var y_k,o = Σ_ab S_k,o,a P_ab S_k,o,b
+    variance = np.einsum("koa,ab,kob->ko", sensitivities, covariance, sensitivities)
+    return np.sqrt(np.maximum(variance, 0.0))
+
+
+def _check_covariance(covariance: np.ndarray, n_free: int) -> np.ndarray:
+    p = np.asarray(covariance, dtype=float)
+    if p.shape != (n_free, n_free):
+        raise PredictionError(
+            f"covariance: expected ({n_free}, {n_free}) over the free parameters, got {p.shape}"
+        )
+    if not np.all(np.isfinite(p)):
+        raise PredictionError(
+            "covariance: has non-finite entries (an undetermined parameter); no band can be given"
+        )
+    return p
+
+
+def predict_maneuvers(
+    model: StateSpaceModel,
+    data: FlightData | Sequence[FlightData],
+    x0: Sequence | Mapping | np.ndarray | None = None,
+    *,
+    method: str = "rk4",
+    input_interpolation: str = "linear",
+    covariance: np.ndarray | None = None,
+) -> list[Prediction]:
+    """One ``Prediction`` per maneuver of ``data``, simulated with ``model`` at its parameter
+    values from the initial states of ``initial_states``.
+
+    Args:
+        model: the model at the values to predict with.
+        data: maneuvers carrying the model's inputs and outputs.
+        x0: initial states (``initial_states``).
+        method, input_interpolation: integration, as in ``Simulator``.
+        covariance: P of the free parameters (n_f, n_f): with it each prediction carries
+            ``predicted_std`` (delta method, module docstring); None: no band.
+    """
+    maneuvers = _as_data_list(data)
+    for k, maneuver in enumerate(maneuvers):
+        missing = [n for n in model.outputs if n not in maneuver.output_names]
+        if missing:
+            raise PredictionError(
+                f"data[{k}] ({maneuver.name or 'unnamed'}): the model's outputs {missing} "
+                f"are not output channels of the data (outputs "
+                f"{list(maneuver.output_names)}); use simulate for inputs alone"
+            )
+    fixed = prediction_model(model, maneuvers, x0)
+    simulator = Simulator(fixed, maneuvers, method=method, input_interpolation=input_interpolation)
+    theta = fixed.parameters.values
+    outputs = simulator.outputs(theta)
+    std = None
+    if covariance is not None:
+        free_index = np.flatnonzero(fixed.parameters.free_mask)
+        p = _check_covariance(covariance, free_index.size)
+        typical = np.array([1e-3 if q.scale is None else q.scale for q in fixed.parameters])
+        s = output_sensitivities(simulator, theta, free_index, typical[free_index])
+        std = output_std(s, p)
+    predictions = []
+    start = 0
+    for maneuver in maneuvers:
+        stop = start + maneuver.n_samples
+        y = outputs[start:stop]
+        z = np.column_stack([maneuver.output(n) for n in model.outputs])
+        prediction = Prediction.from_outputs(maneuver.name, maneuver.time, z, y, model.outputs)
+        predictions.append(
+            replace(
+                prediction,
+                inputs=np.asarray(maneuver.inputs) if maneuver.input_names else None,
+                input_names=tuple(maneuver.input_names),
+                units=dict(maneuver.units),
+                predicted_std=None if std is None else std[start:stop],
+            )
+        )
+        start = stop
+    return predictions
