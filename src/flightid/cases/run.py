@@ -60,6 +60,7 @@ from flightid.estimation.shooting import estimate_multiple_shooting
 from flightid.model.check import check_model
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulation import simulate
+from flightid.simulation.prediction import Prediction
 
 if TYPE_CHECKING:
     from flightid.compat.kinematic import KinematicSpec
@@ -83,59 +84,6 @@ DEFAULT_BUDGET = 50_000  # random-search budget, equivalent evaluations
 
 def stderr_progress(message: str) -> None:
     print(f"flightid: {message}", file=sys.stderr, flush=True)
-
-
-@dataclass(frozen=True)
-class Prediction:
-    """Measured and predicted outputs of one prediction maneuver, with fit numbers."""
-
-    name: str
-    time: np.ndarray
-    measured: np.ndarray
-    predicted: np.ndarray
-    output_names: tuple[str, ...]
-    rms: np.ndarray
-    r2: np.ndarray
-    # the maneuver's control inputs (N, n_u) and channel units, for the report's figures
-    inputs: np.ndarray | None = None
-    input_names: tuple[str, ...] = ()
-    units: dict = field(default_factory=dict)
-
-    @classmethod
-    def from_outputs(
-        cls,
-        name: str,
-        time: np.ndarray,
-        measured: np.ndarray,
-        predicted: np.ndarray,
-        output_names: Sequence[str],
-    ) -> Prediction:
-        """The prediction of one maneuver with its RMS error and R² per output.
-
-        Args:
-            name: maneuver name.
-            time: (N,) s.
-            measured: (N, n_o) measured outputs, in the outputs' units.
-            predicted: (N, n_o) model outputs, in the outputs' units.
-            output_names: the n_o outputs.
-        """
-        residual = measured - predicted
-        # RMS error e_o = √((1/N) Σ_i (z_io − y_io)²)
-        rms = np.sqrt(np.mean(residual**2, axis=0))
-        # R²_o = 1 − Σ_i (z_io − y_io)² / Σ_i (z_io − z̄_o)²
-        total = np.sum((measured - measured.mean(axis=0)) ** 2, axis=0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r2 = 1.0 - np.sum(residual**2, axis=0) / total
-        return cls(name, time, measured, predicted, tuple(output_names), rms, r2)
-
-    def to_dict(self) -> dict:
-        return {
-            "maneuver": self.name,
-            "samples": int(self.time.shape[0]),
-            "outputs": list(self.output_names),
-            "rms_error": [float(v) for v in self.rms],
-            "r2": [float(v) for v in self.r2],
-        }
 
 
 def _whiteness_entry(result) -> dict | None:

@@ -386,11 +386,11 @@ class Estimate(ResultSurface):
         """Outputs (N_total, n_o) of the estimated model driven by the inputs of ``inputs``
         (a ``FlightData`` or a list; outputs are not needed), from the initial states ``x0``
         (as in ``predict``), with the estimation's integration and input interpolation."""
+        from flightid.model.binding import as_data_list
         from flightid.simulation import simulate
         from flightid.simulation.prediction import prediction_model
-        from flightid.simulation.simulator import _as_data_list
 
-        maneuvers = _as_data_list(inputs)
+        maneuvers = as_data_list(inputs)
         model = prediction_model(self.model, maneuvers, x0)
         return simulate(
             model, maneuvers, method=self.method, input_interpolation=self.input_interpolation

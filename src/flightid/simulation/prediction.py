@@ -30,8 +30,9 @@ from scipy.stats import norm
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputError, SimulationError
+from flightid.model.binding import as_data_list
 from flightid.model.statespace import StateSpaceModel
-from flightid.simulation.simulator import Simulator, _as_data_list
+from flightid.simulation.simulator import Simulator
 
 __all__ = [
     "Prediction",
@@ -331,7 +332,7 @@ def predict_maneuvers(
         covariance: P of the free parameters (n_f, n_f): with it each prediction carries
             ``predicted_std`` (delta method, module docstring); None: no band.
     """
-    maneuvers = _as_data_list(data)
+    maneuvers = as_data_list(data)
     for k, maneuver in enumerate(maneuvers):
         missing = [n for n in model.outputs if n not in maneuver.output_names]
         if missing:
