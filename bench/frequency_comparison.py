@@ -1,5 +1,4 @@
-"""Frequency-domain versus time-domain output error on the ATTAS flight data (issue 16,
-part 2).
+"""Frequency-domain versus time-domain output error on the ATTAS flight data.
 
 Runs the time-domain standard cases (examples/cases/attas_short_period.toml,
 attas_lateral.toml: output error, RK4, R estimated) and their frequency-domain
