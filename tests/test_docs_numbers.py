@@ -1,0 +1,143 @@
+"""The guides' measured numbers are the scripts' output (docs/docs_numbers.py).
+
+Each guide quotes its measured numbers between ``<!-- numbers: NAME -->`` and
+``<!-- /numbers -->``; the script that measures them (``docs/<guide>_numbers.py``) records
+its last output in ``docs/numbers/<script>.txt``. Tolerances: counts exactly, other numbers
+to one unit of the last digit the page prints (or the ``rel=`` the marker states), table
+columns of wall times not at all (they depend on the machine; the page shows the command
+that prints them).
+
+Here, without running anything expensive: every region of every guide is in a record and
+agrees with it, and every record's regions are on their guide. Where a script's numbers
+come from a run of a few seconds, that run is repeated against the page (skipped without
+the flight data).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+from data_paths import DATA, needs_data
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+
+
+def _load(name: str):
+    if str(DOCS) not in sys.path:
+        sys.path.insert(0, str(DOCS))  # the scripts import their helpers from beside them
+    spec = importlib.util.spec_from_file_location(name, DOCS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+numbers = _load("docs_numbers")
+RECORDS = sorted((DOCS / "numbers").glob("*.txt"))
+
+
+@pytest.mark.parametrize("record", RECORDS, ids=lambda path: path.stem)
+def test_each_guide_quotes_its_scripts_last_output(record: Path) -> None:
+    output = record.read_text(encoding="utf-8")
+    page = numbers.guide_of(output)
+    problems = numbers.compare(page.read_text(encoding="utf-8"), output)
+    assert not problems, "\n".join(problems)
+
+
+def test_every_region_of_the_guides_has_a_record() -> None:
+    recorded = set()
+    for record in RECORDS:
+        recorded |= set(numbers.regions(record.read_text(encoding="utf-8")))
+    quoted = {}
+    for page in sorted(DOCS.glob("*.md")):
+        for name in numbers.regions(page.read_text(encoding="utf-8")):
+            quoted[name] = page.name
+    assert RECORDS and quoted
+    missing = {name: page for name, page in quoted.items() if name not in recorded}
+    assert not missing, f"regions no script records: {missing}"
+
+
+PAGE = """Some prose.
+<!-- numbers: demo rel=0.01 -->
+| case | passes | wall (s) | Zw |
+|---|---|---|---|
+| 3a | 18 | 0.30 | −1.3085 ± 3.2·10⁻² |
+
+12 of 15 within 2σ
+<!-- /numbers -->
+More prose: 7 parameters.
+"""
+
+
+def _printed(zw: str = "-1.3085 ± 0.032", passes: str = "18", wall: str = "9.99") -> str:
+    return (
+        "<!-- numbers: demo -->\n| case | passes | wall (s) | Zw |\n|---|---|---|---|\n"
+        f"| 3a | {passes} | {wall} | {zw} |\n\n12 of 15 within 2σ\n<!-- /numbers -->\n"
+    )
+
+
+def test_numbers_are_read_as_the_page_prints_them() -> None:
+    assert numbers.value("−1.2·10⁻⁸") == pytest.approx(-1.2e-8)
+    assert numbers.value("4.0×10⁵") == pytest.approx(4.0e5)
+    assert numbers.value("3.5e-07") == pytest.approx(3.5e-7)
+    # a digit inside a name is not a number
+    assert numbers.NUMBER.findall("Cm0 of 3a is −0.5, Zδe 1e-3") == ["−0.5", "1e-3"]
+
+
+def test_agreement_within_the_tolerance_and_wall_times_ignored() -> None:
+    assert numbers.compare(PAGE, _printed()) == []
+    # the marker's rel=0.01: 1 % off agrees, 2 % does not
+    assert numbers.compare(PAGE, _printed(zw="-1.3200 ± 0.032")) == []
+    assert len(numbers.compare(PAGE, _printed(zw="-1.3400 ± 0.032"))) == 1
+
+
+def test_a_row_of_wall_times_is_not_compared() -> None:
+    page = (
+        "<!-- numbers: x -->\n| parameter | ekf |\n|---|---|\n| Lp | −2.07 |\n| wall (s) | 0.46 |\n"
+    )
+    page += "<!-- /numbers -->"
+    assert numbers.compare(page, page.replace("0.46", "3.10")) == []
+    assert len(numbers.compare(page, page.replace("−2.07", "−2.10"))) == 1
+
+
+def test_a_changed_count_word_or_line_is_caught() -> None:
+    assert len(numbers.compare(PAGE, _printed(passes="19"))) == 1
+    assert len(numbers.compare(PAGE, _printed().replace("12 of 15", "11 of 15"))) == 1
+    assert len(numbers.compare(PAGE, _printed().replace("within", "beyond"))) == 1
+    assert numbers.compare(PAGE, _printed().replace("demo", "other")) == [
+        "other: not quoted on the page"
+    ]
+
+
+def test_without_a_stated_tolerance_one_unit_of_the_last_digit() -> None:
+    page = "<!-- numbers: x -->\nZw = 0.2148\n<!-- /numbers -->"
+    assert numbers.compare(page, page.replace("0.2148", "0.21489")) == []
+    assert len(numbers.compare(page, page.replace("0.2148", "0.2150"))) == 1
+
+
+def test_write_replaces_only_the_regions() -> None:
+    written = numbers.write(PAGE, _printed(zw="-1.4 ± 0.1"))
+    assert written.startswith("Some prose.\n<!-- numbers: demo rel=0.01 -->\n")
+    assert "| 3a | 18 | 9.99 | -1.4 ± 0.1 |" in written
+    assert written.endswith("<!-- /numbers -->\nMore prose: 7 parameters.\n")
+
+
+@needs_data("fvsysid/unStabAC_sim.asc")
+def test_unstable_least_squares_rows_are_what_the_cases_give_today() -> None:
+    """The 3g/3h rows of docs/unstable.md against a fresh run of the two least-squares case
+    files (about 5 s; the other rows integrate and are checked through the record)."""
+    unstable = _load("unstable_numbers")
+    case_numbers = _load("case_numbers")
+    fresh = case_numbers.table(unstable.COMPARISON_HEADING, unstable.least_squares_rows(str(DATA)))
+    page = numbers.regions((DOCS / "unstable.md").read_text(encoding="utf-8"))
+    quoted_lines = page["unstable-comparison"][0].splitlines()
+    quoted = "\n".join(
+        quoted_lines[:2] + [line for line in quoted_lines if line[:5] in {"| 3g ", "| 3h "}]
+    )
+    assert quoted.count("\n") == 3
+    problems = numbers.differences(quoted, fresh)
+    assert not problems, "\n".join(problems)
