@@ -29,10 +29,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import docs_numbers  # noqa: E402  (beside this file)
 
 
-def run(case: str | Path, data_dir: str | None = None, replace: dict | None = None) -> dict:
+def run(
+    case: str | Path,
+    data_dir: str | None = None,
+    replace: dict | None = None,
+    allow_failure: bool = False,
+) -> dict:
     """The JSON ``flightid run CASE --json --quiet`` prints, with ``wall_s`` (the process's
     wall time) added. ``replace`` maps TOML text of the case file to the text it is replaced
-    with (a changed solver or setting), run from a copy beside the original."""
+    with (a changed solver or setting), run from a copy beside the original. A run that
+    fails stops the script, or with ``allow_failure`` gives ``{"error": its message}``."""
     path = Path(case) if Path(case).suffix == ".toml" else CASES / f"{case}.toml"
     text = path.read_text(encoding="utf-8")
     for old, new in (replace or {}).items():
@@ -58,6 +64,8 @@ def run(case: str | Path, data_dir: str | None = None, replace: dict | None = No
     finally:
         if copy is not None:
             copy.unlink()
+    if done.returncode != 0 and allow_failure:
+        return {"error": done.stderr.strip().splitlines()[-1], "wall_s": wall_s}
     if done.returncode != 0:
         raise SystemExit(f"{path.name}: flightid run failed: {done.stderr.strip()}")
     output = json.loads(done.stdout)

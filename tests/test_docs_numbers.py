@@ -141,3 +141,14 @@ def test_unstable_least_squares_rows_are_what_the_cases_give_today() -> None:
     assert quoted.count("\n") == 3
     problems = numbers.differences(quoted, fresh)
     assert not problems, "\n".join(problems)
+
+
+@needs_data("fvsysid/unStabAC_sim.asc")
+def test_regression_least_squares_table_is_what_the_cases_give_today() -> None:
+    """docs/regression.md's OLS/TLS table against a fresh run of both case files (≈ 5 s)."""
+    regression = _load("regression_numbers")
+    page = numbers.regions((DOCS / "regression.md").read_text(encoding="utf-8"))
+    problems = numbers.differences(
+        page["regression-unstable-ls"][0], regression.least_squares(str(DATA))
+    )
+    assert not problems, "\n".join(problems)
