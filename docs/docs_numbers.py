@@ -18,9 +18,9 @@ Two blocks agree when their words agree and every number agrees within the toler
 * other numbers to one unit of the last digit the page prints, or within the relative
   tolerance ``rel`` where the marker states one (``<!-- numbers: NAME rel=0.01 -->``);
 * numbers in a table column whose heading, or a table row whose first cell, names a time
-  (``wall``, ``time``, ``µs``, ``ms``, ``speed``, ``(s)``) are not compared at all: timings
-  depend on the machine and are never asserted (the page shows the command that prints
-  them).
+  (``wall``, ``time``, ``µs``, ``ms``, ``speed``, ``(s)``), or a ratio column (``÷ …``)
+  right of such a column, are not compared at all: timings depend on the machine and are
+  never asserted (the page shows the command that prints them).
 
 Numbers are read as written on the page: ``−`` is a minus sign, ``1.2·10⁻⁸`` and ``1.2×10⁻⁸``
 are 1.2e-8.
@@ -109,7 +109,14 @@ def _skeleton(line: str) -> str:
 
 
 def _timed_columns(header: str) -> set[int]:
-    return {i for i, cell in enumerate(header.split("|")) if TIME_HEADING.search(cell)}
+    """The columns of a table heading that hold times: a heading naming a time, and a ratio
+    (``÷ …``, ``× …``) right of such a column."""
+    timed: set[int] = set()
+    for i, cell in enumerate(header.split("|")):
+        ratio = cell.strip().startswith(("÷", "×"))
+        if TIME_HEADING.search(cell) or (ratio and i - 1 in timed):
+            timed.add(i)
+    return timed
 
 
 def _untimed(line: str, timed: set[int]) -> str:

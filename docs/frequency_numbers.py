@@ -59,7 +59,8 @@ def build(data_dir: str | None) -> list[str]:
             regions.append(cn.region(f"frequency-{label}-{case}", table))
     for step in ("0.04", "0.02"):
         output = bench("frequency_monte_carlo.py", "--n", "200", "--step", step)
-        regions.append(cn.region(f"frequency-monte-carlo-{step}", without_wall_time(output)))
+        block = f"```\n{without_wall_time(output)}\n```"
+        regions.append(cn.region(f"frequency-monte-carlo-{step}", block))
     return regions
 
 
