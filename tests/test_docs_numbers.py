@@ -152,3 +152,11 @@ def test_regression_least_squares_table_is_what_the_cases_give_today() -> None:
         page["regression-unstable-ls"][0], regression.least_squares(str(DATA))
     )
     assert not problems, "\n".join(problems)
+
+
+def test_method_paper_examples_table_is_what_flightid_paper_prints_today() -> None:
+    """docs/method.md's examples 1 and 2 table against fresh runs (≈ 4 s, no data needed)."""
+    method = _load("method_numbers")
+    page = numbers.regions((DOCS / "method.md").read_text(encoding="utf-8"))
+    problems = numbers.differences(page["method-paper-examples"][0], method.table())
+    assert not problems, "\n".join(problems)
