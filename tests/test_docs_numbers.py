@@ -160,3 +160,12 @@ def test_method_paper_examples_table_is_what_flightid_paper_prints_today() -> No
     page = numbers.regions((DOCS / "method.md").read_text(encoding="utf-8"))
     problems = numbers.differences(page["method-paper-examples"][0], method.table())
     assert not problems, "\n".join(problems)
+
+
+def test_data_resampling_example_is_what_flightid_says_today() -> None:
+    """docs/data.md's roll.csv example (refusals, segments, notes, errors) against a fresh
+    run of docs/data_numbers.py (≈ 1 s, a seeded file it writes itself)."""
+    data = _load("data_numbers")
+    page = numbers.regions((DOCS / "data.md").read_text(encoding="utf-8"))
+    problems = numbers.differences(page["data-resampling"][0], data.resampling())
+    assert not problems, "\n".join(problems)
