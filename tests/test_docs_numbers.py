@@ -169,3 +169,15 @@ def test_data_resampling_example_is_what_flightid_says_today() -> None:
     page = numbers.regions((DOCS / "data.md").read_text(encoding="utf-8"))
     problems = numbers.differences(page["data-resampling"][0], data.resampling())
     assert not problems, "\n".join(problems)
+
+
+def test_inspect_example_is_what_flightid_inspect_prints_today() -> None:
+    """docs/inspect.md's two outputs against a fresh run of docs/inspect_numbers.py on the
+    seeded log it writes (a few seconds, no data needed)."""
+    pytest.importorskip("pyulog")
+    inspect = _load("inspect_numbers")
+    page = numbers.regions((DOCS / "inspect.md").read_text(encoding="utf-8"))
+    report, lines = inspect.example()
+    problems = numbers.differences(page["inspect-report"][0], report)
+    problems += numbers.differences(page["inspect-case-lines"][0], lines)
+    assert not problems, "\n".join(problems)
