@@ -7,11 +7,16 @@ residuals (innovations for filter error; per coefficient for a case whose first 
 regression or stepwise regression) are white,
 and per output the lag-1 autocorrelation ρ(1), the lags of the autocorrelation outside the
 white-noise band, and the Ljung–Box statistic Q with its p-value. About 1 minute on one
-core. The coverage tables of the guide come from ``bench/sigma_coverage.py`` and
-``bench/coverage_study.py`` (printed with the commands the guide shows).
+core. Then the measured coverage of every estimator family's σ, ``bench/sigma_coverage.py
+--seeds 100`` without its per-family wall-time lines (about 7 minutes on one idle core).
 """
 
 from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
 
 import case_numbers as cn
 
@@ -67,8 +72,24 @@ def whiteness(data_dir: str | None) -> str:
     return cn.table(heading, rows)
 
 
+def coverage_block(output: str) -> str:
+    """``bench/sigma_coverage.py``'s tables as a code block, without the wall-time lines."""
+    lines = [line for line in output.splitlines() if not re.fullmatch(r"\([\d.]+ s\)", line)]
+    return "```text\n" + "\n".join(lines).strip() + "\n```"
+
+
+def coverage() -> str:
+    environment = dict(os.environ, PYTHONPATH=str(cn.ROOT / "src"))
+    command = [sys.executable, str(cn.ROOT / "bench" / "sigma_coverage.py"), "--seeds", "100"]
+    done = subprocess.run(command, capture_output=True, text=True, env=environment, check=True)
+    return coverage_block(done.stdout)
+
+
 def build(data_dir: str | None) -> list[str]:
-    return [cn.region("accuracy-whiteness", whiteness(data_dir))]
+    return [
+        cn.region("accuracy-whiteness", whiteness(data_dir)),
+        cn.region("accuracy-coverage", coverage()),
+    ]
 
 
 if __name__ == "__main__":
