@@ -181,3 +181,13 @@ def test_inspect_example_is_what_flightid_inspect_prints_today() -> None:
     problems = numbers.differences(page["inspect-report"][0], report)
     problems += numbers.differences(page["inspect-case-lines"][0], lines)
     assert not problems, "\n".join(problems)
+
+
+def test_frequency_delay_example_is_what_the_fits_give_today() -> None:
+    """docs/frequency.md's rate-loop table (free, held and no delay) against fresh fits of
+    the scipy-simulated record (≈ 2 s, no data needed; the 20-seed line via the record)."""
+    frequency = _load("frequency_numbers")
+    quoted = numbers.regions((DOCS / "frequency.md").read_text(encoding="utf-8"))
+    table = quoted["frequency-delay-example"][0].split("\n\n")[0]
+    problems = numbers.differences(table, frequency.delay_table())
+    assert not problems, "\n".join(problems)
