@@ -67,23 +67,26 @@ def multisine(t: np.ndarray) -> np.ndarray:
     return 0.2 * waves.sum(axis=1) / np.sqrt(freqs.size / 2)
 
 
-def rate_loop_spectra(seed: int):
-    """The loop simulated by scipy on a 2 kHz grid fed the exactly delayed multisine,
-    sampled at 200 Hz for 20 s, noise N(0, 0.02²) on p; its transforms on 0.2–12 Hz."""
+def rate_loop_record(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, p_cmd, p): the loop simulated by scipy on a 2 kHz grid fed the exactly delayed
+    multisine, sampled at 200 Hz for 20 s, noise N(0, 0.02²) on p."""
     from scipy import signal
-
-    from flightid.frequency import frequency_grid, maneuver_spectra
 
     t_fine = np.arange(4000 * 10 + 1) * DT / 10
     loop = signal.lti([WN**2], [1.0, 2 * ZETA * WN, WN**2])
     _, p, _ = signal.lsim(loop, multisine(t_fine - TAU), t_fine)
     t = t_fine[::10]
     rng = np.random.default_rng(seed)
-    y = p[::10] + 0.02 * rng.standard_normal(t.size)
+    return t, multisine(t), p[::10] + 0.02 * rng.standard_normal(t.size)
+
+
+def rate_loop_spectra(seed: int):
+    """The transforms of ``rate_loop_record(seed)`` on 0.2–12 Hz, step 0.05 Hz."""
+    from flightid.frequency import frequency_grid, maneuver_spectra
+
+    t, u, y = rate_loop_record(seed)
     grid = frequency_grid((0.2, 12.0), 0.05)
-    return maneuver_spectra(
-        t, multisine(t)[:, None], y[:, None], grid, input_quadrature="trapezoid"
-    )
+    return maneuver_spectra(t, u[:, None], y[:, None], grid, input_quadrature="trapezoid")
 
 
 def _loop_f(t, x, u, theta):
@@ -96,17 +99,15 @@ def _loop_h(t, x, u, theta):
     return np.array([x[0]])
 
 
-def loop_fit(spectra, delay: str):
-    """Output error of the loop model from ω_n = 30, ζ = 0.5; τ free from 0, held at
-    0.025 s, or absent."""
-    from flightid.frequency import linear_system, output_error
+def loop_model(delay: str):
+    """The loop model from ω_n = 30, ζ = 0.5; τ free from 0, held at 0.025 s, or absent."""
     from flightid.model import Parameter, Parameters, StateSpaceModel
 
     parameters = [Parameter("wn", 30.0), Parameter("zeta", 0.5)]
     if delay != "none":
         held = delay == "fixed"
         parameters.append(Parameter("tau", TAU if held else 0.0, free=not held))
-    model = StateSpaceModel(
+    return StateSpaceModel(
         states=("p", "r"),
         inputs=("p_cmd",),
         outputs=("p",),
@@ -115,6 +116,13 @@ def loop_fit(spectra, delay: str):
         parameters=Parameters(parameters),
         input_delays=None if delay == "none" else {"p_cmd": "tau"},
     )
+
+
+def loop_fit(spectra, delay: str):
+    """Frequency-domain output error of ``loop_model(delay)``."""
+    from flightid.frequency import linear_system, output_error
+
+    model = loop_model(delay)
     return output_error(
         lambda theta: linear_system(model, theta),
         model.parameters.values,

@@ -191,3 +191,13 @@ def test_frequency_delay_example_is_what_the_fits_give_today() -> None:
     table = quoted["frequency-delay-example"][0].split("\n\n")[0]
     problems = numbers.differences(table, frequency.delay_table())
     assert not problems, "\n".join(problems)
+
+
+def test_recursive_delay_example_is_what_the_filters_give_today() -> None:
+    """docs/recursive.md's EKF/UKF table and FTR line on the delayed rate loop and roll mode
+    against fresh runs (≈ 5 s, no data needed)."""
+    recursive = _load("recursive_numbers")
+    quoted = numbers.regions((DOCS / "recursive.md").read_text(encoding="utf-8"))
+    fresh = f"{recursive.delay_table()}\n\n{recursive.ftr_delay()}"
+    problems = numbers.differences(quoted["recursive-delay"][0], fresh)
+    assert not problems, "\n".join(problems)
