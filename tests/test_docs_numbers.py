@@ -201,3 +201,12 @@ def test_recursive_delay_example_is_what_the_filters_give_today() -> None:
     fresh = f"{recursive.delay_table()}\n\n{recursive.ftr_delay()}"
     problems = numbers.differences(quoted["recursive-delay"][0], fresh)
     assert not problems, "\n".join(problems)
+
+
+def test_aircraft_example3_table_is_what_flightid_paper_prints_today() -> None:
+    """docs/aircraft.md's RP-1153 example 3 results against fresh runs (≈ 8 s: seven
+    simulated estimations, no data needed)."""
+    aircraft = _load("aircraft_numbers")
+    quoted = numbers.regions((DOCS / "aircraft.md").read_text(encoding="utf-8"))
+    problems = numbers.differences(quoted["aircraft-example3"][0], aircraft.example3_table())
+    assert not problems, "\n".join(problems)
