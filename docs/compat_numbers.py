@@ -75,8 +75,50 @@ def per_segment(case: str, data_dir: str | None) -> str:
     return f"{_summary(entry)}:\n\n{cn.table(heading, rows)}"
 
 
+def against_sidpac(data_dir: str | None) -> str:
+    """``f18harv_compat_lon`` and ``_lat`` against SIDPAC's own results stored in the data
+    files (``pc``, Cramér–Rao covariance ``crbc``, names ``p_names``): both estimates ± CR
+    bound, their difference in SIDPAC's bounds and the ratio of the bounds."""
+    import numpy as np
+    import scipy.io
+
+    from flightid.data.location import data_directory
+
+    folder = data_directory(cn.CASES, None, data_dir)
+    rows = []
+    for short, case, file in (
+        ("lon", "f18harv_compat_lon", "compat_lon_example.mat"),
+        ("lat", "f18harv_compat_lat", "compat_lat_example.mat"),
+    ):
+        entry = cn.run(case, data_dir)["results"][-1]
+        reference = scipy.io.loadmat(folder / "sidpac_f18harv" / file)
+        sigmas = np.sqrt(np.diag(reference["crbc"]))
+        names = [str(n).strip().replace(" ", "_") for n in reference["p_names"]]
+        label = (
+            f"{short} ({entry['iterations']} passes, {entry['equivalent_evaluations']} evaluations)"
+        )
+        for name, value, sigma in zip(names, reference["pc"].ravel(), sigmas, strict=True):
+            item = cn.parameter(entry, name)
+            # (θ_flightid − θ_SIDPAC) / σ_SIDPAC and σ_flightid / σ_SIDPAC
+            difference = (item["value"] - value) / sigma
+            rows.append(
+                [
+                    label,
+                    name + _unit(item),
+                    f"{cn.significant(item['value'], 6)} ± {cn.significant(item['std_cr'], 4)}",
+                    f"{cn.significant(value, 6)} ± {cn.significant(sigma, 4)}",
+                    f"{difference:+.3f}".replace("-", "−"),
+                    f"{item['std_cr'] / sigma:.4f}",
+                ]
+            )
+            label = ""
+    heading = ["case", "parameter", "flightid", "SIDPAC", "Δ / σ", "σ ratio"]
+    return cn.table(heading, rows)
+
+
 def build(data_dir: str | None) -> list[str]:
     return [
+        cn.region("compat-f18-against-sidpac", against_sidpac(data_dir)),
         cn.region("compat-attas-fpr-biases", single("attas_fpr_biases", data_dir)),
         cn.region(
             "compat-attas-fpr-segment-biases", per_segment("attas_fpr_segment_biases", data_dir)

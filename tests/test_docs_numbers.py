@@ -210,3 +210,14 @@ def test_aircraft_example3_table_is_what_flightid_paper_prints_today() -> None:
     quoted = numbers.regions((DOCS / "aircraft.md").read_text(encoding="utf-8"))
     problems = numbers.differences(quoted["aircraft-example3"][0], aircraft.example3_table())
     assert not problems, "\n".join(problems)
+
+
+@needs_data("sidpac_f18harv")
+def test_compat_f18_table_is_what_the_cases_give_today() -> None:
+    """docs/compat.md's F-18 HARV reconstruction against SIDPAC's stored results, from fresh
+    runs of both case files (≈ 10 s)."""
+    compat = _load("compat_numbers")
+    quoted = numbers.regions((DOCS / "compat.md").read_text(encoding="utf-8"))
+    fresh = compat.against_sidpac(str(DATA))
+    problems = numbers.differences(quoted["compat-f18-against-sidpac"][0], fresh)
+    assert not problems, "\n".join(problems)
