@@ -221,3 +221,10 @@ def test_compat_f18_table_is_what_the_cases_give_today() -> None:
     fresh = compat.against_sidpac(str(DATA))
     problems = numbers.differences(quoted["compat-f18-against-sidpac"][0], fresh)
     assert not problems, "\n".join(problems)
+
+
+def test_every_numbers_script_has_a_record() -> None:
+    scripts = sorted(DOCS.glob("*_numbers.py")) + [ROOT / "bench" / "benchmarks_numbers.py"]
+    scripts = [s for s in scripts if s.name not in {"case_numbers.py", "docs_numbers.py"}]
+    missing = [s.name for s in scripts if not (DOCS / "numbers" / f"{s.stem}.txt").is_file()]
+    assert len(scripts) >= 10 and not missing, f"scripts without a record: {missing}"
