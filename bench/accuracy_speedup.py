@@ -1,4 +1,4 @@
-"""Speed-up of the parallel accuracy methods on 2 workers against 1 (issue 15, part 4).
+"""Speed-up of the parallel accuracy methods on 2 workers against 1.
 
 In one run, on the ATTAS short-period case (``examples/cases/attas_short_period.toml``,
 8 free parameters, 1252 samples × 2 outputs):

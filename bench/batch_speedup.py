@@ -1,4 +1,4 @@
-"""Speed-up of ``flightid batch`` on a Dask LocalCluster against the serial engine (issue 15).
+"""Speed-up of ``flightid batch`` on a Dask LocalCluster against the serial engine.
 
 Runs the same batch — the standard cases, each ``--repeat`` times under distinct names, so
 nothing is skipped — once per ``--workers`` count into fresh folders, in one process run:

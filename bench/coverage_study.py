@@ -1,4 +1,4 @@
-"""Monte Carlo coverage of 95 % confidence intervals (issue 5).
+"""Monte Carlo coverage of 95 % confidence intervals.
 
 For each case, ``--n`` noise realisations (seeds ``--seed`` … ``--seed + n − 1``) are drawn,
 each is estimated from the case's start values (output-error ML, R estimated, program MAX),

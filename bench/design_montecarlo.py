@@ -1,4 +1,4 @@
-"""Proof by simulation of the input design (issue 17, part 3): predicted vs realised σ.
+"""Proof by simulation of the input design: predicted vs realised σ.
 
 For two airplanes, a designed input and the reference maneuver of the same duration and
 amplitude are each flown in simulation ``--runs`` times with fresh seeded measurement noise

@@ -1,10 +1,10 @@
-"""Frequency-domain versus time-domain output error on the ATTAS flight data (issue 16,
-part 2).
+"""Frequency-domain versus time-domain output error on the ATTAS flight data.
 
 Runs the time-domain standard cases (examples/cases/attas_short_period.toml,
 attas_lateral.toml: output error, RK4, R estimated) and their frequency-domain
 counterparts (*_frequency_domain.toml: output error on 0.1–1.5 Hz), and prints a markdown
-table per case: value ± σ (Cramér–Rao) of each, the coloured-residual σ of each, and
+table per case: value ± σ_CR (the Cramér–Rao bound, ``std_cr``) of each, the
+coloured-residual σ of each, and
 z = (θ_fd − θ_td)/sqrt(σ_fd² + σ_td²) twice: with the Cramér–Rao σ of both (z_CR) and with
 the coloured-residual σ of both (z_col: the time domain's from ``flightid.accuracy``
 (docs/accuracy.md), the frequency domain's from ``frequency.output_error``); |z| ≤ 2 is
@@ -74,18 +74,20 @@ def main() -> None:
         for p in fd["parameters"]:
             t = td_rows[p["name"]]
             if not p["estimated"]:
-                print(f"| {p['name']} | {t['value']:.5g} ± {t['std']:.2g} | not estimated | | | |")
+                print(
+                    f"| {p['name']} | {t['value']:.5g} ± {t['std_cr']:.2g} | not estimated | | | |"
+                )
                 continue
             # z = (θ_fd − θ_td) / sqrt(σ_fd² + σ_td²), with Cramér–Rao and coloured σ
-            z = (p["value"] - t["value"]) / np.hypot(p["std"], t["std"])
+            z = (p["value"] - t["value"]) / np.hypot(p["std_cr"], t["std_cr"])
             z_col = (p["value"] - t["value"]) / np.hypot(p["std_coloured"], t["std_coloured"])
             ok, ok_col = abs(z) <= 2.0, abs(z_col) <= 2.0
             agree += ok
             agree_coloured += ok_col
             total += 1
             print(
-                f"| {p['name']} | {t['value']:.5g} ± {t['std']:.2g} ({t['std_coloured']:.2g}) | "
-                f"{p['value']:.5g} ± {p['std']:.2g} ({p['std_coloured']:.2g}) | {z:+.2f} | "
+                f"| {p['name']} | {t['value']:.5g} ± {t['std_cr']:.2g} ({t['std_coloured']:.2g}) | "
+                f"{p['value']:.5g} ± {p['std_cr']:.2g} ({p['std_coloured']:.2g}) | {z:+.2f} | "
                 f"{z_col:+.2f} | {'yes' if ok else 'no'} / {'yes' if ok_col else 'no'} |"
             )
         print(

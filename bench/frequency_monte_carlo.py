@@ -1,4 +1,4 @@
-"""Monte Carlo coverage of the frequency-domain output-error intervals (issue 16, part 2).
+"""Monte Carlo coverage of the frequency-domain output-error intervals.
 
 Truth: the ATTAS short-period model at its time-domain estimates (the values
 ``flightid run examples/cases/attas_short_period.toml --json`` prints, with Z0 and M0),

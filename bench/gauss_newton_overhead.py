@@ -1,4 +1,4 @@
-"""flightid's MNR against a plain batched forward-difference Gauss–Newton (issue 14 part 4).
+"""flightid's MNR against a plain batched forward-difference Gauss–Newton.
 
 The plain Gauss–Newton is written here in numpy and uses nothing of flightid's estimation
 code, only its simulator. Per iteration: one ``Simulator.run`` of the batch
@@ -379,7 +379,7 @@ def case(n_steps: int, n_free: int, repeat: int, memory: bool) -> list[str]:
             f"{wall:.3f} | {ratio} | {per_sim} | {sim_s / wall:.2f} | {peak} | {peak_ratio} |"
         )
     est_wall = results["estimate(MNR)"][0]
-    # issue 14 part 4: within 1.3 × the plain loop with the same iterates and stop
+    # the requirement: within 1.3 × the plain loop with the same iterates and stop
     for name, wall, reference in (
         ("MNR solver", results["MNR solver"][0], "mnr stop"),
         ("estimate(MNR)", est_wall, "same stop, central CR"),

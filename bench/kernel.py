@@ -10,7 +10,7 @@ code — scalars, no arrays but the state, stage and output buffers allocated on
 trajectory, nothing allocated per step — and is checked against ``Simulator.run`` (``check``:
 outputs agree to 1e-10 relative to their scale, asserted before any timing).
 
-Tables (issue 14, part 1), best (min) over ``--repeats`` rounds after a warm-up call (flightid
+Tables, best (min) over ``--repeats`` rounds after a warm-up call (flightid
 and the hand-written kernel take turns within a round; the batch is timed apart):
 
 1. µs per trajectory: ``Simulator.run`` on one θ against the hand-written kernel; ratio

@@ -1,4 +1,4 @@
-"""MNRES study (issue 14): the secant MNRES against the surface MNRES, MNR and scipy lm.
+"""MNRES study: the secant MNRES against the surface MNRES, MNR and scipy lm.
 
     python -P bench/mnres_study.py [--seeds 8] [--steps 1000] [--free 22]
                                    [--variant base|hard40] [--cases]
@@ -6,7 +6,7 @@
 Same 6-DOF Navion benchmark and accounting as ``bench/peers.py`` (imported from it): every
 integration through ``Simulator.run`` is recorded; "sims to J*+0.01" counts simulations until
 the first whose cost is within 0.01 of the lowest any method reached on that seed. Methods:
-MNRES (default: secant form), MNRES surface (``form="algebraic"``, the form before issue 14),
+MNRES (default: secant form), MNRES surface (``form="algebraic"``, the earlier form),
 MNR, scipy lm. ``--cases`` runs the standard example cases (examples/cases/*.toml that name
 solver mnres) with MNRES and MNR and prints simulations and wall time. ``--variant hard40``:
 the 40-parameter variant of bench/peers.py (derivatives, output biases, initial states;

@@ -4,7 +4,7 @@
     python -P bench/peers.py [--seeds 8] [--quick] [--variant base|hard40] [--scaling]
                              [--memory] [--cases [CASE ...]]
 
-The benchmark (issue 14): the Navion 6-DOF model built by ``flightid.aircraft.six_dof_model``
+The benchmark: the Navion 6-DOF model built by ``flightid.aircraft.six_dof_model``
 (9 states u, v, w, p, q, r, l_xz, l_yz, l_zz; Nelson's longitudinal and lateral derivatives,
 22 free aerodynamic parameters), trimmed at 53.6 m/s, excited by elevator, aileron and rudder
 doublets; 1000 RK4 steps of 0.02 s; 8 outputs (V, α, β, Θ, Φ, p, q, r) with seeded Gaussian
@@ -779,9 +779,10 @@ def cases_table(names=STANDARD_CASES) -> None:
     from pathlib import Path
 
     from flightid.cases import load_case, run_case
+    from flightid.data.location import data_directory
 
     cases_dir = Path(__file__).resolve().parents[1] / "examples" / "cases"
-    data_dir = Path(os.environ.get("FLIGHTID_DATA", cases_dir / "../../../shared/data")).resolve()
+    data_dir = data_directory(cases_dir).resolve()  # --data-dir, $FLIGHTID_DATA, the default
     print()
     print(
         "Standard cases. Process: `flightid run CASE --out DIR --json --accuracy cr` in a new "

@@ -1,4 +1,4 @@
-"""Per-sample cost of the recursive estimators on one core (issue 16 part 3).
+"""Per-sample cost of the recursive estimators on one core.
 
 For each shipped ATTAS case (short period: N = 1252, n_x = 2, 8 free → 10 augmented states;
 lateral p, r: N = 3004, n_x = 2, 12 free → 14 augmented states) and each method, the case's
@@ -83,7 +83,7 @@ def case_table(data_dir: str | None) -> None:
     from flightid.cases import load_case
     from flightid.cases.recursive_case import run_recursive_case
 
-    print("| case | N | wall (s) | estimates ± σ (reported value, CASES.md §8.1) |")
+    print("| case | N | wall (s) | estimates ± σ (reported value) |")
     print("|---|---|---|---|")
     for path in sorted((ROOT / "examples/cases").glob("*_recursive_*.toml")):
         case = load_case(path)

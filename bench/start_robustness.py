@@ -10,7 +10,7 @@ tolerances, Convergence(cost_rtol=1e-8, param_rtol=1e-8, max_iterations=300), fr
 problem's reference start; σ_j are that reference's Cramér–Rao bounds.
 
 Part 1, start values. The five standard cases (examples/cases/*.toml except the stepwise
-regression, on the real data in ../shared/data) and RP-1153 example 3 cases 2 and 3 are
+regression, on the real flight data) and RP-1153 example 3 cases 2 and 3 are
 started from
 
   (a) zeros:  every aerodynamic parameter 0. "Aerodynamic" = every parameter of the case's
@@ -40,8 +40,8 @@ Convergence(max_iterations=200)). Verdict per run, d = max_j |θ̂_j − θ*_j|/
 Part 2, tolerances. Default Convergence() (MNRES and MNR) against the tight reference, for
 every standard case, RP-1153 examples 1, 2 (cases 1, 2; Euler, R = I fixed as in the paper)
 and 3 (cases 2, 3), and the book's unstable aircraft set-ups 3c ``unstab_sp_equation_
-decoupling`` and 3e ``unstab_sp_eigenvalue_transform`` (../shared/reference/CASES.md §3, §0;
-data fvsysid/unStabAC_sim.asc; written below as f/h functions; noise "max"). Required:
+decoupling`` and 3e ``unstab_sp_eigenvalue_transform`` (the book's unstable-aircraft
+case; data fvsysid/unStabAC_sim.asc; written below as f/h functions; noise "max"). Required:
 d ≤ 0.05. For examples 1 and 2, whose R = I is fixed while the data's noise is 0 or
 1e-4 / 1e-3, σ under that R says little; the table also gives d in σ computed with R̂ from
 the reference's residuals (column "d, R̂"; for the noise-free example 1 that σ is at
@@ -71,6 +71,7 @@ from flightid.cases import load_case, prepare_case  # noqa: E402
 from flightid.cases.build import build_convergence, build_solver  # noqa: E402
 from flightid.cases.run import input_interpolation  # noqa: E402
 from flightid.data import FlightData  # noqa: E402
+from flightid.data.location import data_directory  # noqa: E402
 from flightid.errors import FlightIdError  # noqa: E402
 from flightid.estimation import MNR, MNRES, Convergence, Estimate, estimate  # noqa: E402
 from flightid.estimation.gauss_newton import information_matrix  # noqa: E402
@@ -78,7 +79,7 @@ from flightid.model import Parameter, Parameters, StateSpaceModel  # noqa: E402
 from flightid.simulation import simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("FLIGHTID_DATA", ROOT / "../shared/data"))
+DATA = data_directory(ROOT / "examples" / "cases")  # $FLIGHTID_DATA, else the cases' default
 STANDARD_CASES = (
     "attas_short_period",
     "twin_otter_longitudinal",
@@ -191,10 +192,10 @@ def examples12_problems() -> Iterator[Problem]:
         )
 
 
-# The book's unstable aircraft (../shared/reference/CASES.md §3): short period, states w, q.
+# The book's unstable aircraft (Jategaonkar 2015): short period, states w, q.
 UNSTAB_U0 = 44.5695  # m/s, constant
 UNSTAB_SIGMA = 0.7  # 1/s, eigenvalue shift of 3e
-UNSTAB_START = {  # CASES.md §3 start values; Zq fixed
+UNSTAB_START = {  # the reference's start values; Zq fixed
     "Zw": -1.22871,
     "Zq": -1.4768,
     "Zde": -4.20491,
@@ -240,7 +241,7 @@ def unstab_3e_f(t, x, u, theta):
 def unstab_problems(data_dir: Path = DATA) -> Iterator[Problem]:
     """3c (equation decoupling) and 3e (eigenvalue transformation), noise "max"."""
     table = np.loadtxt(data_dir / "fvsysid/unStabAC_sim.asc")
-    # CASES.md §0: t_k = (k − 1)·dt, dt = 0.05 s; cols 3 w, 4 q, 5 δe, 6 a_z
+    # the file's time base: t_k = (k − 1)·dt, dt = 0.05 s; cols 3 w, 4 q, 5 δe, 6 a_z
     t = np.arange(table.shape[0]) * 0.05
     w, q, de, az = table[:, 2], table[:, 3], table[:, 4], table[:, 5]
     parameters = Parameters(Parameter(n, v, free=n != "Zq") for n, v in UNSTAB_START.items())

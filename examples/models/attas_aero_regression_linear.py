@@ -1,4 +1,4 @@
-"""ATTAS aerodynamic model from measured coefficients, linear (the book's TC23, CASES.md §6a).
+"""ATTAS aerodynamic model from measured coefficients, linear (the book's TC23).
 
 No states: each output is an algebraic function of the measured inputs (rad, rad/s, m/s),
 
@@ -9,7 +9,7 @@ No states: each output is an algebraic function of the measured inputs (rad, rad
     C_l = Cl0 + Clbe β + Clp p* + Clr r* + Clda δa
     C_n = Cn0 + Cnbe β + Cnp p* + Cnr r* + Cndr δr
 
-with p* = p (b/2)/V, q* = q c̄/V (full chord, CASES.md Q6), r* = r (b/2)/V, b/2 = 10.75 m,
+with p* = p (b/2)/V, q* = q c̄/V (full chord, as the reference uses), r* = r (b/2)/V, b/2 = 10.75 m,
 c̄ = 3.159 m. Parameters in the reference's order, all starting at 0.
 """
 

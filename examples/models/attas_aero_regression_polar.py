@@ -1,5 +1,5 @@
-"""ATTAS aerodynamic model from measured coefficients with a drag polar (the book's TC24,
-CASES.md §6b).
+"""ATTAS aerodynamic model from measured coefficients with a drag polar (the book's
+TC24).
 
 No states: each output is an algebraic function of the measured inputs (rad, rad/s, m/s),
 
@@ -10,7 +10,7 @@ No states: each output is an algebraic function of the measured inputs (rad, rad
     C_l = Cl0 + Clbe β + Clp p* + Clr r* + Clda δa
     C_n = Cn0 + Cnbe β + Cnp p* + Cnr r* + Cndr δr
 
-with p* = p (b/2)/V, q* = q c̄/V (full chord, CASES.md Q6), r* = r (b/2)/V, b/2 = 10.75 m,
+with p* = p (b/2)/V, q* = q c̄/V (full chord, as the reference uses), r* = r (b/2)/V, b/2 = 10.75 m,
 c̄ = 3.159 m. Parameters in the reference's order (efak in place of CDal); start values 0
 except CD0 = 0.03, efak = 1, CL0 = 0.2, CLal = 5.
 """

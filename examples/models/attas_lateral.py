@@ -1,5 +1,5 @@
-"""ATTAS lateral-directional motion, linear derivatives (../shared/data/README.md,
-"ATTAS lateral, one maneuver").
+"""ATTAS lateral-directional motion, linear derivatives, one maneuver of
+the ATTAS lateral flight data (FVSysID ``fAttasAilRud1``).
 
     dp/dt = L_p p + L_r r + L_δa δa + L_δr δr + L_β β
     dr/dt = N_p p + N_r r + N_δa δa + N_δr δr + N_β β

@@ -1,5 +1,5 @@
-"""ATTAS lateral-directional motion with constant terms, outputs p and r
-(../shared/data/README.md, "ATTAS lateral, two maneuvers").
+"""ATTAS lateral-directional motion with constant terms, outputs p and r,
+for the two ATTAS lateral maneuvers (aileron and rudder inputs) estimated together.
 
     dp/dt = L_p p + L_r r + L_δa δa + L_δr δr + L_β β + L_0
     dr/dt = N_p p + N_r r + N_δa δa + N_δr δr + N_β β + N_0

@@ -1,5 +1,5 @@
 """ATTAS lateral p, r model (``attas_lateral_pr.py``) with the parameter names of the
-recursive-estimation reference (CASES.md §8.2, "Parameter names in the reference"):
+recursive-estimation reference (the FVSysID recursive examples of the book's chapter 7):
 
     Lp Lr Ldla Ldlr Lbeta L0 Np Nr Ndla Ndlr Nbeta N0    (Ldla = L_δa, Ldlr = L_δr, …)
 

@@ -1,9 +1,9 @@
-"""ATTAS quasi-steady stall with Kirchhoff flow separation (the book's TC27, CASES.md §7).
+"""ATTAS quasi-steady stall with Kirchhoff flow separation (the book's TC27).
 
 No states: the outputs are algebraic in the measured inputs δe (rad), q (rad/s, raw),
 α (rad, smoothed), V (m/s, smoothed), α̇ (rad/s) and Mach:
 
-    q*     = q c̄ / V                                  (full chord, CASES.md Q6)
+    q*     = q c̄ / V                                  (full chord, as the reference)
     CLde   = −Cmde c̄ / 15                            (15 m: elevator–wing distance)
     C_Llin = CL0 + (CLal + CLMa Mach) α + CLde δe
     C_Dlin = CD0 + C_Llin² / (Efak π 7.22)

@@ -1,4 +1,4 @@
-"""ATTAS short-period motion (../shared/data/README.md, "ATTAS short period").
+"""ATTAS short-period motion (the ATTAS elevator flight data, the book's short-period case).
 
 dα/dt = Z_0 + Z_α α + (1 + Z_q) q + Z_δe δe
 dq/dt = M_0 + M_α α + M_q q + M_δe δe

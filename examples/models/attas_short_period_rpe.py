@@ -1,5 +1,5 @@
 """ATTAS short-period model (``attas_short_period.py``) with the parameter names of the
-recursive-estimation reference (CASES.md §8.2, "Parameter names in the reference"):
+recursive-estimation reference (the FVSysID recursive examples of the book's chapter 7):
 
     z0 zalfa zq zdele m0 malfa mq mdele    (= Z0, Zα, Zq, Zδe, M0, Mα, Mq, Mδe)
 

@@ -1,5 +1,5 @@
-"""HFB-320 longitudinal motion in wind axes, with thrust (the standard case of
-../shared/data/README.md, "HFB-320 longitudinal").
+"""HFB-320 longitudinal motion in wind axes, with thrust (the HFB-320
+longitudinal flight data of FVSysID, ``hfb320_1_10.asc``).
 
 States V (m/s), α (rad), Θ (rad), q (rad/s); inputs δe (rad) and thrust F (N); outputs V, α,
 Θ, q, q̇ (rad/s²), a_x, a_z (m/s²). Aerodynamic model linear in V/V0, α, q and δe:

@@ -1,5 +1,5 @@
-"""HFB-320 longitudinal model (``hfb320.py``) with the parameter names of CASES.md §2 (the
-reference's filter-error case): CD0 CDV CDAL CL0 CLV CLAL CM0 CMV CMAL CMQ CMDE.
+"""HFB-320 longitudinal model (``hfb320.py``) with the parameter names of the reference's
+HFB-320 filter-error case: CD0 CDV CDAL CL0 CLV CLAL CM0 CMV CMAL CMQ CMDE.
 
 Same f, h, states, inputs, outputs and start values as ``hfb320.py``; only the names differ
 (CDAL = C_Dα, CMQ = C_mq, ...).

@@ -1,5 +1,5 @@
 """NASA Twin Otter longitudinal short-period model for output error
-(../shared/data/README.md, "sidpac_twin_otter": α and q integrated, other states measured).
+(SIDPAC's Twin Otter flight data: α and q integrated, other states measured).
 
 States α (rad), q (rad/s). Inputs: Δδe (rad, elevator about its first sample), V (m/s),
 Θ, Φ (rad), a_x (m/s², measured specific force), q̄ (Pa), and α_m, Δα_m (rad: measured α and

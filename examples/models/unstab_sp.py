@@ -1,4 +1,5 @@
-"""Unstable aircraft, short-period motion (CASES.md §3, data ``fvsysid/unStabAC_sim.asc``).
+"""Unstable aircraft, short-period motion (the book's unstable-aircraft case, data
+``fvsysid/unStabAC_sim.asc``).
 
 Basic model (states w, q; input δe; u0 = 44.5695 m/s constant):
 
@@ -6,14 +7,14 @@ Basic model (states w, q; input δe; u0 = 44.5695 m/s constant):
     dq/dt = M_w w + M_q q + M_δe δe
     outputs a_z = Z_w w + Z_q q + Z_δe δe,  w,  q
 
-Units: w in m/s, q in rad/s, δe in rad, a_z in m/s². Parameters are named as CASES.md writes
-them (Zδe, Mδe; the reference code calls them zeta, meta); start values from CASES.md §3.
+Units: w in m/s, q in rad/s, δe in rad, a_z in m/s². Parameters are named as the book writes
+them (Zδe, Mδe; the reference code calls them zeta, meta); start values are the reference's.
 Zq is fixed at −1.4768 by the case files, not here.
 """
 
 import numpy as np
 
-# Constant forward speed u0 (m/s), CASES.md §3.
+# Constant forward speed u0 (m/s), the reference's value.
 U0 = 44.5695
 
 STATES = ("w", "q")

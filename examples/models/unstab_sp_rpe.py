@@ -1,5 +1,5 @@
-"""Unstable-aircraft short-period model (``unstab_sp.py``, CASES.md §3 basic model) with the
-reference code's parameter names (CASES.md §3: "code and reference-CSV names"):
+"""Unstable-aircraft short-period model (``unstab_sp.py``, the basic model) with the
+reference code's parameter names (those FVSysID's scripts and result files use):
 
     zw zq zeta mw mq meta    (= Zw, Zq, Zδe, Mw, Mq, Mδe)
 

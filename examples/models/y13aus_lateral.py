@@ -1,4 +1,4 @@
-"""Lateral-directional motion in turbulence, y13aus_da1 (the book's TC02; CASES.md §1;
+"""Lateral-directional motion in turbulence, y13aus_da1 (the book's TC02;
 parameter names as the reference reports them: Lp … Yv, BX1, BX2, BY1 … BY5).
 
     dp/dt = L_p p + L_r r + L_δa δa + L_δr δr + L_v v + BX1
@@ -8,7 +8,7 @@ parameter names as the reference reports them: Lp … Yv, BX1, BX2, BY1 … BY5)
             a_y = Y_p p + Y_r r + Y_δa δa + Y_δr δr + Y_v v + BY3,  p + BY4,  r + BY5
 
 The lateral velocity v is measured and used as an input. The start values are those of
-CASES.md §1. Units: rad, rad/s, rad/s², m/s, m/s².
+the reference's case. Units: rad, rad/s, rad/s², m/s, m/s².
 """
 
 import numpy as np

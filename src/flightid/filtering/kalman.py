@@ -146,12 +146,14 @@ def steady_state_gain(
     """K = P Cᵀ R⁻¹ with P from CARE (Potter's method; the Schur solver if that fails).
 
     Args:
-        a, c: the linearised system (n × n), (m × n).
+        a: the linearised system's state matrix A (n × n).
+        c: the linearised system's output matrix C (m × n).
         f_matrix: the process-noise distribution matrix F (n × q).
         r_diag: R's diagonal (m,).
         dt: Δt, s.
+
     Returns:
-        (K (n × m), P (n × n)).
+        The gain K (n × m) and the state prediction covariance P (n × n), as the pair (K, P).
     """
     f_matrix = np.atleast_2d(np.asarray(f_matrix, dtype=float))
     # Potter's method: one eigen-decomposition of the 2n × 2n Hamiltonian, about 100× faster

@@ -281,11 +281,18 @@ def maneuver_figure(
     time from the maneuver's first sample.
 
     Args:
-        time: (N,) s (absolute; shown as t − t₀).
-        inputs: (N, n_u) in the inputs' units, or None.
-        measured, predicted: (N, n_o) in the outputs' units.
-        units: {channel: unit}.
+        time: the sample times (N,), s (absolute; shown as t − t₀).
+        inputs: the inputs (N, n_u) in the inputs' units, or None.
+        input_names: the names of the input columns (n_u).
+        measured: the measured outputs (N, n_o) in the outputs' units.
+        predicted: the model's outputs (N, n_o) in the outputs' units.
+        output_names: the names of the output columns (n_o).
+        units: the unit of each channel, as a mapping from channel name to unit.
+        title: the figure's title.
         input_steps: draw the inputs as held steps (zero-order-hold interpolation).
+
+    Returns:
+        The matplotlib figure (not yet saved).
     """
     time = np.asarray(time, dtype=float)
     n = time.shape[0]
