@@ -140,3 +140,91 @@ def test_standard_case_tables_in_cases_md_match_what_the_script_prints() -> None
         check=False,
     )
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+# The API reference renders the docstrings of src/flightid, and comments are read by users of
+# the source: neither may cite the development notes, the shared folder or an issue number.
+SOURCE_FORBIDDEN = {
+    r"\bCASES\.md\b": "a development note users do not have",
+    r"\bMETHOD\.md\b|\bMETHOD §": "a development note users do not have",
+    r"\.\./shared/": "a path into the development machine's shared folder",
+    r"(?i)\bissues? ?#?\d+": "an issue number (development history)",
+}
+# The default data folder is product behaviour: its constant may spell the path.
+SOURCE_ALLOWED_LINE = "DEFAULT_DATA_DIR"
+SOURCE_ROOT = ROOT / "src" / "flightid"
+
+
+def docstring_and_comment_lines(source: str) -> list[tuple[int, str]]:
+    """(line number, text) of every docstring line (module, class, function) and comment."""
+    import ast
+    import io
+    import tokenize
+
+    lines = []
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        if ast.get_docstring(node, clean=False) is None:
+            continue
+        first = node.body[0].value
+        for offset, text in enumerate(first.value.splitlines()):
+            lines.append((first.lineno + offset, text))
+    for token in tokenize.generate_tokens(io.StringIO(source).readline):
+        if token.type == tokenize.COMMENT:
+            lines.append((token.start[0], token.string))
+    return lines
+
+
+def source_offences(source: str) -> list[tuple[int, str, str]]:
+    """(line number, matched text, reason) for each forbidden reference in a docstring or
+    comment of source; a line of the source that names DEFAULT_DATA_DIR is exempt."""
+    source_lines = source.splitlines()
+    found = []
+    for number, text in docstring_and_comment_lines(source):
+        if SOURCE_ALLOWED_LINE in source_lines[number - 1]:
+            continue
+        for pattern, reason in SOURCE_FORBIDDEN.items():
+            for match in re.finditer(pattern, text):
+                found.append((number, match.group(0), reason))
+    return found
+
+
+def test_no_docstring_or_comment_cites_what_users_do_not_have() -> None:
+    modules = sorted(SOURCE_ROOT.rglob("*.py"))
+    assert len(modules) > 50, modules
+    found = []
+    for module in modules:
+        for number, text, why in source_offences(module.read_text(encoding="utf-8")):
+            where = module.relative_to(ROOT)
+            found.append(f"{where}:{number}: {text!r} — {why}")
+    assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        '"""Filter error (CASES.md §1b)."""\n',
+        'class A:\n    """As METHOD.md §3 says."""\n',
+        'def f():\n    """Scaled by importance\n    (METHOD §7)."""\n',
+        "async def g():\n    '''The secant form (issue 14).'''\n",
+        "x = 1  # data in ../shared/data\n",
+        "def h():\n    # measured, Issue #14\n    return 1\n",
+    ],
+)
+def test_each_forbidden_source_reference_is_caught(source: str) -> None:
+    assert source_offences(source), source
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        'DEFAULT_DATA_DIR = "../../../shared/data"  # ../shared/ beside the checkout\n',
+        '"""A folder shared/data three levels above the case file\'s folder."""\n',
+        'def f():\n    """FVSysID test case TC09 (Jategaonkar ch. 9); issue the warnings."""\n',
+        'x = "CASES.md"  # a string, not a docstring or comment\n',
+    ],
+)
+def test_ordinary_source_text_passes(source: str) -> None:
+    assert not source_offences(source), source

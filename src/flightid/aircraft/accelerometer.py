@@ -6,9 +6,9 @@ The equations give the specific force along the body axes in g units [RP-1153 2.
 
 with (X, Y, Z) the aerodynamic plus thrust force (gravity excluded: an accelerometer does not
 sense it). Body z points down, so in level flight Z ≈ −m g and a_z ≈ −1 g. Data sets differ
-(METHOD.md §3): many instruments and flight-test conventions record the normal acceleration
-positive up (a_n = −a_z ≈ +1 g in level flight), and some record m/s² instead of g. The model
-output is
+in sign convention and unit: many instruments and flight-test conventions record the normal
+acceleration positive up (a_n = −a_z ≈ +1 g in level flight), and some record m/s² instead
+of g. The model output is
 
     y_a = s_a · k · F_a/(m g),   s_a = ±1 per axis,   k = 1 (g units) or g (m/s²)
 

@@ -63,7 +63,7 @@ equations with u = V cos α, w = V sin α:
     dq/dt = M / I_y
 
 α–q longitudinal form (states α, q; V, q̄, Θ, Φ, a_x (g), p, r measured inputs; body axes,
-β ≈ 0, thrust carried by the measured a_x, METHOD §3). With u = V cos α, w = V sin α, the α̇
+β ≈ 0, thrust carried by the measured a_x, RP-1153 §2.A). With u = V cos α, w = V sin α, the α̇
 line is (u ẇ − w u̇)/V² with u̇, ẇ from [2.5], [2.7], in which X/m = g a_x and
 Z = q̄ S C_Z:
 

@@ -16,7 +16,7 @@ of two ways (the builders' ``code`` argument):
 Either way the simulator can numba-compile ``f``/``h`` and the pure-Python path runs the
 same code; ``f.model_code`` says which path a model has.
 
-Models (RP-1153 §2.A, METHOD.md §3):
+Models (RP-1153 §2.A, equations 2.5–2.15):
 
 * ``six_dof_model``: states u v w p q r l_xz l_yz l_zz.
 * ``longitudinal_model``: states u w q l_xz l_yz l_zz; the measured lateral motion v, p, r

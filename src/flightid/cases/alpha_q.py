@@ -1,18 +1,18 @@
 """The α–q longitudinal output-error model of a case (``[model] type = "alpha_q"``).
 
 α and q are integrated and V, q̄, θ, φ, a_x (g), p, r are measured inputs (the standard
-SIDPAC-style longitudinal case; body axes, β ≈ 0, thrust carried by the measured a_x,
-METHOD §3). The model is ``flightid.aircraft.alpha_q_longitudinal_model``, whose equations
+SIDPAC-style longitudinal case; body axes, β ≈ 0, thrust carried by the measured a_x;
+RP-1153 §2.A). The model is ``flightid.aircraft.alpha_q_longitudinal_model``, whose equations
 (``flightid.aircraft.equations``) are
 
     α̇ = q + (q̄ S /(m V)) C_Z cos α − (g a_x / V) sin α + (g / V)(cos φ cos θ cos α + sin θ sin α)
-    q̇ = (q̄ S c̄ C_m + (I_z − I_x) p r + I_xz (r² − p²)) / I_y                    [§3, dq/dt]
+    q̇ = (q̄ S c̄ C_m + (I_z − I_x) p r + I_xz (r² − p²)) / I_y                    [2.9]
     outputs α, q, a_z = q̄ S C_Z / (m g)                                          [2.26]
 
 with C_Z, C_m linear in their parameters over the selected terms [2.16–2.18]; the term
 signals are α (state, rad), q̂ = q c̄/(2V) (state q and measured V) and any measured input
 channel (controls in rad). The α̇ line is (u ẇ − w u̇)/V² with u = V cos α, w = V sin α
-and the body-axis force equations of §3, in which (q̄S/m) C_X = g a_x.
+and the body-axis force equations [2.5], [2.7] of RP-1153, in which (q̄S/m) C_X = g a_x.
 
 This module is the adapter from the case to that builder: the structure (terms of C_Z and
 C_m) becomes an ``flightid.aircraft.AeroModel`` and the constants an

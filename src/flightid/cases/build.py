@@ -48,9 +48,9 @@ MANEUVER_CHANNEL = "maneuver_number"
 
 def resolve_data_dir(case: Case, override: str | Path | None = None) -> Path:
     """The data directory: ``override`` (CLI --data-dir), ``[data].data_dir`` relative to the
-    case file, env FLIGHTID_DATA, else ``../../../shared/data`` relative to the case file
-    (``flightid.data.location``). A case without ``data_dir`` passes None, so that
-    FLIGHTID_DATA applies to it."""
+    case file, env FLIGHTID_DATA, else a folder ``shared/data`` three levels above the case
+    file's folder (``flightid.data.location.DEFAULT_DATA_DIR``). A case without ``data_dir``
+    passes None, so that FLIGHTID_DATA applies to it."""
     given = case.data.get("data_dir")
     if given is not None and not isinstance(given, str):
         raise CaseError(f"data.data_dir: expected a path string, got {given!r}")
@@ -413,9 +413,10 @@ def _initial_states(
     default_estimated: Sequence[str] = (),
 ) -> tuple[list[list], list[Parameter]]:
     """Per-maneuver x0 specifications and the x0 parameters they need, in maneuver-major
-    order (maneuver 1's free states in state order, then maneuver 2's …, as CASES.md §4c
-    lists them). A state without an entry takes the section's ``default``, else "estimate"
-    if it is one of ``default_estimated`` (and estimation is allowed), else "measured"."""
+    order (maneuver 1's free states in state order, then maneuver 2's …, the order in which
+    FVSysID's flight-path reconstruction test case TC33 lists them). A state without an entry
+    takes the section's ``default``, else "estimate" if it is one of ``default_estimated``
+    (and estimation is allowed), else "measured"."""
     unknown = sorted(set(section) - set(model.states) - {"default"})
     if unknown:
         raise CaseError(

@@ -1,4 +1,5 @@
-"""Case files with a ``[recursive]`` table: recursive (online) estimation (CASES.md §8).
+"""Case files with a ``[recursive]`` table: recursive (online) estimation
+(Jategaonkar, *Flight Vehicle System Identification*, 2nd ed., ch. 7).
 
     [recursive]
     method = "ekf"            # ekf | ukf | ukf_aug | efrls | ftr
@@ -20,8 +21,9 @@ with ``[parameters]``, ``[initial_state]`` and ``[biases]`` as for output error;
 the first maneuver). The FTR needs no model: it regresses the measured ``states`` channels on
 themselves and the ``inputs`` channels in the frequency domain.
 
-Several ``[data]`` files are ONE continuous record here (CASES.md Q11): the samples are
-joined without re-initialisation and the time is regenerated, t_k = (k − 1)·dt, k = 1..N.
+Several ``[data]`` files are ONE continuous record here: the samples are joined without
+re-initialising the state at a junction, and the time is regenerated over the joined record,
+t_k = (k − 1)·dt, k = 1..N (the files' own time columns are not used).
 Every key is checked; a wrong one is a ``CaseError`` naming ``recursive.<key>``.
 """
 
@@ -286,7 +288,7 @@ def _record(case: Case, data_dir: Path) -> tuple[list, np.ndarray, float]:
                 f"'{maneuvers[0].name}' has dt = {dt} s, '{m.name}' has {value} s"
             )
     n = sum(m.n_samples for m in maneuvers)
-    # t_k = (k − 1)·dt over the joined record (CASES.md §0, Q11)
+    # t_k = (k − 1)·dt, k = 1..N, over the joined record (no restart at a junction)
     return maneuvers, dt * np.arange(n), dt
 
 

@@ -43,7 +43,7 @@ def add_data_dir_argument(parser: argparse.ArgumentParser) -> None:
         "--data-dir",
         default=None,
         help="directory holding the data files (default: the case's data.data_dir, then "
-        "$FLIGHTID_DATA, then ../../../shared/data relative to the case file)",
+        "$FLIGHTID_DATA, then a folder shared/data three levels above the case file's folder)",
     )
 
 

@@ -2,8 +2,8 @@
 
 Measured specific forces and angular rates drive the kinematic equations; the integrated
 motion is compared with the measured air data, attitude and altitude. Sensor errors (biases,
-scale factors, time delays) are parameters of the model (CASES.md §4, Jategaonkar ch. 10;
-Klein & Morelli ch. 10).
+scale factors, time delays) are parameters of the model (Jategaonkar, *Flight Vehicle System
+Identification*, 2nd ed., ch. 10; Klein & Morelli, *Aircraft System Identification*, ch. 10).
 
 Kinematic quantities (units: L is the length unit of the data, m or ft; angles in rad)::
 
@@ -19,7 +19,7 @@ rates (rad/s); ``pdot qdot rdot`` (rad/s²) when the accelerometer is away from 
 Sensor model of every sensor s (measured m, true x), with the bias and scale parameters of
 that sensor when it has them (otherwise b = 0, f = 1)::
 
-    m = f·(x − x_ref) + x_ref + b          bias_convention = "sensor" (default; CASES.md)
+    m = f·(x − x_ref) + x_ref + b          bias_convention = "sensor" (default; FVSysID's)
     m = f·(x − x_ref) + x_ref − b          bias_convention = "correction" (x = m + b at f = 1;
                                            SIDPAC's compatibility biases)
     f = parameter                           scale_convention = "factor" (default; start 1)
@@ -201,7 +201,7 @@ def kinematic_derivatives(X, c, u, consts):
     qd = u[k + 1] if k >= 0 else 0.0
     rd = u[k + 2] if k >= 0 else 0.0
     g, xa, ya, za = consts[_C_G], consts[_C_XA], consts[_C_YA], consts[_C_ZA]
-    # accelerations at the CG from the accelerometer at (x_A, y_A, z_A) [CASES.md §4]
+    # accelerations at the CG from the accelerometer at (x_A, y_A, z_A) [Jategaonkar ch. 10]
     axcg = ax + xa * (q * q + r * r) - ya * (p * q - rd) - za * (p * r + qd)
     aycg = ay - xa * (p * q + rd) + ya * (p * p + r * r) - za * (q * r - pd)
     azcg = az - xa * (p * r - qd) - ya * (q * r + pd) + za * (p * p + q * q)
@@ -815,7 +815,8 @@ def kinematic_model(
             β and the integrated φ, θ, ψ, h, x_N, y_E, which must be states to be outputs.
             V_N V_E V_D (ground-speed components), V_G (horizontal ground speed) and χ
             (track, atan2(V_E, V_N), in (−π, π]) are inertial, at the CG.
-        g: gravity, L/s² (9.80 in CASES.md §4; 32.174 ft/s² for SIDPAC's files).
+        g: gravity, L/s² (9.80 m/s² in FVSysID's ATTAS flight-path reconstruction;
+            32.174 ft/s² for SIDPAC's files).
         accelerometer_position: (x_A, y_A, z_A) from the CG, L, body axes; away from the CG
             the model takes the inputs pdot, qdot, rdot (rad/s²) for the transfer terms.
         airdata_position: (x_NB, y_NB, z_NB) of the air-data boom from the CG, L.

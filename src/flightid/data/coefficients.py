@@ -1,4 +1,5 @@
-"""Aerodynamic force and moment coefficients from measured motion (CASES.md §6 steps 8–9).
+"""Aerodynamic force and moment coefficients from measured motion (as FVSysID's ATTAS data
+preparation ``umr_reg_attas`` computes them).
 
 Newton and Euler for a rigid body, solved for the aerodynamic force and moment, sample by
 sample (no memory between samples, so maneuver boundaries need no care). Body axes
@@ -20,8 +21,8 @@ I = [[I_x, −I_xy, −I_xz], [−I_xy, I_y, −I_yz], [−I_xz, −I_yz, I_z]]:
     C_l,CG = L / (q̄ S b),   C_m,CG = M / (q̄ S c̄),   C_n,CG = N / (q̄ S b)
 
 (b is the lateral reference length: the span, or b/2 where a reference normalises by
-it, as the ATTAS reference of CASES.md does with 10.75 m.) With I_xy = I_yz = 0 and two
-engines at (x_E, ∓y_E, z_E) with ε = 0 these are CASES.md §6 step 9
+it, as FVSysID's ATTAS set-up does with b/2 = 10.75 m.) With I_xy = I_yz = 0 and two
+engines at (x_E, ∓y_E, z_E) with ε = 0 these are the moment equations of that set-up
 (C_l,CG = [I_x ṗ − I_xz ṙ − I_xz p q − (I_y − I_z) q r] / (q̄ S b/2), ...).
 
 Moments about the aerodynamic reference point r_AC (from the CG):

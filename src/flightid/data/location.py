@@ -2,9 +2,10 @@
 
 Order, most specific first: the command line (``--data-dir``), the case's own ``data_dir``
 (relative to the case file), the environment variable ``FLIGHTID_DATA``, else
-``../../../shared/data`` relative to the case file — the shared data beside a checkout, for
-the cases under ``examples/cases/``, which give no ``data_dir`` so that ``FLIGHTID_DATA``
-can point them elsewhere. A case that keeps its data beside itself (``data_dir = "."``) is
+``DEFAULT_DATA_DIR``: a folder ``shared/data`` three levels above the case file's folder.
+For the cases under ``examples/cases/`` that is a folder ``shared/data`` beside the
+checkout; they give no ``data_dir``, so that ``FLIGHTID_DATA`` can point them to wherever
+the data files are. A case that keeps its data beside itself (``data_dir = "."``) is
 not redirected by ``FLIGHTID_DATA``.
 """
 

@@ -7,7 +7,8 @@ segment boundary (each segment is filtered on its own, as if it were the whole r
 
 Smoothing (``smooth = ...``):
 
-- ``"smoothMulTS"``: the fixed weights of CASES.md §0 (``smooth_mul_ts``);
+- ``"smoothMulTS"``: the fixed weights of the smoother ``smoothMulTS`` of FVSysID, the code
+  supplement of Jategaonkar's *Flight Vehicle System Identification* (``smooth_mul_ts``);
 - ``{savgol = [window, order]}``: Savitzky–Golay (``scipy.signal.savgol_filter``, its
   ``interp`` end rule: the fitted polynomial of the first/last window);
 - ``{butter = [order, cutoff_hz]}``: zero-phase Butterworth low-pass
@@ -16,7 +17,8 @@ Smoothing (``smooth = ...``):
 
 Differentiation (``derivative = ...``), giving the channel's rate (unit ``…/s``):
 
-- ``"ndiff8"``: the high-order central difference of CASES.md §0 (``ndiff8``);
+- ``"ndiff8"``: the high-order central difference of FVSysID's ``ndiff_Filter08``
+  (``ndiff8``);
 - ``{savgol = [window, order]}``: the first derivative of the Savitzky–Golay fit.
 """
 
@@ -48,7 +50,7 @@ class PreprocessError(InputError):
     or too long window, cutoff at or above the Nyquist frequency, too few samples)."""
 
 
-# ------------------------------------------------------------------ CASES.md §0 filters
+# ------------------------------------------------------------------ FVSysID's fixed filters
 
 # S(x) interior weights: S_k = [74 x_k + Σ_{j=1..7} w_j (x_{k−j} + x_{k+j})] / 320
 _S15 = (74.0, 67.0, 46.0, 21.0, 3.0, -5.0, -6.0, -3.0)
@@ -66,7 +68,7 @@ _C8 = (
 
 
 def smooth_mul_ts(x: np.ndarray) -> np.ndarray:
-    """S(x) of CASES.md §0 (``smoothMulTS``) over one segment x_1..x_N (any N ≥ 1).
+    """S(x), the smoother of FVSysID's ``smoothMulTS``, over one segment x_1..x_N (any N ≥ 1).
 
     Rules, the first that applies (k 1-based):
     k ≤ 3 or k ≥ N−2: S_k = x_k;
@@ -94,7 +96,8 @@ def smooth_mul_ts(x: np.ndarray) -> np.ndarray:
 
 
 def ndiff8(x: np.ndarray, dt: float) -> np.ndarray:
-    """D(x) of CASES.md §0 (``ndiff_Filter08``) over one segment x_1..x_N (N ≥ 5), dt in s.
+    """D(x), the differentiator of FVSysID's ``ndiff_Filter08``, over one segment x_1..x_N
+    (N ≥ 5), dt in s.
 
     Rules (k 1-based):
     10 ≤ k ≤ N−9: D_k = Σ_{j=1..8} c_j (x_{k+j} − x_{k−j}) / dt;

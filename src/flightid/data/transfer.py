@@ -11,9 +11,9 @@ v(r) = v_CG + ω × r, so from a sensor at r_s to a point r_t
     v_t = v_s + ω × (r_t − r_s)
 
 with v_s = V (cos β cos α, sin β, cos β sin α) and α_t = atan2(w_t, u_t),
-β_t = asin(v_t / V_t), V_t = |v_t|. For r_t = 0 (the CG) these are the equations of
-CASES.md §6 step 2 (u = u_NB + y_NB r − z_NB q, v = v_NB + z_NB p − x_NB r,
-w = w_NB + x_NB q − y_NB p).
+β_t = asin(v_t / V_t), V_t = |v_t|. For r_t = 0 (the CG) and a noseboom at r_s = r_NB these
+are the noseboom-to-CG equations of FVSysID's ATTAS data preparation (``umr_reg_attas``):
+u = u_NB + y_NB r − z_NB q, v = v_NB + z_NB p − x_NB r, w = w_NB + x_NB q − y_NB p.
 
 Accelerations (``transfer_accelerations``): a point at r of a rigid body has the specific
 force a(r) = a_CG + ω̇ × r + ω × (ω × r), so from a sensor at r_s to a point r_t, with
@@ -21,8 +21,8 @@ d = r_t − r_s,
 
     a_t = a_s + ω̇ × d + ω × (ω × d)
 
-For r_t = 0 these are CASES.md §6 step 7
-(a_xCG = a_x + x_A(q² + r²) − y_A(p q − ṙ) − z_A(p r + q̇), ...).
+For r_t = 0 and an accelerometer at r_s = r_A these are the accelerometer-to-CG equations of
+the same set-up (a_xCG = a_x + x_A(q² + r²) − y_A(p q − ṙ) − z_A(p r + q̇), ...).
 """
 
 from __future__ import annotations

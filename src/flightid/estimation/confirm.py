@@ -26,11 +26,11 @@ pass took forward differences at that very point with the confirmation's own ste
 backward integrations are run, and (G⁺_j + G⁻_j)/2 = (y(θ + δ_j e_j) − y(θ − δ_j e_j))/(2δ_j)
 is the central difference, equal to rounding to the one computed from scratch
 (``OutputErrorProblem.complete_central``). The derivatives stay fresh (all taken at θ̂, none
-from an earlier point), so the test means what it meant. The relative step 10⁻⁶ (10⁻⁷
-before issue 14): the central difference's error is about δ²·|y‴|/6 + ε·|y|/δ, and at 10⁻⁷
-the rounding term is ten times that at 10⁻⁶ while the truncation term is negligible at both.
+from an earlier point), so the test means what it meant. Why the relative step 10⁻⁶ rather
+than 10⁻⁷: the central difference's error is about δ²·|y‴|/6 + ε·|y|/δ, and at 10⁻⁷ the
+rounding term is ten times that at 10⁻⁶ while the truncation term is negligible at both.
 
-Forward half first (issue 14): where the forward differences can be completed, the forward
+Forward half first: where the forward differences can be completed, the forward
 half is taken first (n_f integrations, or the solver's) and the Gauss–Newton step on it
 judged. If it fails the test, its *full* step is tried (one integration); a step that lowers
 the cost shows the point was not the minimum, so it is taken and the backward half there is

@@ -1,6 +1,6 @@
 """The filter error method: maximum likelihood with process noise (Jategaonkar ch. 5).
 
-Model (CASES.md §1b):
+Model:
 
     ẋ(t) = f(x, u, θ) + F w(t),   F = diag(F_11, …) (parameters),  w: unit white noise
     z_k  = g(x_k, u_k, θ) + v_k
@@ -31,7 +31,8 @@ accepted iterate feasible; where the optimum lies on the constraint, the estimat
 the state's F element (``FilterErrorProblem(pinned=...)``: solved for every θ from
 diag(KC)_i = 1, no longer free) — an active set, released when lowering the element lowers
 the cost. The reference schedule (``relaxation="reference"``) instead corrects each
-Gauss–Newton step with the linearised constraint, as CASES.md §1b describes.
+Gauss–Newton step with the linearised constraint, as FVSysID's ``ml_fem2`` does
+(``flightid.estimation.filter_reference``).
 
 R and F are both estimated. The estimate the book defines is the fixed point where θ (system
 parameters and F) is Gauss–Newton-optimal under the weighting R and R equals the innovations'
@@ -448,7 +449,7 @@ def estimate_filter_error(
         relaxation: ``"fixed_point"`` (converge θ under R, update R, repeat until R settles;
             the constraint by an active set) or ``"reference"`` (the reference tool's
             schedule: R₀ for 3 steps, then an R update with F compensation after every
-            step, linearised constraint; CASES.md §1b).
+            step, linearised constraint; FVSysID's ``ml_fem2``).
         method, input_interpolation: integration as in ``estimate``.
         linearisation: where A and C are taken (``"start"``: x0, u_1).
         convergence: the solver's stopping rules (default ``Convergence()``).
@@ -469,7 +470,7 @@ def estimate_filter_error(
         ``cost`` = Σ eᵀR⁻¹e under it, ``equivalent_evaluations`` the filter passes of the
         optimiser, the Cramér–Rao bounds √diag(M⁻¹) with M from the sensitivities of the
         filtered outputs at θ̂ (central differences; the reference schedule: its last
-        forward-difference step, CASES.md Q14); ``noise_policy`` is
+        forward-difference step, at the iterate it was taken from); ``noise_policy`` is
         ``"filter_error/<relaxation>"`` and the message gives det R and diag(KC).
     """
     if not isinstance(model, StateSpaceModel):

@@ -1,5 +1,6 @@
 """``LinearFilterErrorProblem``: the filter error method for linear models with the exact
-discretisation and analytic sensitivities (``flightid.filtering.linear``; CASES.md §1c).
+discretisation and analytic sensitivities (``flightid.filtering.linear``; as FVSysID's
+``ml_fem_lin2``, Jategaonkar ch. 5).
 
 Filter passes use Φ = e^{AΔt}, Ψ (not RK4), and ``sensitivities`` returns H = ∂ỹ/∂θ from
 the differentiated Riccati equation (Lyapunov) and the differentiated filter recursion: one

@@ -1,4 +1,5 @@
-"""The reference tool's schedule of the filter error method (``ml_fem2``; CASES.md §1b).
+"""The reference tool's schedule of the filter error method (FVSysID's ``ml_fem2``; Jategaonkar,
+*Flight Vehicle System Identification*, 2nd ed., ch. 5).
 
 One Gauss–Newton step per iteration, forward differences δθ_j = 1e-4·θ_j (1e-4 if θ_j = 0),
 each perturbed θ with its own gain (same linearisation point, same weighting R) and its own

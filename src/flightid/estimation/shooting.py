@@ -7,7 +7,8 @@ start is close to the data, not the open-loop simulation), the last, large weigh
 gaps. The result is the last stage's ``Estimate`` with the passes, evaluations and wall time of
 all stages added and the original start values as ``initial``.
 
-Measured on the unstable short period (CASES.md §3, 2, 5 and 10 intervals, MNR and MNRES):
+Measured on the unstable short period (FVSysID's simulated ``unStabAC_sim`` data; 2, 5 and
+10 intervals, MNR and MNRES):
 weights (1, 10³, 10⁶) reach the output-error optimum (ln det R = −44.7) every time; the single
 weight 10⁶ stops in plain output error's local minimum (ln det R = −10.4) with 5 and 10
 intervals under MNR.

@@ -1,6 +1,7 @@
 """Steady-state (constant-gain) Kalman filter of the filter error method.
 
-System with process noise (Jategaonkar ch. 5; CASES.md §1b):
+System with process noise (Jategaonkar, *Flight Vehicle System Identification*, 2nd ed.,
+ch. 5; FVSysID's ``ml_fem2``):
 
     ẋ(t) = f(x, u, θ) + F w(t),   w white, zero mean, unit intensity
     z_k  = g(x_k, u_k, θ) + v_k,   v_k ~ N(0, R)

@@ -1,4 +1,5 @@
-"""Filter error for linear models: exact discretisation and analytic gradients (CASES.md §1c).
+"""Filter error for linear models: exact discretisation and analytic gradients (Jategaonkar,
+*Flight Vehicle System Identification*, 2nd ed., ch. 5; FVSysID's ``ml_fem_lin2``).
 
 For a model that is linear in the states and inputs,
 

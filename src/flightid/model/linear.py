@@ -9,11 +9,12 @@ A term is written as its factors joined by ``*``, optionally with a leading ``-`
 ``"Zw*w_m"``, ``"u0*q"``, ``"-2*Zq*q"``, ``"q"``, ``"Mq"`` (constant term Mq).
 
 Because each term names its own signal, the measured and the integrated value of the same
-state can appear side by side — the book's "regression start-up" (TC06) and "equation
-decoupling" (TC07), CASES.md §3b/§3c and Q17:
+state can appear side by side — the "regression start-up" and "equation decoupling" of an
+unstable short period (Jategaonkar, *Flight Vehicle System Identification*, 2nd ed., ch. 9;
+test cases TC06 and TC07 of its FVSysID software):
 
-    3b: ẇ = Zw·w_m + u0·q + Zq·q_m + Zδe·δe      (u0·q the integrated q, Zq·q_m the measured)
-    3c: a_z = Zw·w + Zq·q + Zδe·δe                 (the integrated states)
+    start-up:   ẇ = Zw·w_m + u0·q + Zq·q_m + Zδe·δe    (u0·q the integrated q, Zq·q_m the measured)
+    decoupling: a_z = Zw·w + Zq·q + Zδe·δe             (the integrated states)
 
 The functions are numba-compilable closures over the term tables; they allocate only the
 returned vector.

@@ -1,18 +1,19 @@
 """Options for unstable airplanes: stabilized output error, eigenvalue transformation and
-multiple shooting (docs/unstable.md; CASES.md §3).
+multiple shooting (docs/unstable.md; Jategaonkar, *Flight Vehicle System Identification*,
+2nd ed., ch. 9).
 
 An unstable model cannot be simulated open-loop over a long record: small parameter or
 state errors grow like e^(λt), λ > 0, the outputs leave the data and the Gauss–Newton
 linearisation fails. Each option here keeps the simulated trajectory near the data.
 
-``with_stabilizing_gain(model, S)`` — stabilized output error (TC09, CASES.md §3d): at every
-sample, after y_k = h(x_k, u_k), the state is corrected x_k ← x_k + S (z_k − y_k) (S:
-n_s × n_o, constant); the residual z_k − y_k keeps the output before the correction (Q16).
-The correction runs in every simulation, perturbed or not, and in the sensitivity equations
-(``flightid.simulation.feedback``).
+``with_stabilizing_gain(model, S)`` — stabilized output error (FVSysID test case TC09): at
+every sample, after y_k = h(x_k, u_k), the state is corrected x_k ← x_k + S (z_k − y_k) (S:
+n_s × n_o, constant); the residual z_k − y_k keeps the output y_k computed before the
+correction. The correction runs in every simulation, perturbed or not, and in the
+sensitivity equations (``flightid.simulation.feedback``).
 
 ``with_eigenvalue_shift(model, σ)`` and ``exponentially_weighted(maneuvers, σ)`` — eigenvalue
-transformation (TC10, CASES.md §3e): for a linear model ẋ = A x + B u, y = C x + D u, the
+transformation (FVSysID test case TC10): for a linear model ẋ = A x + B u, y = C x + D u, the
 weighted signals x' = e^(−σt) x, u' = e^(−σt) u, y' = e^(−σt) y obey exactly
 
     ẋ' = (A − σI) x' + B u',   y' = C x' + D u'
@@ -255,7 +256,7 @@ def exponentially_weighted(
     maneuvers: FlightData | Sequence[FlightData], sigma: float
 ) -> list[FlightData]:
     """Every input and output channel multiplied by e^(−σ t_k), t_k = t − t_0 per maneuver
-    (s; so t_k = (k − 1)·Δt, CASES.md §3e)."""
+    (s; so t_k = (k − 1)·Δt for k = 1..N, uniform sampling Δt)."""
     items = [maneuvers] if isinstance(maneuvers, FlightData) else list(maneuvers)
     out = []
     for m in items:

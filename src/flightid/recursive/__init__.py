@@ -1,5 +1,6 @@
 """Recursive (online) parameter estimation: the parameters as constant states of an
-augmented model, estimated sample by sample (Jategaonkar ch. 7; CASES.md §8).
+augmented model, estimated sample by sample (Jategaonkar, *Flight Vehicle System Identification*,
+2nd ed., ch. 7; FVSysID's ``mainRPE``).
 
 * ``AugmentedModel`` — x_a = (x, θ_free) of any ``StateSpaceModel``, RK4 propagation and
   central-difference Jacobians, batched over sigma points / perturbations;

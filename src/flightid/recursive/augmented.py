@@ -1,13 +1,14 @@
 """The augmented state x_a = (x, θ_free) of a flightid state-space model, for online estimation.
 
 Recursive estimators treat the unknown parameters as states that do not change
-(CASES.md §8.1, Jategaonkar ch. 7):
+(Jategaonkar, *Flight Vehicle System Identification*, 2nd ed., ch. 7):
 
     ẋ_a = f_a(x_a, u) = ( f(x, u, θ), 0 ),   θ = θ_fixed ∪ θ_free,  θ̇_free = 0
     y   = g(x_a, u)   = h(x, u, θ)
 
-and propagate x_a over one sample interval by the fixed-step RK4 of CASES.md §0 with the
-input at the half step taken as the mean of the two neighbouring samples:
+and propagate x_a over one sample interval by the classical fixed-step fourth-order
+Runge–Kutta scheme (RK4), with the input at the half step taken as the mean of the two
+neighbouring samples:
 
     ū = (u_k + u_{k+1})/2
     k1 = f(x_k, u_k)            k2 = f(x_k + (dt/2)·k1, ū)

@@ -1,5 +1,5 @@
-"""Extended forgetting-factor recursive least squares on the augmented state (CASES.md §8.1
-"EFRLS", Jategaonkar ch. 7.5).
+"""Extended forgetting-factor recursive least squares on the augmented state (Jategaonkar,
+*Flight Vehicle System Identification*, 2nd ed., ch. 7.5; FVSysID's ``efrls_mod``).
 
 No noise covariances: the gain comes from a forgetting-factor RLS matrix P (start P0·I), with
 λ < 1 discounting old samples. No correction at k = 1 (x̂_1 = x_a0). For k ≥ 2:

@@ -1,5 +1,5 @@
-"""Extended Kalman filter on the augmented state x_a = (x, θ) (CASES.md §8.1 "EKF",
-Jategaonkar ch. 7.3).
+"""Extended Kalman filter on the augmented state x_a = (x, θ) (Jategaonkar, *Flight Vehicle
+System Identification*, 2nd ed., ch. 7.3; FVSysID's ``ekf_mod``).
 
 At k = 1 there is no prediction: x̃_1 = x_a0, P̃_1 = P0. For k ≥ 2:
 

@@ -1,5 +1,5 @@
-"""Recursive Fourier-transform regression (FTR; CASES.md §8.1 "FTR", Morelli's frequency-domain
-equation error, Jategaonkar ch. 7.6).
+"""Recursive Fourier-transform regression (FTR; Morelli's frequency-domain equation error,
+Jategaonkar, *Flight Vehicle System Identification*, 2nd ed., ch. 7.6; FVSysID's ``ftr_mod``).
 
 The measured state signals x (the outputs taken as states) and the inputs u obey, in the
 frequency domain, the linear state equation without constant terms
@@ -8,7 +8,7 @@ frequency domain, the linear state equation without constant terms
 
 Signals are de-meaned by the mean of their first ``n_mean`` (10) samples, x̄_k = x_k − x_mean.
 The finite Fourier transform at the chosen frequencies ω = 2πf is kept recursively, one term
-per sample (sample 1 excluded, phase reference t_1 = 0, CASES.md Q13):
+per sample (sample 1 excluded, phase reference t_1 = 0, as in FVSysID's ``ftr_mod``):
 
     X(ω) += x̄_k e^{−jω t_k},   U(ω) += ū_k e^{−jω t_k},   k = 2, 3, …,   t_k = (k−1)·dt
 
@@ -240,7 +240,7 @@ class FourierTransformRegression(RecursiveEstimatorBase):
     # ---------------------------------------------------------------- transform
 
     def _accumulate(self, k: int, t: float, u: np.ndarray, z: np.ndarray) -> None:
-        if k == 1:  # sample 1 is not part of the transform (CASES.md Q13)
+        if k == 1:  # sample 1 is not part of the transform (as in ftr_mod)
             return
         # e^{−jω t_k}, t_k measured from the first sample
         phase = np.exp(-1j * self.omega * (t - self._t1))

@@ -3,7 +3,7 @@
 Parameter time histories with their σ (one row per sample; for the FTR one row per update),
 the reported final values and the last filtered values:
 
-* reported value (CASES.md §8.1 "Reported value and std", rule ``report = "last_N"``): the
+* reported value (rule ``report = "last_N"``, the reporting of FVSysID's ``mainRPE``): the
   mean over the last N rows of the estimates and of their σ — N = 10 samples for the
   filters, 5 updates for the FTR — or the last row (``"final"``);
 * ``last_filtered``: the estimate and σ of the very last row.

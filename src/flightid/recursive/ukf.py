@@ -1,6 +1,7 @@
-"""Unscented Kalman filters on the augmented state x_a = (x, θ) (CASES.md §8.1, Jategaonkar
-ch. 7.4): additive noise (``UnscentedKalmanFilter``) and noise augmentation
-(``AugmentedUnscentedKalmanFilter``).
+"""Unscented Kalman filters on the augmented state x_a = (x, θ) (Jategaonkar, *Flight Vehicle
+System Identification*, 2nd ed., ch. 7.4): additive noise (``UnscentedKalmanFilter``, as
+FVSysID's ``ukf_mod``) and noise augmentation (``AugmentedUnscentedKalmanFilter``, as
+``ukf_mod_augmented``).
 
 Sigma points of a mean m (dimension n) and covariance P, with α = 0.5, β = 2, κ = 3 − n:
 
@@ -25,7 +26,8 @@ Noise augmentation: the sigma-point state is (x_a, w, v) of dimension n_a = n + 
 (κ = 3 − n_a) with mean (x̂, 0, 0) and covariance blkdiag(P̂, diag(Q_states), R0) at every
 step; each point is propagated with its own w added to ẋ (held over the RK4 step) and its
 own v added to its output; P_xx and P_yy are the spreads alone (no + Q, + R0). Q_states is
-there the variance of a noise on ẋ, not a per-step covariance of x (CASES.md Q12).
+there the variance of a noise on ẋ, not a per-step covariance of x as in the EKF and the
+additive-noise UKF.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Model structure determination: least squares with statistics, total least squares,
 recursive least squares, modified stepwise regression and the equation-error set-up for
-airplanes (METHOD §4–§5)."""
+airplanes (RP-1153 §2.B and §3.A; Klein, Batterson & Murphy, NASA TP-1916)."""
 
 from flightid.regression.differentiate import smooth_derivative
 from flightid.regression.equation_error import (

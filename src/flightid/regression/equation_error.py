@@ -1,4 +1,4 @@
-"""Equation-error set-up for airplanes: measured coefficients and regressors (METHOD §3).
+"""Equation-error set-up for airplanes: measured coefficients and regressors (RP-1153 §2.A).
 
 Forces. The accelerometers measure a = q̄ S C / (m g) (in g, [2.24–2.26]), so
 
@@ -8,7 +8,7 @@ Forces. The accelerometers measure a = q̄ S C / (m g) (in g, [2.24–2.26]), so
 where T_x, T_z are optional thrust force components (body axes) to take out of C_X, C_Z
 (by default thrust stays folded into C_X and C_Z as in RP-1153).
 
-Moments. Solving the rotational equations of §3 for the coefficients, with
+Moments. Solving the rotational equations [2.8]–[2.10] of RP-1153 for the coefficients, with
 Γ = I_x I_z − I_xz²:
 
     F1 = I_x ṗ − I_xz ṙ ,  F2 = I_z ṙ − I_xz ṗ        (inverse of [dp/dt, dr/dt] = …/Γ)

@@ -15,7 +15,7 @@ Statistics (N samples, n_p parameters):
                                                         a constant column, about zero otherwise
     R²_adj    = 1 − (1 − R²)(N − k0)/(N − n_p)          k0 = 1 with a constant, else 0
     F_overall = ((TSS − RSS)/(n_p − k0)) / s²
-    PSE       = RSS/N + σ²_max n_p / N                  predicted squared error (METHOD §5)
+    PSE       = RSS/N + σ²_max n_p / N                  predicted squared error (NASA TP-1916)
 
 Default σ: the classical standard errors assume white residuals. Equation-error residuals of
 flight data are usually coloured (model error, not measurement noise), and then s²(XᵀX)⁻¹ is
@@ -170,7 +170,7 @@ class LeastSquaresResult(ResultSurface):
 
     @property
     def pse(self) -> float:
-        """Predicted squared error RSS/N + σ²_max n_p/N (METHOD §5)."""
+        """Predicted squared error RSS/N + σ²_max n_p/N (Klein, Batterson & Murphy, TP-1916)."""
         return self.rss / self.n_samples + self.sigma2_max * self.n_parameters / self.n_samples
 
     def parameter(self, name: str) -> tuple[float, float]:

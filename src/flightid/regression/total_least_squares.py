@@ -23,8 +23,8 @@ solution non-unique and is refused too.
 
 Standard errors (two choices, ``covariance=``):
 
-* ``"ols"`` (default; CASES.md §3h and Q15, the reference ``uAC_regTLS``): the OLS formula at
-  the TLS estimates,
+* ``"ols"`` (default; as FVSysID's ``uAC_regTLS`` reports them): the OLS formula at the TLS
+  estimates,
 
       res = z − X θ̂_TLS,   s² = Σ res² / (N − n),   Cov = s² (XᵀX)⁻¹.
 
@@ -107,7 +107,7 @@ class TotalLeastSquaresResult(LeastSquaresResult):
 
     @property
     def std_ols(self) -> np.ndarray:
-        """√diag(s²(XᵀX)⁻¹) at θ̂_TLS (CASES.md Q15)."""
+        """√diag(s²(XᵀX)⁻¹) at θ̂_TLS, s² = Σ res² / (N − n_p) (as ``uAC_regTLS``)."""
         return np.sqrt(np.diag(self.covariance_ols))
 
     @property
@@ -177,7 +177,7 @@ def total_least_squares(
             [X z] is assumed to carry noise of one common variance (module docstring).
         z: response (N,).
         names: regressor names (default ``x0, x1, ...``).
-        covariance: ``"ols"`` (s²(XᵀX)⁻¹ at θ̂_TLS, CASES.md Q15; default) or ``"eiv"``
+        covariance: ``"ols"`` (s²(XᵀX)⁻¹ at θ̂_TLS, as ``uAC_regTLS``; default) or ``"eiv"``
             (errors-in-variables sandwich covariance).
         sigma2_max: σ²_max for PSE (as ``least_squares``).
         rcond: |v_{n+1}| below ``rcond`` (the vector has unit length), or a gap
@@ -227,7 +227,7 @@ def total_least_squares(
         raise TotalLeastSquaresError(
             f"X: regressors {list(names)} are linearly dependent"
         ) from None
-    # s² = Σ res² / (N − n_p);  Cov_OLS = s² (XᵀX)⁻¹   (CASES.md §3h, Q15)
+    # s² = Σ res² / (N − n_p);  Cov_OLS = s² (XᵀX)⁻¹   (the OLS formula at θ̂_TLS)
     s2 = rss / (n - p)
     cov_ols = s2 * xtx_inv
     cov_eiv = _eiv_covariance(X, residuals, theta)

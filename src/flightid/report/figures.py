@@ -53,7 +53,7 @@ def _draw_png(figure: Figure, target, dpi: float) -> None:
     engine, for which ``savefig`` first draws the whole figure with rendering switched off
     (ticks and text measured) and then again. The pixels are the same; the report's three
     figures of a 7-output maneuver took 1.60 s of CPU time with ``savefig``, 1.32 s so
-    (2026-11-26)."""
+    (measured)."""
     import matplotlib.image
 
     canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else None

@@ -1,14 +1,14 @@
 """Kernels with a state correction and interval end states: stabilised output error and
 multiple shooting (docs/unstable.md).
 
-**Stabilised output error** (the book's TC09, CASES.md §3d). At every sample k:
+**Stabilised output error** (Jategaonkar ch. 9; FVSysID test case TC09). At every sample k:
 
     1. y_k = h(t_k, x_k, u_k, θ)                     (the output; the residual is z_k − y_k)
     2. x_k ← x_k + S (z_k − y_k)                      (S: constant gain, n_s × n_o)
     3. x_{k+1} = step(x_k)                            (Euler or RK4 from the corrected state)
 
 A constant output-feedback gain keeps an unstable model's simulation near the measured
-trajectory; the residual keeps the output of step 1 (before the correction, CASES.md Q16).
+trajectory; the residual keeps the output of step 1 (before the correction).
 With S = 0 this is the plain simulation of ``flightid.simulation.kernels``.
 
 The sensitivity equations carry the same correction: with G_k = ∂y_k/∂θ = h_x S_k + h_θ

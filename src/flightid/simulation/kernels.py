@@ -31,7 +31,7 @@ left as NaN for the caller to report — they never reach an estimate.
 feedback, filter and sensitivity kernels (the latter steps the stacked (x, S) with the
 sensitivity equations, ``flightid.simulation.sensitivity``). The plain state kernel writes the
 same stages out in its loop, with the same arithmetic (bit-identical results): a call of the
-step per sample cost as much as a cheap model's f (issue 14).
+step per sample cost as much as a cheap model's f (measured).
 
 Model functions are called in their out form ``f(t, x, u, θ, out)`` (``flightid.model.forms``);
 the stages k1…k4, the stage state and the half-step input live in arrays allocated once per
@@ -189,7 +189,7 @@ def _kernel_source(f_out: Callable, h_out: Callable, jit: Callable = _identity) 
             n = x.shape[0]
             y = np.empty(n_outputs)
             # the stages of make_step, written out here: a call of the step per sample
-            # costs as much as a cheap model's f (measured, issue 14); same arithmetic
+            # costs as much as a cheap model's f (measured); same arithmetic
             k1 = np.empty(n)
             k2 = np.empty(n)
             k3 = np.empty(n)

@@ -323,7 +323,7 @@ class Simulator:
         messages = [""] * n_batch
         start = 0
         # one maneuver: the kernel writes straight into ``outputs`` (no block and no copy of
-        # the B·N·n_o outputs: a batch of 21 × 1001 × 8 spent ~1 ms copying, issue 14)
+        # the B·N·n_o outputs: a batch of 21 × 1001 × 8 spent ~1 ms copying)
         single = len(self._times) == 1
         for i, (t, u, (constants, index), theta_map) in enumerate(
             zip(self._times, self._inputs, self._x0_maps, self._theta_maps, strict=True)

@@ -1,6 +1,6 @@
 """MNRES — modified Newton–Raphson with estimated sensitivities (RP-1153 §4, 4.9–4.24).
 
-Two families of forms. The default, ``form="secant"`` (issue 14), keeps one estimate of the
+Two families of forms. The default, ``form="secant"``, keeps one estimate of the
 sensitivities and corrects it with every simulation; the surface forms (``"algebraic"``,
 ``"batch"``, ``"recursive"``, below) refit a surface through stored points, as the paper does.
 
@@ -175,12 +175,13 @@ keeps the interpolation well posed: replacing point t by x multiplies det ΔX by
 Initialisation and restart perturb each parameter from θ⁰ (n_f integrations, in one batch).
 The first perturbations are ``initial_perturbation`` × max(|θ_j|, floor_j) (the floor is the
 parameter's ``scale``, or 1e-3); a perturbation that would cross a bound goes the other way.
-At a restart they are scaled by parameter importance (§7): with M_ℓℓ from the current surface,
-δθ_ℓ ∝ 1/√M_ℓℓ — parameters that move the cost little get larger perturbations — normalised
-so their geometric-mean relative size equals the restart size, then clipped to a factor 10
-either side of it. The restart size shrinks with the last accepted step so that the surface
-stays local near convergence, and by another factor 10 after each restart that found no
-lower cost (``max_restarts`` such restarts in a row end the search as stalled).
+At a restart they are scaled by parameter importance (RP-1153 §4.B): with M_ℓℓ from the
+current surface, δθ_ℓ ∝ 1/√M_ℓℓ — parameters that move the cost little get larger
+perturbations — normalised so their geometric-mean relative size equals the restart size,
+then clipped to a factor 10 either side of it. The restart size shrinks with the last
+accepted step so that the surface stays local near convergence, and by another factor 10
+after each restart that found no lower cost (``max_restarts`` such restarts in a row end the
+search as stalled).
 
 Restarts happen when ``max_rejections`` passes in a row fail or disappoint on a surface that
 has moved on (``fresh_rejections`` on a fresh one), when ΔX (the point cloud) is
@@ -343,7 +344,7 @@ def _secant_pass(
     reductions and the n_o·n_f² block update with its temporaries: ~1 ms per pass at
     N·n_o = 8000, n_f = 22 (three simulations of the 6-DOF benchmark; a multithreaded BLAS
     made the rank-one update alone 18 ms on a loaded 2-core machine); the numpy calls around
-    it were a third of MNRES's per-pass overhead on the standard cases (issue 14).
+    it were a third of MNRES's per-pass overhead on the standard cases.
     """
     n_free, size = columns.shape
     n_samples = size // n_outputs
@@ -495,7 +496,8 @@ class MNRES:
         initial_perturbation: first perturbation, relative to max(|θ_j|, floor_j); for the
             secant form the relative step of the first finite-difference sweep (later ones:
             1e-6). None: 1e-3.
-        importance_scaling: scale restart perturbations by 1/√M_ℓℓ (§7; surface forms).
+        importance_scaling: scale restart perturbations by 1/√M_ℓℓ (RP-1153 §4.B; surface
+            forms).
         max_rejections: disappointing passes in a row on sensitivities carried along the
             path before they are renewed (secant: a sweep; surface forms: a restart).
             None: one per 20 free parameters, at least 1 (secant: 1 up to 39 free
