@@ -174,9 +174,11 @@ class FrequencyResult(ResultSurface):
     # correlation matrix of the estimated parameters (of the reported covariance), (n_free,
     # n_free); empty: not kept
     correlation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    # the case's model (linear in x and u) and the covariances of the estimated parameters
-    # (coloured-residual = the reported σ's, and Cramér–Rao); None: the model is not kept, or
-    # equation error, which gives one regression per state equation and no joint covariance
+    # the case's model (linear in x and u) and the covariances of the estimated parameters:
+    # ``covariance`` the one behind the reported σ, P = diag(σ) ρ diag(σ) with ρ the
+    # correlation of the coloured-residual sandwich (``correlation``), and the Cramér–Rao
+    # ``covariance_cr``; None: equation error (one regression per state equation, no joint
+    # covariance) or the model is not kept
     model: Any = None
     covariance: np.ndarray | None = None
     covariance_cr: np.ndarray | None = None
@@ -226,10 +228,25 @@ class FrequencyResult(ResultSurface):
         """The case's model at the estimate, free = the estimated parameters. The ones in
         ``not_estimated`` (constant terms, initial states: invisible on the band) keep their
         start values, so a time-domain prediction carries their start values too."""
-        from flightid.simulation.prediction import PredictionError, model_at_estimate
+        import warnings
+
+        from flightid.simulation.prediction import (
+            PredictionError,
+            PredictionWarning,
+            model_at_estimate,
+        )
 
         if self.model is None:
             raise PredictionError("this frequency-domain result holds no model")
+        if self.not_estimated:
+            start = {n: float(v) for n, v in zip(self.names, self.initial, strict=True)}
+            held = {n: start[n] for n in self.not_estimated}
+            warnings.warn(
+                f"the parameters {held} are not estimated in the frequency domain (invisible "
+                f"on the band) and are held at their start values in the time-domain model",
+                PredictionWarning,
+                stacklevel=3,
+            )
         estimated = [n for n, f in zip(self.names, self.free, strict=True) if f]
         return model_at_estimate(self.model, self.names, self.values, estimated)
 
@@ -470,6 +487,17 @@ def _correlation(covariance, n_free: int) -> np.ndarray:
         return np.zeros((0, 0))
     scale = np.sqrt(np.where(np.diag(matrix) > 0, np.diag(matrix), np.nan))
     return matrix / np.outer(scale, scale)
+
+
+def _reported_covariance(coloured, std_free: np.ndarray) -> np.ndarray | None:
+    """The covariance behind the reported σ: P = diag(σ) ρ diag(σ), ρ the correlation of the
+    coloured-residual sandwich (the reported σ is the larger of its σ and the Cramér–Rao
+    one, per parameter); None without a covariance."""
+    if coloured is None:
+        return None
+    correlation = _correlation(coloured, std_free.size)
+    # P_ij = σ_i ρ_ij σ_j
+    return correlation * np.outer(std_free, std_free)
 
 
 @dataclass(frozen=True)
@@ -727,7 +755,7 @@ def run_frequency_case(
         sample_interval_s=float(np.mean([m.dt for m in maneuvers])),
         maneuvers=tuple(maneuver_entry(m) for m in maneuvers),
         model=model,
-        covariance=covariance,
+        covariance=_reported_covariance(covariance, std[free]),
         covariance_cr=covariance_cr,
     )
     if not np.all(np.isfinite(result.values[free])) or not np.all(np.isfinite(result.std[free])):

@@ -245,7 +245,8 @@ class RecursiveResult(ResultSurface):
         returns a ``LinearModel`` (``modes()``)."""
         from flightid.simulation.prediction import linearize_result
 
-        units = dict(zip(self.meta.get("outputs", ()), self.meta.get("output_units", ())))
+        outputs, units = self.meta.get("outputs", ()), self.meta.get("output_units", ())
+        units = dict(zip(outputs, units, strict=False))
         return linearize_result(
             self.estimated_model,
             at,

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.stats import norm
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import InputError, SimulationError
+from flightid.errors import FlightIdWarning, InputError, SimulationError
 from flightid.model.binding import as_data_list
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulation.simulator import Simulator
@@ -37,6 +37,7 @@ from flightid.simulation.simulator import Simulator
 __all__ = [
     "Prediction",
     "PredictionError",
+    "PredictionWarning",
     "initial_states",
     "linearize_result",
     "model_at_estimate",
@@ -56,6 +57,11 @@ BATCH_BYTES = 16 * 2**20
 
 class PredictionError(InputError):
     """A prediction that cannot be made as asked (initial state unknown, data unsuitable)."""
+
+
+class PredictionWarning(FlightIdWarning):
+    """A prediction made with parameters the estimation did not determine (held at their
+    start values)."""
 
 
 @dataclass(frozen=True)
