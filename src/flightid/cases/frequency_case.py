@@ -174,6 +174,14 @@ class FrequencyResult(ResultSurface):
     # correlation matrix of the estimated parameters (of the reported covariance), (n_free,
     # n_free); empty: not kept
     correlation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    # the case's model (linear in x and u) and the covariances of the estimated parameters:
+    # ``covariance`` the one behind the reported σ, P = diag(σ) ρ diag(σ) with ρ the
+    # correlation of the coloured-residual sandwich (``correlation``), and the Cramér–Rao
+    # ``covariance_cr``; None: equation error (one regression per state equation, no joint
+    # covariance) or the model is not kept
+    model: Any = None
+    covariance: np.ndarray | None = None
+    covariance_cr: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.std_cr.size == 0:
@@ -213,6 +221,89 @@ class FrequencyResult(ResultSurface):
             (s.frequencies_hz, s.outputs, y)
             for s, y in zip(self.spectra, self.model_outputs, strict=True)
         ]
+
+    # ---------------------------------------------------------------- the model in use
+    @property
+    def estimated_model(self):
+        """The case's model at the estimate, free = the estimated parameters. The ones in
+        ``not_estimated`` (constant terms, initial states: invisible on the band) keep their
+        start values, so a time-domain prediction carries their start values too."""
+        import warnings
+
+        from flightid.simulation.prediction import (
+            PredictionError,
+            PredictionWarning,
+            model_at_estimate,
+        )
+
+        if self.model is None:
+            raise PredictionError("this frequency-domain result holds no model")
+        if self.not_estimated:
+            start = {n: float(v) for n, v in zip(self.names, self.initial, strict=True)}
+            held = {n: start[n] for n in self.not_estimated}
+            warnings.warn(
+                f"the parameters {held} are not estimated in the frequency domain (invisible "
+                f"on the band) and are held at their start values in the time-domain model",
+                PredictionWarning,
+                stacklevel=3,
+            )
+        estimated = [n for n, f in zip(self.names, self.free, strict=True) if f]
+        return model_at_estimate(self.model, self.names, self.values, estimated)
+
+    def _covariance_for(self, std: str) -> tuple[np.ndarray | None, str]:
+        """(covariance behind ``std`` — "default": coloured-residual, "cr": Cramér–Rao —,
+        why there is none)."""
+        from flightid.results import check_method
+
+        check_method(std, ("default", "cr"), "std")
+        covariance = self.covariance if std == "default" else self.covariance_cr
+        why = (
+            "frequency-domain equation error gives one regression per state equation, no "
+            "joint parameter covariance"
+            if self.method == "equation_error"
+            else "this frequency-domain result holds no parameter covariance"
+        )
+        return covariance, why
+
+    def predict(self, data, x0=None, *, bands: bool = False, std: str = "default"):
+        """The estimated model simulated in the time domain on ``data`` (a ``FlightData``:
+        one ``Prediction``; a list: a tuple), with residuals and fit numbers
+        (``flightid.simulation.prediction.predict_result``).
+
+        Args:
+            data: maneuvers with the model's inputs and outputs.
+            x0: initial states (one value per state, ``{state: value}``, or a list per
+                maneuver); states not given start at the data's channel of that name.
+            bands: σ of the outputs from the parameter covariance (delta method);
+                ``PredictionError`` for equation error, which has none.
+            std: "default" (coloured-residual covariance, the reported σ) or "cr".
+        """
+        from flightid.simulation.prediction import predict_result
+
+        covariance, why = self._covariance_for(std)
+        return predict_result(
+            self.estimated_model, data, x0, bands=bands, covariance=covariance, no_covariance=why
+        )
+
+    def simulate(self, inputs, x0=None) -> np.ndarray:
+        """Outputs (N_total, n_o) of the estimated model driven by the inputs of ``inputs``
+        (a ``FlightData`` or a list), from ``x0`` (as in ``predict``)."""
+        from flightid.simulation.prediction import simulate_result
+
+        return simulate_result(self.estimated_model, inputs, x0)
+
+    def linearize(self, at=None, *, std: str = "default"):
+        """The estimated model about ``at`` (None: its initial state, inputs 0 — exact, the
+        model is linear; a ``FlightData``; or ``(x, u)``) with the covariance of A, B, C, D
+        from the parameter covariance (``std`` as in ``predict``; none, with a note, for
+        equation error); returns a ``LinearModel`` (``modes()``)."""
+        from flightid.simulation.prediction import linearize_result
+
+        covariance, why = self._covariance_for(std)
+        units = dict(zip(self.outputs, self.output_units, strict=False))
+        return linearize_result(
+            self.estimated_model, at, covariance=covariance, no_covariance=why, units=units
+        )
 
     # ---------------------------------------------------------------- surface
     def _frame_rows(self) -> list[dict]:
@@ -398,6 +489,17 @@ def _correlation(covariance, n_free: int) -> np.ndarray:
     return matrix / np.outer(scale, scale)
 
 
+def _reported_covariance(coloured, std_free: np.ndarray) -> np.ndarray | None:
+    """The covariance behind the reported σ: P = diag(σ) ρ diag(σ), ρ the correlation of the
+    coloured-residual sandwich (the reported σ is the larger of its σ and the Cramér–Rao
+    one, per parameter); None without a covariance."""
+    if coloured is None:
+        return None
+    correlation = _correlation(coloured, std_free.size)
+    # P_ij = σ_i ρ_ij σ_j
+    return correlation * np.outer(std_free, std_free)
+
+
 @dataclass(frozen=True)
 class FrequencyPreparation:
     """Everything a frequency-domain run checks before it estimates (``validate`` stops
@@ -577,7 +679,7 @@ def run_frequency_case(
             )
             values, std, std_col, std_cr = ee.theta, ee.std, ee.std, ee.std_cr
             # one regression per state equation: no joint covariance of all parameters
-            covariance = None
+            covariance = covariance_cr = None
             S = cost = None
             converged, message, cycles, iterations = True, "closed-form least squares", 0, 0
             nuisance: tuple = ()
@@ -599,7 +701,7 @@ def run_frequency_case(
                 scales=np.maximum(np.abs(start), 0.01),
             )
             values, std, std_col, std_cr = fit.theta, fit.std, fit.std_coloured, fit.std_cr
-            covariance = fit.covariance_coloured
+            covariance, covariance_cr = fit.covariance_coloured, fit.covariance
             S, cost = fit.S, fit.cost
             converged, message = fit.converged, fit.message
             cycles, iterations = fit.noise_cycles, fit.iterations
@@ -652,6 +754,9 @@ def run_frequency_case(
         evaluation_history=evaluation_history,
         sample_interval_s=float(np.mean([m.dt for m in maneuvers])),
         maneuvers=tuple(maneuver_entry(m) for m in maneuvers),
+        model=model,
+        covariance=_reported_covariance(covariance, std[free]),
+        covariance_cr=covariance_cr,
     )
     if not np.all(np.isfinite(result.values[free])) or not np.all(np.isfinite(result.std[free])):
         raise CaseError(

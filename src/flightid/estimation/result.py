@@ -368,32 +368,30 @@ class Estimate(ResultSurface):
                 parameter covariance (delta method; ``Prediction.band(level)``).
             std: which covariance: ``"default"`` (the one behind ``std``) or ``"cr"``.
         """
-        from flightid.data.flightdata import FlightData
-        from flightid.simulation.prediction import predict_maneuvers
+        from flightid.simulation.prediction import predict_result
 
-        covariance = self._covariance_for(std) if bands else None
-        predictions = predict_maneuvers(
+        return predict_result(
             self.model,
             data,
             x0,
+            bands=bands,
+            covariance=self._covariance_for(std) if bands else None,
             method=self.method,
             input_interpolation=self.input_interpolation,
-            covariance=covariance,
         )
-        return predictions[0] if isinstance(data, FlightData) else tuple(predictions)
 
     def simulate(self, inputs, x0=None) -> np.ndarray:
         """Outputs (N_total, n_o) of the estimated model driven by the inputs of ``inputs``
         (a ``FlightData`` or a list; outputs are not needed), from the initial states ``x0``
         (as in ``predict``), with the estimation's integration and input interpolation."""
-        from flightid.model.binding import as_data_list
-        from flightid.simulation import simulate
-        from flightid.simulation.prediction import prediction_model
+        from flightid.simulation.prediction import simulate_result
 
-        maneuvers = as_data_list(inputs)
-        model = prediction_model(self.model, maneuvers, x0)
-        return simulate(
-            model, maneuvers, method=self.method, input_interpolation=self.input_interpolation
+        return simulate_result(
+            self.model,
+            inputs,
+            x0,
+            method=self.method,
+            input_interpolation=self.input_interpolation,
         )
 
     def linearize(self, at=None, *, std: str = "default"):
@@ -412,42 +410,10 @@ class Estimate(ResultSurface):
         Returns:
             A ``LinearModel`` (``modes()``, ``to_scipy()``, ``to_control()``).
         """
-        from flightid.data.flightdata import FlightData
-        from flightid.model.linearization import LinearizationError, linearize
-        from flightid.simulation.prediction import initial_states
+        from flightid.simulation.prediction import linearize_result
 
-        units = dict(self.output_unit_map)
-        if at is None:
-            x = self.model.initial_state(np.asarray(self.values, dtype=float), 0)
-            u = np.zeros(len(self.model.inputs))
-            point = "initial state of the first estimation maneuver, inputs 0"
-        elif isinstance(at, FlightData):
-            (x,) = initial_states(self.model, [at], None)
-            u = np.array([float(np.mean(at.channel(n))) for n in self.model.inputs])
-            units = {**units, **dict(at.units)}
-            point = f"initial state and mean inputs of maneuver {at.name or '(unnamed)'}"
-        elif isinstance(at, (tuple, list)) and len(at) == 2:
-            x, u = at
-            point = "given"
-        else:
-            raise LinearizationError(
-                f"at: expected None, a FlightData or (x, u), got {type(at).__name__}"
-            )
-        covariance, notes = self._covariance_for(std), ()
-        if not np.all(np.isfinite(covariance)):
-            # undetermined parameters (σ = inf): the matrices without σ, and why
-            undetermined = [n for n, s in zip(self.names, self.std, strict=True) if s == np.inf]
-            covariance = None
-            notes = (f"no σ of the entries: the parameters {undetermined} are undetermined",)
-        return linearize(
-            self.model,
-            x,
-            u,
-            covariance=covariance,
-            units=units,
-            operating_point=point,
-            name=self.model.name,
-            notes=notes,
+        return linearize_result(
+            self.model, at, covariance=self._covariance_for(std), units=self.output_unit_map
         )
 
     # ------------------------------------------------------------------ reports

@@ -73,6 +73,11 @@ class RecursiveResult(ResultSurface):
         wall_time_s: time spent in the estimator (s).
         settings: the estimator's settings.
         meta: case information (title, file, model, outputs, output_units, R0, maneuvers).
+        model: the state-space model whose free parameters the filter estimated (at its
+            start values; ``estimated_model`` sets the reported values), or None (FTR: it
+            regresses the coefficients of measured-state equations, no model).
+        covariance: the parameter block of the filter's last covariance P̂ (EKF, UKFs), over
+            ``parameter_names``; None for the EFRLS (its P is no covariance) and the FTR.
     """
 
     method: str
@@ -92,6 +97,8 @@ class RecursiveResult(ResultSurface):
     wall_time_s: float
     settings: Mapping[str, Any] = field(default_factory=dict)
     meta: Mapping[str, Any] = field(default_factory=dict)
+    model: Any = None
+    covariance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         report_rows(self.report, self.theta_history.shape[0])
@@ -170,6 +177,83 @@ class RecursiveResult(ResultSurface):
 
         check_method(method, ("normal",))
         return t_intervals(self.values, self.std, level, 1, distribution="normal")
+
+    # ------------------------------------------------------------------ the model in use
+
+    def _require_model(self, call: str):
+        from flightid.simulation.prediction import PredictionError
+
+        if self.model is None:
+            raise PredictionError(
+                f"{call}: this {self.method} result holds no state-space model (the FTR "
+                f"regresses the coefficients of measured-state equations); nothing to {call}"
+            )
+        return self.model
+
+    @property
+    def estimated_model(self):
+        """The model with its free parameters at the reported ``values`` (the others at their
+        fixed values); ``PredictionError`` for a result without a model (FTR)."""
+        from flightid.simulation.prediction import model_at_estimate
+
+        model = self._require_model("estimated_model")
+        names = self.parameter_names
+        return model_at_estimate(model, names, self.values, names)
+
+    def _no_covariance(self) -> str:
+        if self.method == "efrls":
+            return (
+                "the EFRLS gives no parameter covariance (its P depends on P0 and the "
+                "forgetting factor, not on the noise of the data)"
+            )
+        return f"this {self.method} result holds no parameter covariance"
+
+    def predict(self, data, x0=None, *, bands: bool = False):
+        """The estimated model (reported values) on other data: outputs, residuals and fit
+        numbers per maneuver (``flightid.simulation.prediction.predict_result``); RK4 with
+        linearly interpolated inputs, the filters' own propagation.
+
+        Args:
+            data: a ``FlightData`` (one ``Prediction``) or a list (a tuple of them).
+            x0: initial states (one value per state or ``{state: value}``, or a list per
+                maneuver); states not given start at the data's channel of that name.
+            bands: σ of the outputs from ``covariance`` (delta method); ``PredictionError``
+                for the EFRLS and FTR, which have none.
+        """
+        from flightid.simulation.prediction import predict_result
+
+        return predict_result(
+            self.estimated_model,
+            data,
+            x0,
+            bands=bands,
+            covariance=self.covariance,
+            no_covariance=self._no_covariance(),
+        )
+
+    def simulate(self, inputs, x0=None) -> np.ndarray:
+        """Outputs (N_total, n_o) of the estimated model driven by the inputs of ``inputs``
+        (a ``FlightData`` or a list), from ``x0`` (as in ``predict``)."""
+        from flightid.simulation.prediction import simulate_result
+
+        return simulate_result(self.estimated_model, inputs, x0)
+
+    def linearize(self, at=None):
+        """The estimated model linearized about ``at`` (None: its initial state, inputs 0; a
+        ``FlightData``: its initial state and mean inputs; or ``(x, u)``), with the
+        covariance of A, B, C, D from ``covariance`` (none, with a note, for the EFRLS);
+        returns a ``LinearModel`` (``modes()``)."""
+        from flightid.simulation.prediction import linearize_result
+
+        outputs, units = self.meta.get("outputs", ()), self.meta.get("output_units", ())
+        units = dict(zip(outputs, units, strict=False))
+        return linearize_result(
+            self.estimated_model,
+            at,
+            covariance=self.covariance,
+            no_covariance=self._no_covariance(),
+            units=units,
+        )
 
     # ------------------------------------------------------------------ surface
 

@@ -163,7 +163,12 @@ class RecursiveEstimator:
                 )
             )
         est = self.estimator
-        state_names = list(est.augmented.model.states) if hasattr(est, "augmented") else []
+        augmented = getattr(est, "augmented", None)
+        state_names = list(augmented.model.states) if augmented is not None else []
+        covariance = None
+        if augmented is not None and self.method != "efrls":
+            # the parameter block of the last filter covariance P̂ (after the n_x states)
+            covariance = np.array(est.P[augmented.n_x :, augmented.n_x :], dtype=float)
         return RecursiveResult(
             method=self.method,
             parameter_names=tuple(self.parameter_names),
@@ -182,6 +187,8 @@ class RecursiveEstimator:
             wall_time_s=self.wall_time_s,
             settings=dict(settings or {}),
             meta=dict(meta or {}),
+            model=None if augmented is None else augmented.model,
+            covariance=covariance,
         )
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.stats import norm
 
 from flightid.data.flightdata import FlightData
-from flightid.errors import InputError, SimulationError
+from flightid.errors import FlightIdWarning, InputError, SimulationError
 from flightid.model.binding import as_data_list
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulation.simulator import Simulator
@@ -37,11 +37,16 @@ from flightid.simulation.simulator import Simulator
 __all__ = [
     "Prediction",
     "PredictionError",
+    "PredictionWarning",
     "initial_states",
+    "linearize_result",
+    "model_at_estimate",
     "output_sensitivities",
     "output_std",
     "predict_maneuvers",
+    "predict_result",
     "prediction_model",
+    "simulate_result",
 ]
 
 # relative step of the central differences of the outputs in θ: δ_j = 1e-5·max(|θ_j|, typ_j)
@@ -52,6 +57,11 @@ BATCH_BYTES = 16 * 2**20
 
 class PredictionError(InputError):
     """A prediction that cannot be made as asked (initial state unknown, data unsuitable)."""
+
+
+class PredictionWarning(FlightIdWarning):
+    """A prediction made with parameters the estimation did not determine (held at their
+    start values)."""
 
 
 @dataclass(frozen=True)
@@ -370,3 +380,146 @@ def predict_maneuvers(
         )
         start = stop
     return predictions
+
+
+# ---------------------------------------------------------------------- results' model calls
+# Every result that holds a model (time-domain, frequency-domain and recursive estimates)
+# answers predict / simulate / linearize through these three functions, with the model at its
+# estimated values (free mask = the parameters the covariance is over).
+
+
+def model_at_estimate(
+    model: StateSpaceModel,
+    names: Sequence[str],
+    values: Sequence[float] | np.ndarray,
+    estimated: Sequence[str],
+) -> StateSpaceModel:
+    """``model`` with the parameters ``names`` at ``values`` and exactly those named in
+    ``estimated`` free (the order of a covariance over the free parameters is the model's
+    parameter order). Parameters not named keep their values."""
+    parameters = model.parameters
+    unknown = [n for n in (*names, *estimated) if n not in parameters]
+    if unknown:
+        raise PredictionError(
+            f"names: {unknown} are not parameters of the model {parameters.names}"
+        )
+    valued = parameters.with_values(dict(zip(names, np.asarray(values, dtype=float), strict=True)))
+    fixed = valued.with_free(valued.names, free=False)
+    return model.with_parameters(fixed.with_free(estimated, free=True))
+
+
+def predict_result(
+    model: StateSpaceModel,
+    data: FlightData | Sequence[FlightData],
+    x0: Sequence | Mapping | np.ndarray | None = None,
+    *,
+    bands: bool = False,
+    covariance: np.ndarray | None = None,
+    no_covariance: str = "",
+    method: str = "rk4",
+    input_interpolation: str = "linear",
+) -> Prediction | tuple[Prediction, ...]:
+    """A result's ``predict``: one ``Prediction`` for a ``FlightData``, a tuple of them for a
+    list (``predict_maneuvers``).
+
+    Args:
+        model: the model at the estimated values, free = the parameters of ``covariance``.
+        data, x0: as ``predict_maneuvers``.
+        bands: give ``Prediction.predicted_std`` from ``covariance`` (delta method).
+        covariance: P of the free parameters, or None when the result has none.
+        no_covariance: why the result has no covariance (the message of the
+            ``PredictionError`` that ``bands=True`` then raises).
+    """
+    if bands and covariance is None:
+        raise PredictionError(
+            f"bands: no prediction band can be given: {no_covariance or 'no parameter covariance'}"
+        )
+    predictions = predict_maneuvers(
+        model,
+        data,
+        x0,
+        method=method,
+        input_interpolation=input_interpolation,
+        covariance=covariance if bands else None,
+    )
+    return predictions[0] if isinstance(data, FlightData) else tuple(predictions)
+
+
+def simulate_result(
+    model: StateSpaceModel,
+    inputs: FlightData | Sequence[FlightData],
+    x0: Sequence | Mapping | np.ndarray | None = None,
+    *,
+    method: str = "rk4",
+    input_interpolation: str = "linear",
+) -> np.ndarray:
+    """A result's ``simulate``: outputs (N_total, n_o) of ``model`` driven by the inputs of
+    ``inputs`` (outputs not needed) from the initial states of ``initial_states``."""
+    from flightid.simulation.simulator import simulate
+
+    maneuvers = as_data_list(inputs)
+    fixed = prediction_model(model, maneuvers, x0)
+    return simulate(fixed, maneuvers, method=method, input_interpolation=input_interpolation)
+
+
+def _operating_point(model: StateSpaceModel, at, units: dict) -> tuple:
+    """(x, u, units, description) of ``at``: None, a ``FlightData`` or (x, u)."""
+    from flightid.model.linearization import LinearizationError
+
+    if at is None:
+        x = model.initial_state(model.parameters.values, 0)
+        u = np.zeros(len(model.inputs))
+        return x, u, units, "initial state of the first estimation maneuver, inputs 0"
+    if isinstance(at, FlightData):
+        (x,) = initial_states(model, [at], None)
+        u = np.array([float(np.mean(at.channel(n))) for n in model.inputs])
+        point = f"initial state and mean inputs of maneuver {at.name or '(unnamed)'}"
+        return x, u, {**units, **dict(at.units)}, point
+    if isinstance(at, (tuple, list)) and len(at) == 2:
+        return at[0], at[1], units, "given"
+    raise LinearizationError(f"at: expected None, a FlightData or (x, u), got {type(at).__name__}")
+
+
+def linearize_result(
+    model: StateSpaceModel,
+    at=None,
+    *,
+    covariance: np.ndarray | None = None,
+    no_covariance: str = "",
+    units: Mapping[str, str] | None = None,
+):
+    """A result's ``linearize``: the ``LinearModel`` of ``model`` about an operating point,
+    with Cov vec(A, B, C, D) from ``covariance`` (``flightid.model.linearization``).
+
+    Args:
+        model: the model at the estimated values, free = the parameters of ``covariance``.
+        at: None — the initial state of the first estimation maneuver, inputs 0 (exact for a
+            model linear in x and u); a ``FlightData`` — its initial state (as ``predict``
+            starts it) and the mean of each input; or ``(x, u)``.
+        covariance: P of the free parameters; None: the entries come without σ and
+            ``notes`` says why (``no_covariance``). Non-finite entries (undetermined
+            parameters) likewise, naming them.
+        units: ``{channel: unit}``.
+    """
+    from flightid.model.linearization import linearize
+
+    x, u, units, point = _operating_point(model, at, dict(units or {}))
+    notes: tuple[str, ...] = ()
+    if covariance is None:
+        notes = (f"no σ of the entries: {no_covariance or 'no parameter covariance'}",)
+    elif not np.all(np.isfinite(covariance)):
+        diagonal = np.diag(np.asarray(covariance, dtype=float))
+        free_names = model.parameters.free_names
+        undetermined = [n for n, v in zip(free_names, diagonal, strict=True) if not np.isfinite(v)]
+        covariance = None
+        notes = (f"no σ of the entries: the parameters {undetermined} are undetermined",)
+    return linearize(
+        model,
+        x,
+        u,
+        covariance=covariance,
+        units=units,
+        operating_point=point,
+        name=model.name,
+        notes=notes,
+    )
