@@ -81,6 +81,12 @@ class LoadedRun:
         sigma = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
         return dict(zip(self.free_names, (float(s) for s in sigma), strict=True))
 
+    @property
+    def std_cr(self) -> dict[str, float]:
+        """The Cramér–Rao σ of every free parameter, by name."""
+        sigma = np.sqrt(np.maximum(np.diag(self.covariance_cr), 0.0))
+        return dict(zip(self.free_names, (float(s) for s in sigma), strict=True))
+
     def _covariance_for(self, std: str) -> np.ndarray:
         if std not in ("default", "cr"):
             raise InputError(f"std: expected 'default' or 'cr', got {std!r}")
