@@ -393,3 +393,47 @@ def test_hfb320_run_exports_a_python_module_and_its_longitudinal_modes(tmp_path)
     # the HFB-320 short period: ω_n about 3 rad/s, damping about 0.5 (a regression guard)
     assert 1.5 < sp.natural_frequency < 5.0 and 0.2 < sp.damping_ratio < 0.9
     assert sp.natural_frequency_std > 0
+
+
+def _module_model(tmp_path: Path, body: str, name: str) -> StateSpaceModel:
+    from flightid.cases.usermodel import load_user_model
+
+    path = tmp_path / f"{name}.py"
+    path.write_text(
+        "import numpy as np\nimport flightid.errors\n\n"
+        'STATES = ("x",)\nINPUTS = ("u",)\nOUTPUTS = ("y",)\nPARAMETERS = {"a": -1.0}\n\n'
+        f"def f(t, x, u, theta):\n    return np.array([{body}])\n\n"
+        "def h(t, x, u, theta):\n    return np.array([x[0]])\n",
+        encoding="utf-8",
+    )
+    user = load_user_model(path)
+    return StateSpaceModel(
+        user.states, user.inputs, user.outputs, user.f, user.h, Parameters(user.parameters)
+    )
+
+
+def test_a_model_module_importing_flightid_is_not_copied(tmp_path):
+    linear = python_source(
+        _module_model(tmp_path, "theta[0] * x[0] + u[0]", "linear_uses_flightid"), (0.0,)
+    )
+    assert "import flightid" not in linear and "A = _export_np.array([-1.0])" in linear
+    with pytest.raises(PythonExportError, match=r"imports \['flightid'\]"):
+        python_source(
+            _module_model(tmp_path, "theta[0] * x[0] ** 3 + u[0]", "cubic_uses_flightid"), (0.0,)
+        )
+
+
+def test_python_x0_follows_at(run_dir, tmp_path):
+    out = tmp_path / "at.py"
+    code, _, err = _cli(
+        "export",
+        str(run_dir),
+        "--format",
+        "python",
+        "--out",
+        str(out),
+        "--at",
+        "alpha=0.1,q=0.2,de=0",
+    )
+    assert code == 0, err
+    np.testing.assert_array_equal(_load_module(out)["X0"], [0.1, 0.2])

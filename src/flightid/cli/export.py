@@ -66,9 +66,8 @@ def _write_python(run, out: Path, args: argparse.Namespace) -> list[Path]:
 
     point = operating_point(run, args.at)
     if point is not None and not hasattr(point, "channel"):
-        x0 = np.asarray(point[0], dtype=float)
-        if isinstance(point[0], dict):
-            x0 = np.array([point[0][n] for n in run.model.states])
+        # (x, u) of --at NAME=VALUE: x by state name
+        x0 = np.array([point[0][n] for n in run.model.states], dtype=float)
     else:
         (x0,) = initial_states(run.model, [point or run.maneuvers[0]], None)
     sigma = run.std if args.std == "default" else run.std_cr

@@ -109,39 +109,47 @@ def _module_source(model: StateSpaceModel) -> tuple[str | None, str]:
     return source, f"model module {Path(where).name if where else name}"
 
 
+def _imported_modules(tree: ast.Module) -> list[str]:
+    """The top-level names of the modules ``tree`` imports (``.x`` for a relative import)."""
+    names: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [a.name.split(".")[0] for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            level = "." * node.level
+            names.append(
+                level + (node.module or "") if level else (node.module or "").split(".")[0]
+            )
+    return names
+
+
+def _defined_names(tree: ast.Module) -> set[str]:
+    """Names the module body binds by assignment, ``def`` or ``class``."""
+    names: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef)):
+            names.add(node.name)
+        targets = node.targets if isinstance(node, ast.Assign) else []
+        targets = [node.target] if isinstance(node, ast.AnnAssign) else targets
+        names |= {t.id for t in targets if isinstance(t, ast.Name)}
+    return names
+
+
 def _foreign_imports(source: str) -> str:
-    """'' when ``source`` imports only the standard library, numpy, scipy and numba; else
-    what it imports beyond them."""
+    """'' when ``source`` imports only the standard library, numpy, scipy and numba and does
+    not define a name the export section defines; else what is wrong."""
     try:
         tree = ast.parse(source)
     except SyntaxError as exc:
         return f"cannot be parsed ({exc})"
-    foreign = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names = [a.name.split(".")[0] for a in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            names = ["." * node.level + (node.module or "")] if node.level else []
-            names = names or [(node.module or "").split(".")[0]]
-        else:
-            continue
-        foreign += [
-            n for n in names if n not in ALLOWED_IMPORTS and n not in sys.stdlib_module_names
-        ]
-    defined = {
-        target.id
-        for node in tree.body
-        if isinstance(node, (ast.Assign, ast.AnnAssign))
-        for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
-        if isinstance(target, ast.Name)
-    } | {
-        node.name
-        for node in tree.body
-        if isinstance(node, (ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef))
+    foreign = {
+        n
+        for n in _imported_modules(tree)
+        if n not in ALLOWED_IMPORTS and n not in sys.stdlib_module_names
     }
-    clash = sorted(defined & set(EXPORT_NAMES))
     if foreign:
-        return f"imports {sorted(set(foreign))} (only the standard library, numpy, scipy, numba)"
+        return f"imports {sorted(foreign)} (only the standard library, numpy, scipy, numba)"
+    clash = sorted(_defined_names(tree) & set(EXPORT_NAMES))
     if clash:
         return f"defines {clash}, which the exported module defines itself"
     return ""
@@ -322,7 +330,7 @@ def python_source(
                 f"are not copyable source ({how}) and {why_not}"
             )
         body = _linear_source(parts, len(model.states), len(model.outputs))
-        how = "linear model (matrices at the estimated values)"
+        how = "linear model, its matrices at the estimated values (f and h do not read THETA)"
     names = model.parameters.names
     if theta_f.size == len(names):
         theta_names = list(names)
