@@ -437,3 +437,32 @@ def test_python_x0_follows_at(run_dir, tmp_path):
     )
     assert code == 0, err
     np.testing.assert_array_equal(_load_module(out)["X0"], [0.1, 0.2])
+
+
+def test_a_model_module_with_future_imports_is_copied_as_valid_python(tmp_path):
+    from flightid.cases.usermodel import load_user_model
+
+    path = tmp_path / "future_model.py"
+    path.write_text(
+        '"""A model module with its own docstring."""\n\nfrom __future__ import annotations\n\n'
+        "import math\n\n"
+        'STATES = ("x",)\nINPUTS = ("u",)\nOUTPUTS = ("y",)\nPARAMETERS = {"a": -1.0}\n\n'
+        "def f(t, x, u, theta):\n    return [theta[0] * math.sin(x[0]) + u[0]]\n\n"
+        "def h(t, x, u, theta):\n    return [x[0]]\n",
+        encoding="utf-8",
+    )
+    user = load_user_model(path)
+    model = StateSpaceModel(
+        user.states,
+        user.inputs,
+        user.outputs,
+        user.f,
+        user.h,
+        Parameters(user.parameters),
+        x0=(0.3,),
+    )
+    written = write_python(model, tmp_path / "exported_future", (0.3,))
+    data = FlightData(np.arange(200) * 0.05, {"u": np.cos(np.arange(200) * 0.1)})
+    y = _load_module(written)["simulate"](data.time, data.channel("u").reshape(-1, 1))
+    expected = simulate(model, data)
+    np.testing.assert_allclose(y, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))

@@ -155,6 +155,25 @@ def _foreign_imports(source: str) -> str:
     return ""
 
 
+def _split_future_imports(source: str) -> tuple[str, str]:
+    """(the ``from __future__`` import lines of ``source``, the rest): they must open the
+    written module, before the copied code's own docstring."""
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return "", source
+    lines = source.splitlines(keepends=True)
+    future = [
+        node
+        for node in tree.body
+        if isinstance(node, ast.ImportFrom) and node.module == "__future__"
+    ]
+    taken = {i for node in future for i in range(node.lineno - 1, node.end_lineno)}
+    head = "".join(lines[i] for i in sorted(taken))
+    rest = "".join(line for i, line in enumerate(lines) if i not in taken)
+    return (head + "\n" if head else ""), rest
+
+
 def _affine_parts(
     model: StateSpaceModel, theta_f: np.ndarray, seed: int = 0
 ) -> tuple[tuple[np.ndarray, ...] | None, str]:
@@ -346,7 +365,10 @@ def python_source(
         f"{description + chr(10) + chr(10) if description else ''}"
         f"f and h: {how}. THETA holds the estimated values; simulate(t, u) integrates as\n"
         'flightid does. Needs numpy only (and what the model code imports)."""\n\n'
-        "# ---------------------------------------------------------------- model code\n"
+    )
+    future, body = _split_future_imports(body)
+    header += (
+        future + "# ---------------------------------------------------------------- model code\n"
     )
     section = "\n".join(
         [
