@@ -133,6 +133,8 @@ def load_source(source: str) -> types.ModuleType:
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
+        # the source itself, for writers that copy it (flightid.export.python_module)
+        module.__flightid_source__ = source
         try:
             spec.loader.exec_module(module)
             return module
@@ -140,6 +142,7 @@ def load_source(source: str) -> types.ModuleType:
             del sys.modules[name]
             raise
     module = types.ModuleType(name)
+    module.__flightid_source__ = source
     exec(compile(source, f"<{name}>", "exec"), module.__dict__)  # noqa: S102
     sys.modules[name] = module
     return module

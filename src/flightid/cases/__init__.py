@@ -9,9 +9,16 @@ A case with ``[[stages]]`` (stepwise regression → output error → prediction,
 from flightid.cases import load_case, run_stages
 run = run_stages(load_case("examples/cases/twin_otter_stepwise.toml"))
 print(run.summary())
+
+A result folder of ``flightid run --out`` read back (nothing estimated again):
+
+from flightid.cases import load_run
+run = load_run("out/hfb320")
+print(run.linearize().summary())
 """
 
 from flightid.cases.build import resolve_data_dir
+from flightid.cases.load_run import CaseChangedError, LoadedRun, RunFolderError, load_run
 from flightid.cases.run import CaseRun, Prediction, prepare_case, run_case
 from flightid.cases.spec import Case, CaseError, StageSpec, load_case, parse_case
 from flightid.cases.stages import StagesRun, run_stages
@@ -19,13 +26,17 @@ from flightid.cases.usermodel import UserModelError, load_user_model
 
 __all__ = [
     "Case",
+    "CaseChangedError",
     "CaseError",
     "CaseRun",
+    "LoadedRun",
     "Prediction",
+    "RunFolderError",
     "StageSpec",
     "StagesRun",
     "UserModelError",
     "load_case",
+    "load_run",
     "load_user_model",
     "parse_case",
     "prepare_case",

@@ -96,6 +96,17 @@ def _whiteness_entry(result) -> dict | None:
         return None
 
 
+def covariance_entry(estimate: Estimate) -> dict:
+    """The covariance of the free estimates in results.json: ``parameters`` (the free names,
+    the rows' order), ``default`` (the covariance behind ``std``) and ``cramer_rao`` (M⁻¹),
+    each n_f × n_f — what ``flightid export`` needs to carry the uncertainty into a model."""
+    return {
+        "parameters": list(estimate.free_names),
+        "default": np.asarray(estimate.covariance_default, dtype=float).tolist(),
+        "cramer_rao": np.asarray(estimate.covariance, dtype=float).tolist(),
+    }
+
+
 @dataclass(frozen=True)
 class CaseRun:
     """Everything a run produced."""
@@ -130,7 +141,9 @@ class CaseRun:
             "file": str(self.case.path),
             "sha256": self.case_sha256,
             "model": self.model_description,
+            "data_dir": str(self.data_dir),
         }
+        entry["covariance"] = covariance_entry(self.estimate)
         entry["maneuvers"] = [maneuver_entry(m) for m in self.maneuvers]
         entry["prediction"] = [p.to_dict() for p in self.predictions]
         # residual autocorrelation and Ljung–Box test per output (flightid.accuracy.whiteness)

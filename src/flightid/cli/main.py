@@ -43,6 +43,7 @@ SUBCOMMAND_MODULES = (
     "batch",
     "design",
     "example_logs",
+    "export",
     "inspect",
     "paper",
     "regress",

@@ -1,0 +1,217 @@
+"""``flightid export RUN_DIR --format FORMAT --out PATH [--at POINT] [--std default|cr]
+[--overwrite] [--data-dir DIR]``.
+
+Reads a result folder of ``flightid run`` back (``flightid.cases.load_run``: the case file
+checked against the SHA-256 the run recorded, the model rebuilt with the recorded estimates
+and covariance; nothing is estimated again) and writes the identified model in one of the
+formats of ``EXPORT_FORMATS``:
+
+    statespace  PATH.json and PATH.npz: A, B, C, D, names, units, operating point, the
+                covariance of the entries, the modes with σ (flightid.export.statespace)
+    mat         PATH.mat: the same for MATLAB (scipy.io.savemat)
+    python      PATH.py: a stand-alone module with f, h, the estimated values and simulate()
+                (flightid.export.python_module)
+
+The linear formats linearize at the initial state of the first estimation maneuver and the
+mean of each input over it, unless ``--at`` names another maneuver (its number, from 1, or
+its name) or gives every state and input (``--at "alpha=0.1,q=0,de=-0.02"``).
+
+An existing file is replaced only with ``--overwrite``, and only when flightid exported it
+(a record ``.NAME.flightid-export`` beside it vouches for its bytes): ``flightid.export.files``.
+
+A format is one entry of ``EXPORT_FORMATS``: its help line and ``write(run, out, args) ->
+[paths]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import textwrap
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class ExportFormat:
+    """One ``--format``: what it writes (help) and the writer ``write(run, out, args)``
+    taking the loaded run (``LoadedRun``), the ``--out`` path and the parsed arguments,
+    returning the paths written."""
+
+    help: str
+    write: Callable[..., list[Path]]
+
+
+def _linear_model(run, args: argparse.Namespace):
+    return run.linearize(operating_point(run, args.at), std=args.std)
+
+
+def _write_statespace(run, out: Path, args: argparse.Namespace) -> list[Path]:
+    from flightid.export import write_statespace
+
+    return write_statespace(_linear_model(run, args), out, overwrite=args.overwrite)
+
+
+def _write_mat(run, out: Path, args: argparse.Namespace) -> list[Path]:
+    from flightid.export import write_mat
+
+    return [write_mat(_linear_model(run, args), out, overwrite=args.overwrite)]
+
+
+def _write_python(run, out: Path, args: argparse.Namespace) -> list[Path]:
+    import numpy as np
+
+    from flightid.export import write_python
+    from flightid.simulation.prediction import initial_states
+
+    point = operating_point(run, args.at)
+    if point is not None and not hasattr(point, "channel"):
+        # (x, u) of --at NAME=VALUE: x by state name
+        x0 = np.array([point[0][n] for n in run.model.states], dtype=float)
+    else:
+        (x0,) = initial_states(run.model, [point or run.maneuvers[0]], None)
+    sigma = run.std if args.std == "default" else run.std_cr
+    std = [sigma.get(n, float("nan")) for n in run.model.parameters.names]
+    description = (
+        f"Estimated by flightid run of the case {run.case.path} ({run.case.title}); result "
+        f"folder {run.directory}. X0: the initial state of "
+        + ("the first estimation maneuver." if args.at is None else f"--at {args.at}.")
+    )
+    path = write_python(
+        run.model,
+        out,
+        x0,
+        std=std,
+        method=run.method,
+        input_interpolation=run.input_interpolation,
+        description=description,
+        overwrite=args.overwrite,
+    )
+    return [path]
+
+
+# --format → its writer; one entry adds a format
+EXPORT_FORMATS: dict[str, ExportFormat] = {
+    "statespace": ExportFormat(
+        "PATH.json and PATH.npz: A, B, C, D, names, units, operating point, covariance, modes",
+        _write_statespace,
+    ),
+    "mat": ExportFormat("PATH.mat: the same for MATLAB", _write_mat),
+    "python": ExportFormat(
+        "PATH.py: a stand-alone module with f, h, the estimated values and simulate()",
+        _write_python,
+    ),
+}
+
+
+def _option_error(message: str) -> Exception:
+    """A bad ``--at`` value: ``ExportError`` (an ``InputError``)."""
+    from flightid.export import ExportError
+
+    return ExportError(message)
+
+
+def _parse_values(text: str, names: tuple[str, ...]) -> dict[str, float]:
+    values: dict[str, float] = {}
+    for part in text.split(","):
+        name, _, value = part.partition("=")
+        try:
+            values[name.strip()] = float(value)
+        except ValueError:
+            raise _option_error(
+                f"--at: expected NAME=VALUE pairs separated by commas, got {part!r}"
+            ) from None
+    unknown = sorted(set(values) - set(names))
+    missing = [n for n in names if n not in values]
+    if unknown or missing:
+        raise _option_error(
+            f"--at: expected a value for every state and input {list(names)}; unknown "
+            f"{unknown}, missing {missing}"
+        )
+    return values
+
+
+def operating_point(run, at: str | None):
+    """``--at`` as ``LoadedRun.linearize`` takes it: None (the first estimation maneuver), a
+    maneuver (by number from 1 or by name) or (x, u) as mappings."""
+    if at is None:
+        return None
+    if "=" in at:
+        states, inputs = run.model.states, run.model.inputs
+        values = _parse_values(at, (*states, *inputs))
+        return ({n: values[n] for n in states}, {n: values[n] for n in inputs})
+    names = [m.name for m in run.maneuvers]
+    if at.strip().isdigit() and 1 <= int(at) <= len(run.maneuvers):
+        return run.maneuvers[int(at) - 1]
+    if at in names:
+        return run.maneuvers[names.index(at)]
+    raise _option_error(
+        f"--at: expected a maneuver number 1..{len(names)}, a maneuver name {names} or "
+        f"NAME=VALUE for every state and input, got {at!r}"
+    )
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "export",
+        help="write an estimated model for other tools (state space, MATLAB, Python)",
+        description=textwrap.fill(
+            "Export the model of a result folder of 'flightid run' without estimating again: "
+            "the case file is read again (refused when it changed since the run: its SHA-256 "
+            "is checked) and the model rebuilt with the recorded estimates and covariance. "
+            "The linear formats linearize at the initial state of the first estimation "
+            "maneuver and the mean of each input over it (change with --at). WARNING: a case "
+            "with model.module imports and runs that Python file.",
+            width=88,
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="formats:\n"
+        + "\n".join(f"  {name:<11} {fmt.help}" for name, fmt in EXPORT_FORMATS.items()),
+    )
+    parser.add_argument("run_dir", metavar="RUN_DIR", help="result folder of flightid run --out")
+    parser.add_argument(
+        "--format", required=True, choices=tuple(EXPORT_FORMATS), help="what to write"
+    )
+    parser.add_argument(
+        "--out",
+        required=True,
+        help="file to write (the format's suffix is added when missing); an existing file is "
+        "refused unless --overwrite",
+    )
+    parser.add_argument(
+        "--at",
+        default=None,
+        help="operating point of the linear model (and X0 of the python module): a maneuver "
+        "number (from 1) or name of the run — its initial state and mean inputs — or "
+        "NAME=VALUE,... for every state and input (default: the first estimation maneuver's "
+        "initial state and mean inputs)",
+    )
+    parser.add_argument(
+        "--std",
+        choices=("default", "cr"),
+        default="default",
+        help="covariance carried into the export: the one behind the reported σ (default) or "
+        "the Cramér–Rao bounds (cr)",
+    )
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing file, only when flightid exported it and it is unchanged",
+    )
+    parser.add_argument(
+        "--data-dir",
+        default=None,
+        help="directory holding the data files (default: the one the run used)",
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    # imported here: `flightid --help` must not load numpy/scipy/numba
+    from flightid.cases.load_run import load_run
+
+    loaded = load_run(args.run_dir, args.data_dir)
+    written = EXPORT_FORMATS[args.format].write(loaded, Path(args.out).expanduser(), args)
+    for path in written:
+        print(f"written: {path}")
+    return 0
