@@ -1,0 +1,1 @@
+"""Exports of identified models to simulators and other tools."""
