@@ -9,12 +9,15 @@ those expressions. JSBSim works in ft, slug, lbf: the factors below convert.
     V, u, v, w     = 0.3048 · velocities/{vt,u-aero,v-aero,w-aero}-fps          (m/s)
     alpha, beta    = aero/alpha-rad, aero/beta-rad
     p, q, r        = velocities/{p,q,r}-aero-rad_sec
-    phat, rhat     = {p,r} · aero/bi2vel        (b/2V; with V0: the constant b/2V0)
-    qhat           = q · aero/ci2vel            (c̄/2V; with V0: c̄/2V0)
+    phat, rhat     = {p,r} · (b/2) / velocities/vt-fps   (with V0: the constant b/2V0)
+    qhat           = q · (c̄/2) / velocities/vt-fps       (with V0: c̄/2V0)
     theta, phi     = attitude/theta-rad, attitude/phi-rad
     Vrel, dVrel    = V/V0, V/V0 − 1
-    alphadot_hat   = aero/alphadot-rad_sec · aero/ci2vel  (rule ``ALPHADOT_RULE``)
-    betadot_hat    = aero/betadot-rad_sec · aero/bi2vel   (rule ``BETADOT_RULE``)
+    alphadot_hat   = aero/alphadot-rad_sec · c̄/2V   (rule ``ALPHADOT_RULE``)
+    betadot_hat    = aero/betadot-rad_sec · b/2V    (rule ``BETADOT_RULE``)
+
+(JSBSim's own aero/bi2vel and aero/ci2vel are not used: JSBSim 1.3 computes them from the
+airspeed of the previous time step.)
     controls       = the property each is mapped to (default ``DEFAULT_CONTROLS``), rad
     thrust input   = 4.4482216152605 · flightid/thrust-lbs                       (N)
 
@@ -117,12 +120,16 @@ class SignalMap:
         self.thrust_input = thrust_input
         self.rules: set[str] = set()
 
-    def _half_length_over_speed(self, length_ft: float, jsbsim_property: str) -> ET.Element:
-        """length/(2 V_n), s: aero/bi2vel or aero/ci2vel, or the constant with V0."""
+    def _half_length_over_speed(self, length_ft: float) -> ET.Element:
+        """length/(2 V_n), s: the constant length/(2 V0), or length/2 over
+        velocities/vt-fps (not aero/bi2vel, aero/ci2vel: JSBSim computes those from the
+        airspeed of the previous time step)."""
         if self.rate_speed == "V0":
             # length/(2 V0), V0 in ft/s
             return _value(length_ft / (2.0 * self.reference_speed / FT_M))
-        return _property(jsbsim_property)
+        element = ET.Element("quotient")
+        element.extend([_value(length_ft / 2.0), _property("velocities/vt-fps")])
+        return element
 
     def _span(self, signal: str) -> float:
         if self.b_ft is None:
@@ -157,11 +164,11 @@ class SignalMap:
         if signal in ("phat", "rhat"):
             rate = f"velocities/{signal[0]}-aero-rad_sec"
             span = self._span(signal)
-            return _product(_property(rate), self._half_length_over_speed(span, "aero/bi2vel"))
+            return _product(_property(rate), self._half_length_over_speed(span))
         if signal == "qhat":
             return _product(
                 _property("velocities/q-aero-rad_sec"),
-                self._half_length_over_speed(self.cbar_ft, "aero/ci2vel"),
+                self._half_length_over_speed(self.cbar_ft),
             )
         if signal in ("Vrel", "dVrel"):
             return self._speed_ratio(signal)
@@ -192,11 +199,11 @@ class SignalMap:
         if signal == "alphadot_hat":
             self.rules.add(ALPHADOT_RULE)
             rate = _property("aero/alphadot-rad_sec")
-            return _product(rate, self._half_length_over_speed(self.cbar_ft, "aero/ci2vel"))
+            return _product(rate, self._half_length_over_speed(self.cbar_ft))
         self.rules.add(BETADOT_RULE)
         rate = _property("aero/betadot-rad_sec")
         span = self._span(signal)
-        return _product(rate, self._half_length_over_speed(span, "aero/bi2vel"))
+        return _product(rate, self._half_length_over_speed(span))
 
     def factor(self, key, coefficient: str, label: str) -> ET.Element:
         """One factor of a term: a signal, a spline (x − k)₊ = max(x − k, 0) or |x|."""

@@ -29,10 +29,11 @@ The folder ``path_dir`` (its name is the aircraft's name, as JSBSim requires) ho
 * ``aerodynamics/draw_0001.xml`` …: the same with parameter draws (``draws=K``), and
   ``draws.json`` with the drawn values; fly a draw by pointing the aircraft's
   ``<aerodynamics file=…>`` at it.
-* ``planet_flat.xml``: a spherical planet that does not rotate, with the airplane's g at
-  sea level (GM = g R²); loaded with ``FGFDMExec.load_planet(path, False)`` and
-  ``simulation/gravity-model = 0`` it makes JSBSim's equations those flightid integrates
-  (no Coriolis or centrifugal terms, constant g to a few 1e-6 over a few hundred metres).
+* ``planet_flat.xml``: a spherical planet, 1000 times the earth's radius, that does not
+  rotate, with the airplane's g at sea level (GM = g R²); loaded with
+  ``FGFDMExec.load_planet(path, False)`` and ``simulation/gravity-model = 0`` it makes
+  JSBSim's equations those flightid integrates
+  (no Coriolis or centrifugal terms, g constant to 3e-7 below 1000 m).
 * ``export.json``: what was written, the parameter values, the control mapping and the
   approximation rules used.
 
@@ -40,6 +41,8 @@ Refused (``JSBSimExportError``): terms in signals with no JSBSim counterpart
 (``_jsbsim_terms``), an engine angular momentum or propeller torque (not written), an
 existing non-empty folder unless ``overwrite``. Approximated by a named rule: α̇ and β̇ terms
 (``ALPHADOT_RULE``, ``BETADOT_RULE``).
+
+``fly_jsbsim`` (``_jsbsim_fly``) flies the folder in JSBSim with recorded inputs.
 """
 
 from __future__ import annotations
@@ -54,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from flightid.errors import InputTypeError, describe
+from flightid.export._jsbsim_fly import fly_jsbsim, initial_from_body_state
 from flightid.export._jsbsim_terms import (
     ALPHADOT_RULE,
     BETADOT_RULE,
@@ -73,6 +77,8 @@ __all__ = [
     "THRUST_PROPERTY",
     "JSBSimAircraft",
     "JSBSimExportError",
+    "fly_jsbsim",
+    "initial_from_body_state",
     "write_jsbsim",
 ]
 
@@ -102,6 +108,9 @@ class JSBSimAircraft:
         free_names: names of the drawn parameters.
         rules: the approximation rules the aerodynamics use (empty when exact).
         controls: flightid control → JSBSim property.
+        thrust_input: the airplane's thrust channel (its value goes to ``THRUST_PROPERTY``
+            in lbf), or None.
+        g: the airplane's acceleration of gravity, m/s².
     """
 
     folder: Path
@@ -114,6 +123,8 @@ class JSBSimAircraft:
     free_names: tuple[str, ...]
     rules: tuple[str, ...] = ()
     controls: dict[str, str] = field(default_factory=dict)
+    thrust_input: str | None = None
+    g: float = 9.80665
 
 
 # ------------------------------------------------------------------ parameters and checks
@@ -380,8 +391,10 @@ def _write_xml(element: ET.Element, path: Path, comment: str | None = None) -> N
 
 
 def _planet(airplane, path: Path) -> None:
-    """A spherical, non-rotating planet with g at sea level (GM = g R²)."""
-    radius_ft = 20925646.32546  # the WGS84 semi-major axis, ft
+    """A spherical, non-rotating planet with g at sea level (GM = g R²), of 1000 times the
+    earth's radius: g falls by 2h/R (3e-7 at h = 1000 m) and the local vertical turns by V/R
+    (1e-8 rad/s at 60 m/s), so that the equations are those of flightid's flat earth."""
+    radius_ft = 1000.0 * 20925646.32546  # 1000 × the WGS84 semi-major axis, ft
     planet = ET.Element("planet", name="flightid flat earth")
     _sub(planet, "description", "non-rotating sphere, g at sea level = the airplane's g")
     _sub(planet, "equatorial_radius", number(radius_ft), unit="FT")
@@ -524,7 +537,7 @@ def write_jsbsim(
     result = JSBSimAircraft(
         folder, name, aircraft_file, tuple(files), planet_file,
         {n: float(values[n]) for n in aero.parameter_names}, drawn, tuple(free),
-        tuple(sorted(signals.rules)), used,
+        tuple(sorted(signals.rules)), used, airplane.thrust_input, airplane.g,
     )  # fmt: skip
     _write_summary(result, airplane, dynamic_pressure, reference_speed, rate_speed, seed)
     return result
