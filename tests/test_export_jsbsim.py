@@ -290,8 +290,7 @@ def test_folder_contents_and_units(tmp_path):
     assert fdm["inertia/mass-slugs"] == pytest.approx(airplane.mass / 14.593902937, rel=1e-9)
     assert fdm["inertia/iyy-slugs_ft2"] == pytest.approx(airplane.Iy / 1.3558179483, rel=1e-9)
     summary = json.loads((result.folder / "export.json").read_text())
-    assert summary["controls"] == {"de": "fcs/elevator-pos-rad",
-                                   "da": "fcs/left-aileron-pos-rad", "dr": "fcs/rudder-pos-rad"}  # fmt: skip
+    assert summary["controls"] == CONTROL_PROPERTY
     assert summary["thrust_property_lbs"] == "flightid/thrust-lbs"
     assert summary["rules"] == []
 
