@@ -14,6 +14,7 @@ import dataclasses
 import json
 import math
 import os
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from types import SimpleNamespace
@@ -36,7 +37,6 @@ from flightid.simulation import simulate
 jsbsim = pytest.importorskip("jsbsim")
 
 FT = 0.3048
-SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
 # A 6-DOF model with a term of every kind the export maps: constants, angles, rates,
 # controls, a square, a product, a spline and an absolute value (values: Navion-like).
@@ -272,6 +272,87 @@ def test_flown_comparison_sees_a_wrong_inertia_product(tmp_path):
     """The trajectory check is sensitive: I_xz of the wrong sign is seen in p and r."""
     ratio = _flown_error_over_sigma(tmp_path, -150.0)
     assert max(ratio["p"], ratio["r"]) > 0.1, ratio
+
+
+# ------------------------------------------------------------------ HFB-320 (shared data)
+HFB320_CASE = (
+    Path(__file__).resolve().parents[1] / "examples/cases/hfb320_longitudinal_builtin.toml"
+)
+
+
+def _hfb320_run():
+    """The shipped HFB-320 case run (about 0.2 s), or a skip when its data are absent."""
+    from flightid.cases import load_case, resolve_data_dir, run_case
+
+    case = load_case(HFB320_CASE)
+    if not (resolve_data_dir(case) / "fvsysid/hfb320_1_10.asc").exists():
+        pytest.skip("HFB-320 data (../shared/data) absent")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the case's two 6-σ outliers in α
+        return case, run_case(case)
+
+
+def _hfb320_export(case, estimate, folder, dynamic_pressure, draws=0):
+    from flightid.aircraft import airplane_from_table
+
+    spec = case.model
+    airplane = airplane_from_table(spec["airplane"])
+    aero = AeroModel(spec["aero"])
+    result = write_jsbsim(estimate, airplane, folder, aero=aero, draws=draws,
+                          reference_speed=spec["reference_speed"], rate_speed=spec["rate_speed"],
+                          dynamic_pressure=dynamic_pressure)  # fmt: skip
+    return airplane, result
+
+
+def test_hfb320_probed_derivatives_equal_the_estimates(tmp_path):
+    """The estimated derivatives of the HFB-320 case, probed from the exported aircraft:
+    C_Lα = ∂C_L/∂α, C_LV = V0 ∂C_L/∂V (V-terms in V/V0), C_mq = (2V0/c̄) ∂C_m/∂q (q̂ with
+    V0), C_mδe = ∂C_m/∂δe …, each to 1e-3 relative."""
+    case, run = _hfb320_run()
+    estimate = run.estimate
+    values = dict(zip(estimate.names, estimate.values, strict=True))
+    airplane, result = _hfb320_export(case, estimate, tmp_path / "hfb320", "atmosphere")
+    fdm = _load(result)
+    point = {**POINT, "V": 106.0, "alpha": 0.11, "beta": 0.0, "p": 0.0, "q": 0.01, "r": 0.0,
+             "de": -0.05}  # fmt: skip
+    probed = _central_differences(lambda pt: _jsbsim_coefficients(fdm, pt, True), point)
+    v0 = case.model["reference_speed"]
+    expected = {
+        ("CD", "alpha"): values["CDa"], ("CD", "V"): values["CDV"] / v0,
+        ("CL", "alpha"): values["CLa"], ("CL", "V"): values["CLV"] / v0,
+        ("Cm", "alpha"): values["Cma"], ("Cm", "V"): values["CmV"] / v0,
+        # ∂C_m/∂q = C_mq c̄/(2 V0)
+        ("Cm", "q"): values["Cmq"] * airplane.cbar / (2 * v0), ("Cm", "de"): values["Cmde"],
+    }  # fmt: skip
+    relative = {k: abs(probed[k] - v) / abs(v) for k, v in expected.items()}
+    assert max(relative.values()) < 1e-3, relative
+    others = {k: v for k, v in probed.items() if k not in expected}
+    assert max(abs(v) for v in others.values()) < 1e-8, others
+
+
+def test_hfb320_exported_aircraft_flies_like_flightid(tmp_path):
+    """The HFB-320 estimate exported (thrust: the recorded F through flightid/thrust-lbs),
+    flown in JSBSim with the recorded elevator and thrust over the whole 60 s maneuver,
+    equals flightid's simulation of the estimate within 0.1 σ of the estimated measurement
+    noise (RMS, every output)."""
+    case, run = _hfb320_run()
+    estimate, data = run.estimate, run.maneuvers[0]
+    airplane, result = _hfb320_export(case, estimate, tmp_path / "hfb320", "airplane", draws=2)
+    assert len(result.aerodynamics_files) == 3
+    y = simulate(estimate.model, data)
+    V, alpha, theta, q = estimate.model.initial_state()
+    # u = V cos α, w = V sin α
+    initial = {"u": V * math.cos(alpha), "w": V * math.sin(alpha), "theta": theta, "q": q}
+    inputs = {n: data.input(n) for n in ("de", "F")}
+    flown = fly_jsbsim(result, data.time, inputs, initial, substeps=10)
+    # the case's accelerometer gives a_x, a_z in m/s²
+    flown["ax"], flown["az"] = flown["ax"] * airplane.g, flown["az"] * airplane.g
+    sigma = np.sqrt(estimate.r_diag)
+    ratio = {
+        o: float(np.sqrt(np.mean((flown[o] - y[:, i]) ** 2)) / sigma[i])
+        for i, o in enumerate(estimate.output_names)
+    }
+    assert max(ratio.values()) < 0.1, ratio
 
 
 # ------------------------------------------------------------------ the folder, draws, refusals

@@ -3,8 +3,8 @@
 ``fly_jsbsim`` loads the folder ``write_jsbsim`` wrote, sets the initial state, and steps
 JSBSim ``substeps`` times per sample, the inputs linear between samples (flightid's
 ``input_interpolation="linear"``), returning flightid's outputs (V, alpha, beta, theta, phi,
-ax, ay, az, p, q, r; SI units, accelerations in g of the airplane, body axes, a_z ≈ −1 in
-level flight).
+ax, ay, az, p, q, r, pdot, qdot, rdot; SI units, accelerations in g of the airplane, body
+axes, a_z ≈ −1 in level flight).
 
 JSBSim's frame order (1.3): a frame first integrates the state with the accelerations of the
 previous frame, then computes the loads at the new state with the controls set before it.
@@ -29,7 +29,9 @@ from flightid.export._jsbsim_terms import FT_M, LBF_N, THRUST_PROPERTY
 
 __all__ = ["FLY_OUTPUTS", "fly_jsbsim", "initial_from_body_state"]
 
-FLY_OUTPUTS = ("V", "alpha", "beta", "theta", "phi", "ax", "ay", "az", "p", "q", "r")
+FLY_OUTPUTS = (
+    "V", "alpha", "beta", "theta", "phi", "ax", "ay", "az", "p", "q", "r", "pdot", "qdot", "rdot",
+)  # fmt: skip
 _INTEGRATORS = (
     "simulation/integrator/rate/rotational",
     "simulation/integrator/rate/translational",
@@ -102,6 +104,9 @@ def _read(fdm, g: float) -> list[float]:
         fdm["velocities/p-rad_sec"],
         fdm["velocities/q-rad_sec"],
         fdm["velocities/r-rad_sec"],
+        fdm["accelerations/pdot-rad_sec2"],
+        fdm["accelerations/qdot-rad_sec2"],
+        fdm["accelerations/rdot-rad_sec2"],
     ]
 
 
