@@ -353,6 +353,16 @@ def test_hfb320_exported_aircraft_flies_like_flightid(tmp_path):
         for i, o in enumerate(estimate.output_names)
     }
     assert max(ratio.values()) < 0.1, ratio
+    # draw 2 flown in JSBSim equals flightid's simulation with the drawn values, and differs
+    # from the nominal flight
+    theta = np.array(estimate.values, dtype=float)
+    theta[np.asarray(estimate.free)] = result.draws[1]
+    y_draw = simulate(estimate.model, data, theta)
+    flown = fly_jsbsim(result, data.time, inputs, initial, substeps=10, aerodynamics=2)
+    flown["ax"], flown["az"] = flown["ax"] * airplane.g, flown["az"] * airplane.g
+    for i, o in enumerate(estimate.output_names):
+        assert np.sqrt(np.mean((flown[o] - y_draw[:, i]) ** 2)) < 0.1 * sigma[i], o
+    assert np.sqrt(np.mean((flown["alpha"] - y[:, 1]) ** 2)) > 0.1 * sigma[1]
 
 
 # ------------------------------------------------------------------ the folder, draws, refusals
@@ -469,3 +479,7 @@ def test_refusals_name_the_term_or_quantity(tmp_path):
     # fly_jsbsim names missing inputs
     with pytest.raises(InputError, match=r"missing \['flap', 'thrust'\]"):
         fly_jsbsim(result, np.arange(3) * 0.1, {}, {"u": 50.0})
+    # and draws that were not written
+    inputs = {"flap": np.zeros(3), "thrust": np.zeros(3)}
+    with pytest.raises(InputError, match="draw 1 not written"):
+        fly_jsbsim(result, np.arange(3) * 0.1, inputs, {"u": 50.0}, aerodynamics=1)

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import math
 import os
+import tempfile
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
@@ -41,7 +43,45 @@ _INTEGRATORS = (
 _ADAMS_BASHFORTH_4 = 5
 
 
-def _load(aircraft, flat_earth: bool, dt_s: float):
+def _aerodynamics_file(aircraft, aerodynamics) -> Path | None:
+    """The aerodynamics file to fly: None (the aircraft's own), draw k (an int ≥ 1) or a
+    path (relative to the aircraft folder or absolute)."""
+    if aerodynamics is None:
+        return None
+    if isinstance(aerodynamics, int) and not isinstance(aerodynamics, bool):
+        if not 1 <= aerodynamics < len(aircraft.aerodynamics_files):
+            raise InputError(
+                f"aerodynamics: draw {aerodynamics} not written; the aircraft has draws 1 to "
+                f"{len(aircraft.aerodynamics_files) - 1}"
+            )
+        return aircraft.aerodynamics_files[aerodynamics]
+    path = Path(aerodynamics)
+    path = path if path.is_absolute() else aircraft.folder / path
+    if not path.is_file():
+        raise InputError(f"aerodynamics: expected a draw number or a file, got {aerodynamics!r}")
+    return path
+
+
+def _load_model(fdm, aircraft, aerodynamics: Path | None) -> bool:
+    """Load the aircraft, with its <aerodynamics file=…> pointing at ``aerodynamics`` (a
+    copy of the aircraft file in a temporary folder) when given."""
+    if aerodynamics is None:
+        fdm.set_aircraft_path(str(aircraft.folder.parent))
+        return fdm.load_model(aircraft.name)
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(scratch) / aircraft.name
+        folder.mkdir()
+        text = aircraft.aircraft_file.read_text(encoding="utf-8")
+        own = 'file="aerodynamics/nominal.xml"'
+        if own not in text:
+            raise InputError(f"aircraft: {aircraft.aircraft_file} has no {own}")
+        text = text.replace(own, f'file="{aerodynamics.resolve()}"')
+        (folder / aircraft.aircraft_file.name).write_text(text, encoding="utf-8")
+        fdm.set_aircraft_path(scratch)
+        return fdm.load_model(aircraft.name)
+
+
+def _load(aircraft, flat_earth: bool, dt_s: float, aerodynamics: Path | None):
     os.environ.setdefault("JSBSIM_DEBUG", "0")  # no start-up banner
     import jsbsim
 
@@ -49,8 +89,7 @@ def _load(aircraft, flat_earth: bool, dt_s: float):
     fdm.set_debug_level(0)
     if flat_earth and not fdm.load_planet(str(aircraft.planet_file), False):
         raise InputError(f"aircraft: JSBSim could not load the planet {aircraft.planet_file}")
-    fdm.set_aircraft_path(str(aircraft.folder.parent))
-    if not fdm.load_model(aircraft.name):
+    if not _load_model(fdm, aircraft, aerodynamics):
         raise InputError(f"aircraft: JSBSim could not load {aircraft.aircraft_file}")
     if flat_earth:
         fdm["simulation/gravity-model"] = 0  # GM/r² of the flat planet
@@ -119,6 +158,7 @@ def fly_jsbsim(
     substeps: int = 10,
     flat_earth: bool = True,
     altitude_m: float = 1000.0,
+    aerodynamics: int | str | Path | None = None,
 ) -> dict[str, np.ndarray]:
     """Outputs {name: (N,)} of the exported ``aircraft`` (a ``JSBSimAircraft``) flown in JSBSim.
 
@@ -131,6 +171,8 @@ def fly_jsbsim(
         substeps: JSBSim steps per sample interval.
         flat_earth: load the folder's non-rotating planet (module docstring).
         altitude_m: initial altitude (m; matters only for JSBSim's atmosphere).
+        aerodynamics: fly another aerodynamics file: a draw number k (``draw_000k.xml``) or
+            a file; default the aircraft's own (nominal).
     """
     time_s = np.asarray(time_s, dtype=float)
     steps = np.diff(time_s)
@@ -139,12 +181,13 @@ def fly_jsbsim(
     if not isinstance(substeps, int) or substeps < 1:
         raise InputError(f"substeps: expected an integer ≥ 1, got {substeps!r}")
     properties = _input_properties(aircraft, inputs)
+    aero_file = _aerodynamics_file(aircraft, aerodynamics)
     series = {k: np.asarray(v, dtype=float) for k, v in inputs.items()}
     bad = [k for k, v in series.items() if v.shape != time_s.shape]
     if bad:
         raise InputError(f"inputs: {bad} do not have one value per sample ({len(time_s)})")
     dt = float(steps[0]) / substeps
-    fdm = _load(aircraft, flat_earth, dt)
+    fdm = _load(aircraft, flat_earth, dt, aero_file)
     _set_initial(fdm, initial, altitude_m)
 
     def set_inputs(t: float) -> None:

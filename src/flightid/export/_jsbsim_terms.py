@@ -16,8 +16,9 @@ those expressions. JSBSim works in ft, slug, lbf: the factors below convert.
     alphadot_hat   = aero/alphadot-rad_sec · c̄/2V   (rule ``ALPHADOT_RULE``)
     betadot_hat    = aero/betadot-rad_sec · b/2V    (rule ``BETADOT_RULE``)
 
-(JSBSim's own aero/bi2vel and aero/ci2vel are not used: JSBSim 1.3 computes them from the
-airspeed of the previous time step.)
+(JSBSim's own aero/bi2vel and aero/ci2vel are not used: JSBSim 1.3 updates them after the
+aerodynamics section's own functions, where the coefficients are computed, so these would
+see the airspeed of the previous time step.)
     controls       = the property each is mapped to (default ``DEFAULT_CONTROLS``), rad
     thrust input   = 4.4482216152605 · flightid/thrust-lbs                       (N)
 
@@ -122,8 +123,7 @@ class SignalMap:
 
     def _half_length_over_speed(self, length_ft: float) -> ET.Element:
         """length/(2 V_n), s: the constant length/(2 V0), or length/2 over
-        velocities/vt-fps (not aero/bi2vel, aero/ci2vel: JSBSim computes those from the
-        airspeed of the previous time step)."""
+        velocities/vt-fps (not aero/bi2vel, aero/ci2vel: module docstring)."""
         if self.rate_speed == "V0":
             # length/(2 V0), V0 in ft/s
             return _value(length_ft / (2.0 * self.reference_speed / FT_M))

@@ -170,17 +170,13 @@ def _check_airplane(airplane) -> None:
         )
 
 
-def _check_options(aero, reference_speed, rate_speed, dynamic_pressure, draws, controls):
-    from flightid.aircraft.aero import AeroModel
-
-    if not isinstance(aero, AeroModel):
-        raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
+def _check_rate_options(reference_speed, rate_speed) -> None:
+    """V0 positive or None; rate_speed "V" or "V0" (the latter with V0)."""
     if rate_speed not in RATE_SPEEDS:
         raise JSBSimExportError(f"rate_speed: expected one of {RATE_SPEEDS}, got {rate_speed!r}")
+    valid = isinstance(reference_speed, (int, float)) and not isinstance(reference_speed, bool)
     if reference_speed is not None and not (
-        isinstance(reference_speed, (int, float))
-        and math.isfinite(reference_speed)
-        and reference_speed > 0
+        valid and math.isfinite(reference_speed) and reference_speed > 0
     ):
         raise JSBSimExportError(
             f"reference_speed: expected a positive speed V0 (m/s) or None, got "
@@ -188,15 +184,21 @@ def _check_options(aero, reference_speed, rate_speed, dynamic_pressure, draws, c
         )
     if rate_speed == "V0" and reference_speed is None:
         raise JSBSimExportError('rate_speed="V0": needs reference_speed (V0, m/s)')
+
+
+def _check_options(aero, dynamic_pressure, draws, controls) -> None:
+    """aero an AeroModel, dynamic_pressure known, draws ≥ 0, controls {name: property}."""
+    from flightid.aircraft.aero import AeroModel
+
+    if not isinstance(aero, AeroModel):
+        raise InputTypeError(f"aero: expected an AeroModel, got {describe(aero)}")
     if dynamic_pressure not in DYNAMIC_PRESSURES:
         raise JSBSimExportError(
             f"dynamic_pressure: expected one of {DYNAMIC_PRESSURES}, got {dynamic_pressure!r}"
         )
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 0:
         raise JSBSimExportError(f"draws: expected an integer ≥ 0, got {describe(draws)}")
-    if not isinstance(controls, Mapping) or not all(
-        isinstance(k, str) and isinstance(v, str) and v for k, v in controls.items()
-    ):
+    if not all(isinstance(k, str) and isinstance(v, str) and v for k, v in controls.items()):
         raise InputTypeError(
             f"controls: expected a mapping {{control name: JSBSim property}}, got "
             f"{describe(controls)}"
@@ -497,8 +499,14 @@ def write_jsbsim(
             missing parameter value, bad options, or a non-empty folder.
     """
     _check_airplane(airplane)
+    if controls is not None and not isinstance(controls, Mapping):
+        raise InputTypeError(
+            f"controls: expected a mapping {{control name: JSBSim property}}, got "
+            f"{describe(controls)}"
+        )
     mapping = {**DEFAULT_CONTROLS, **dict(controls or {})}
-    _check_options(aero, reference_speed, rate_speed, dynamic_pressure, draws, mapping)
+    _check_options(aero, dynamic_pressure, draws, mapping)
+    _check_rate_options(reference_speed, rate_speed)
     values, free, covariance = _parameter_source(estimate_or_model)
     missing = [n for n in aero.parameter_names if n not in values]
     if missing:
