@@ -384,6 +384,16 @@ def test_folder_contents_and_units(tmp_path):
     assert summary["controls"] == CONTROL_PROPERTY
     assert summary["thrust_property_lbs"] == "flightid/thrust-lbs"
     assert summary["rules"] == []
+    assert summary["unmodelled_axes"] == [] == list(result.unmodelled_axes)
+
+
+def test_a_lateral_model_names_the_axes_it_leaves_out(tmp_path):
+    aero = AeroModel({"CY": ["beta"], "Cl": ["beta"], "Cn": ["beta"]})
+    values = dict.fromkeys(aero.parameter_names, 0.1)
+    result = write_jsbsim(values, navion(), tmp_path / "lat", aero=aero)
+    assert result.unmodelled_axes == ("X", "Z", "PITCH")
+    notes = [n.text for n in ET.parse(result.aircraft_file).getroot().iter("note")]
+    assert notes == ["no aerodynamic model on the axes X, Z, PITCH"]
 
 
 def test_thrust_property_acts_along_the_thrust_line(tmp_path):
@@ -445,7 +455,7 @@ def test_alphadot_terms_are_approximated_by_a_named_rule(tmp_path):
                           tmp_path / "ad", aero=aero)  # fmt: skip
     assert result.rules == (ALPHADOT_RULE,)
     notes = [n.text for n in ET.parse(result.aircraft_file).getroot().iter("note")]
-    assert notes == ["approximation: " + ALPHADOT_RULE]
+    assert notes[0] == "approximation: " + ALPHADOT_RULE
     assert "aero/alphadot-rad_sec" in result.aerodynamics_files[0].read_text()
 
 

@@ -40,7 +40,9 @@ The folder ``path_dir`` (its name is the aircraft's name, as JSBSim requires) ho
 Refused (``JSBSimExportError``): terms in signals with no JSBSim counterpart
 (``_jsbsim_terms``), an engine angular momentum or propeller torque (not written), an
 existing non-empty folder unless ``overwrite``. Approximated by a named rule: α̇ and β̇ terms
-(``ALPHADOT_RULE``, ``BETADOT_RULE``).
+(``ALPHADOT_RULE``, ``BETADOT_RULE``). Axes the model has no coefficient for (a decoupled
+lateral or longitudinal model) are listed (``unmodelled_axes``, a header note): JSBSim sees
+no aerodynamic load on them.
 
 ``fly_jsbsim`` (``_jsbsim_fly``) flies the folder in JSBSim with recorded inputs.
 """
@@ -90,6 +92,11 @@ JSBSIM_LB_PER_SLUG = 32.174049
 DYNAMIC_PRESSURES = ("atmosphere", "airplane")
 RATE_SPEEDS = ("V", "V0")
 _AXES = ("X", "Y", "Z", "ROLL", "PITCH", "YAW")
+# the coefficients that act on each axis
+_AXIS_COEFFICIENTS = {
+    "X": {"CX", "CD", "CL"}, "Y": {"CY"}, "Z": {"CZ", "CD", "CL"},
+    "ROLL": {"Cl"}, "PITCH": {"Cm"}, "YAW": {"Cn"},
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -111,6 +118,8 @@ class JSBSimAircraft:
         thrust_input: the airplane's thrust channel (its value goes to ``THRUST_PROPERTY``
             in lbf), or None.
         g: the airplane's acceleration of gravity, m/s².
+        unmodelled_axes: the JSBSim axes no coefficient of the model acts on (e.g. X, Z,
+            PITCH for a lateral model): JSBSim sees no aerodynamic load there.
     """
 
     folder: Path
@@ -125,6 +134,7 @@ class JSBSimAircraft:
     controls: dict[str, str] = field(default_factory=dict)
     thrust_input: str | None = None
     g: float = 9.80665
+    unmodelled_axes: tuple[str, ...] = ()
 
 
 # ------------------------------------------------------------------ parameters and checks
@@ -534,6 +544,9 @@ def write_jsbsim(
     _sub(header, "description", f"identified model of {airplane.name} (flightid)")
     for rule in sorted(signals.rules):
         _sub(header, "note", "approximation: " + rule)
+    unmodelled = tuple(a for a in _AXES if not _AXIS_COEFFICIENTS[a] & set(aero.coefficients))
+    if unmodelled:
+        _sub(header, "note", f"no aerodynamic model on the axes {', '.join(unmodelled)}")
     _metrics(root, airplane)
     _mass_balance(root, airplane)
     _ground_reactions(root, airplane)
@@ -546,7 +559,7 @@ def write_jsbsim(
     result = JSBSimAircraft(
         folder, name, aircraft_file, tuple(files), planet_file,
         {n: float(values[n]) for n in aero.parameter_names}, drawn, tuple(free),
-        tuple(sorted(signals.rules)), used, airplane.thrust_input, airplane.g,
+        tuple(sorted(signals.rules)), used, airplane.thrust_input, airplane.g, unmodelled,
     )  # fmt: skip
     _write_summary(result, airplane, dynamic_pressure, reference_speed, rate_speed, seed)
     return result
@@ -564,6 +577,7 @@ def _write_summary(result: JSBSimAircraft, airplane, dynamic_pressure, v0, rate_
         "reference_speed_m_s": v0,
         "rate_speed": rate_speed,
         "rules": list(result.rules),
+        "unmodelled_axes": list(result.unmodelled_axes),
     }
     (result.folder / "export.json").write_text(json.dumps(summary, indent=2) + "\n")
     if len(result.draws):
