@@ -45,6 +45,15 @@ lateral or longitudinal model) are listed (``unmodelled_axes``, a header note): 
 no aerodynamic load on them.
 
 ``fly_jsbsim`` (``_jsbsim_fly``) flies the folder in JSBSim with recorded inputs.
+
+From a case run of a built-in airplane model (``[model] type`` lateral, longitudinal,
+six_dof or wind_axis_longitudinal; a user module or the α–q model has no aerodynamic model
+to export)::
+
+    spec = run.case.model
+    write_jsbsim(run.estimate, airplane_from_table(spec["airplane"]), "out/HFB320",
+                 aero=AeroModel(spec["aero"]), reference_speed=spec.get("reference_speed"),
+                 rate_speed=spec.get("rate_speed", "V"), draws=20, seed=1)
 """
 
 from __future__ import annotations
