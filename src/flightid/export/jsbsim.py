@@ -296,7 +296,9 @@ def _coefficient_function(aero, coefficient, values, signals: SignalMap) -> ET.E
     function = ET.Element("function", name=f"flightid/coefficient/{coefficient}")
     terms = aero.terms(coefficient)
     names = [aero.parameter_name(coefficient, t) for t in terms]
-    text = " + ".join(f"{n}·{t.label}" for n, t in zip(names, terms, strict=True))
+    text = " + ".join(
+        n if t.is_constant else f"{n}·{t.label}" for n, t in zip(names, terms, strict=True)
+    )
     _sub(function, "description", f"{coefficient} = {text}")
     total = _sub(function, "sum")
     for name, term in zip(names, terms, strict=True):
