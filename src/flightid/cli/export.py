@@ -90,6 +90,64 @@ def _write_python(run, out: Path, args: argparse.Namespace) -> list[Path]:
     return [path]
 
 
+def _estimated_parameters(run):
+    """The recorded estimates with their covariance, in the form ``write_jsbsim`` takes from
+    an ``Estimate``: names, values, free flags and the covariance over the free ones."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    parameters = run.model.parameters
+    free = [name in run.free_names for name in parameters.names]
+    order = [name for name, is_free in zip(parameters.names, free, strict=True) if is_free]
+    index = [run.free_names.index(name) for name in order]
+    # the covariance in the model's order of the free parameters
+    covariance = run.covariance
+    if covariance is not None:
+        covariance = covariance[np.ix_(index, index)]
+    return SimpleNamespace(
+        names=tuple(parameters.names),
+        values=np.asarray(parameters.values, dtype=float),
+        free=tuple(free),
+        covariance=covariance,
+    )
+
+
+def _write_jsbsim(run, out: Path, args: argparse.Namespace) -> list[Path]:
+    from flightid.aircraft.aero import AeroModel
+    from flightid.aircraft.library import airplane_from_table
+    from flightid.export import ExportError
+    from flightid.export.jsbsim import write_jsbsim
+
+    spec = run.case.model
+    if "aero" not in spec or "airplane" not in spec:
+        raise ExportError(
+            "--format jsbsim: expected a run of a built-in airplane model ([model] type "
+            "longitudinal, lateral, six_dof or wind_axis_longitudinal, with [model.airplane] and "
+            f"[model.aero]); the case {run.case.path} has neither table"
+        )
+    if out.exists() and any(out.iterdir()):
+        if not args.overwrite:
+            raise ExportError(f"--out {out}: the folder exists and is not empty; give a new one")
+        if not (out / "export.json").is_file():
+            raise ExportError(
+                f"--out {out}: --overwrite replaces only a JSBSim aircraft flightid exported "
+                "(a folder holding its export.json); this folder has none"
+            )
+    aircraft = write_jsbsim(
+        _estimated_parameters(run),
+        airplane_from_table(spec["airplane"]),
+        out,
+        aero=AeroModel(spec["aero"]),
+        reference_speed=spec.get("reference_speed"),
+        rate_speed=spec.get("rate_speed", "V"),
+        draws=args.draws,
+        seed=args.seed,
+        overwrite=args.overwrite,
+    )
+    return [Path(aircraft.folder)]
+
+
 # --format → its writer; one entry adds a format
 EXPORT_FORMATS: dict[str, ExportFormat] = {
     "statespace": ExportFormat(
@@ -100,6 +158,11 @@ EXPORT_FORMATS: dict[str, ExportFormat] = {
     "python": ExportFormat(
         "PATH.py: a stand-alone module with f, h, the estimated values and simulate()",
         _write_python,
+    ),
+    "jsbsim": ExportFormat(
+        "folder PATH: a JSBSim aircraft (NAME.xml, aerodynamics/nominal.xml, --draws "
+        "alternative aerodynamics from the covariance); built-in airplane models only",
+        _write_jsbsim,
     ),
 }
 
@@ -193,6 +256,14 @@ def register(subparsers) -> None:
         help="covariance carried into the export: the one behind the reported σ (default) or "
         "the Cramér–Rao bounds (cr)",
     )
+    parser.add_argument(
+        "--draws",
+        type=int,
+        default=0,
+        help="jsbsim: write this many parameter draws from the covariance as alternative "
+        "aerodynamics files (aerodynamics/draw_0001.xml, ...) for dispersion studies",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="jsbsim: seed of the draws")
     parser.add_argument(
         "--overwrite",
         action="store_true",
