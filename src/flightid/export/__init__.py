@@ -1,0 +1,1 @@
+"""Exports of an identified model: flying-quality checks and equivalent systems."""
