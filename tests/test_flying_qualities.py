@@ -1,0 +1,219 @@
+"""Flying qualities (``flightid.export.flying_qualities``): the MIL-F-8785C limits table
+against hand-written expectations, level verdicts with σ at the boundaries, CAP from n/α."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from flightid.errors import InputError
+from flightid.export.flying_qualities import (
+    LIMITS,
+    FlyingQualitiesError,
+    flying_qualities,
+    limits_for,
+    load_factor_per_alpha,
+)
+from flightid.model.linearization import linearize
+from flightid.model.modes import Mode, Modes
+from test_predict import short_period
+
+NAN = math.nan
+
+
+def bounds(criterion, cls, cat):
+    return {lvl: (lim.minimum, lim.maximum) for lvl, lim in limits_for(criterion, cls, cat).items()}
+
+
+DRF = "dutch_roll_damping_frequency"
+# hand-written from MIL-F-8785C 3.2.2.1.2, 3.2.2.1.1, 3.3.1.1, 3.3.1.2, 3.3.1.3
+EXPECTED = [
+    ("short_period_damping", "IV", "A", {1: (0.35, 1.30), 2: (0.25, 2.0), 3: (0.15, None)}),
+    ("short_period_damping", "II-L", "C", {1: (0.35, 1.30), 2: (0.25, 2.0), 3: (0.15, None)}),
+    ("short_period_damping", "III", "B", {1: (0.30, 2.0), 2: (0.20, 2.0), 3: (0.15, None)}),
+    ("cap", "IV", "A", {1: (0.28, 3.6), 2: (0.16, 10.0), 3: (None, None)}),
+    ("dutch_roll_damping", "I", "A", {1: (0.19, None), 2: (0.02, None), 3: (0.0, None)}),
+    ("dutch_roll_damping", "III", "C", {1: (0.08, None), 2: (0.02, None), 3: (0.0, None)}),
+    ("dutch_roll_frequency", "IV", "A", {1: (1.0, None), 2: (0.4, None), 3: (0.4, None)}),
+    ("dutch_roll_frequency", "II", "A", {1: (0.4, None), 2: (0.4, None), 3: (0.4, None)}),
+    ("dutch_roll_frequency", "II-C", "C", {1: (1.0, None), 2: (0.4, None), 3: (0.4, None)}),
+    (DRF, "IV", "A", {1: (0.35, None), 2: (0.05, None), 3: (None, None)}),
+    (DRF, "II-L", "C", {1: (0.10, None), 2: (0.05, None), 3: (None, None)}),
+    (DRF, "I", "B", {1: (0.15, None), 2: (0.05, None), 3: (None, None)}),
+    ("roll_time_constant", "IV", "A", {1: (None, 1.0), 2: (None, 1.4), 3: (None, 10.0)}),
+    ("roll_time_constant", "III", "A", {1: (None, 1.4), 2: (None, 3.0), 3: (None, 10.0)}),
+    ("roll_time_constant", "I", "B", {1: (None, 1.4), 2: (None, 3.0), 3: (None, 10.0)}),
+    ("roll_time_constant", "II-C", "C", {1: (None, 1.0), 2: (None, 1.4), 3: (None, 10.0)}),
+    ("roll_time_constant", "II-L", "C", {1: (None, 1.4), 2: (None, 3.0), 3: (None, 10.0)}),
+    ("spiral_time_to_double", "IV", "A", {1: (12.0, None), 2: (8.0, None), 3: (4.0, None)}),
+    ("spiral_time_to_double", "III", "B", {1: (20.0, None), 2: (8.0, None), 3: (4.0, None)}),
+    ("spiral_time_to_double", "I", "C", {1: (12.0, None), 2: (8.0, None), 3: (4.0, None)}),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("criterion", "cls", "cat", "expected"), EXPECTED)
+def test_limits_table_lookups(criterion, cls, cat, expected):
+    assert bounds(criterion, cls, cat) == expected
+
+
+def test_every_limit_names_its_paragraph_and_the_unverified_say_why():
+    for limit in LIMITS:
+        assert limit.source.startswith("MIL-F-8785C 3.")
+        assert limit.verified or limit.why
+    unverified = {(lim.criterion, lim.level) for lim in LIMITS if not lim.verified}
+    assert ("spiral_time_to_double", 2) in unverified
+    assert ("dutch_roll_damping", 3) in unverified
+    assert ("cap", 3) in unverified
+
+
+def test_class_and_category_errors_are_named():
+    with pytest.raises(FlyingQualitiesError, match="II-C"):
+        limits_for("roll_time_constant", "II", "C")
+    with pytest.raises(FlyingQualitiesError, match="airplane_class"):
+        limits_for("roll_time_constant", "V", "A")
+    with pytest.raises(FlyingQualitiesError, match="category"):
+        limits_for("roll_time_constant", "IV", "D")
+    with pytest.raises(FlyingQualitiesError, match="criterion"):
+        limits_for("phugoid", "IV", "A")
+    assert issubclass(FlyingQualitiesError, InputError)
+
+
+def oscillatory(name, wn, zeta, s_wn=NAN, s_zeta=NAN, s_re=NAN):
+    lam = complex(-zeta * wn, wn * math.sqrt(1 - zeta**2))
+    return Mode(
+        name, lam, (s_re, NAN), wn, s_wn, zeta, s_zeta, NAN, NAN, NAN, NAN, NAN, NAN, {"q": 1.0}
+    )
+
+
+def real(name, re, s_re):
+    return Mode(name, complex(re, 0.0), (s_re, 0.0), NAN, NAN, NAN, NAN,
+                -1 / re, NAN, NAN, NAN, NAN, NAN, {"p": 1.0})  # fmt: skip
+
+
+def level(modes, criterion, cls="IV", cat="A", **kw):
+    return flying_qualities(Modes(tuple(modes), ("x",)), cls, cat, **kw)[criterion]
+
+
+@pytest.mark.parametrize(
+    ("sigma", "expected"),
+    # 0.40 − 1.645·0.030 = 0.3507 ≥ 0.35: Level 1; 0.40 − 1.645·0.031 = 0.349: Level 2;
+    # 0.40 − 1.645·0.10 = 0.2355 < 0.25: Level 3; 0.40 − 1.645·0.16 = 0.137 < 0.15: none
+    [(0.030, 1), (0.031, 2), (0.10, 3), (0.16, None)],
+)
+def test_short_period_damping_level_at_95_percent(sigma, expected):
+    row = level([oscillatory("short period", 3.0, 0.40, s_zeta=sigma)], "short_period_damping")
+    assert row.level == expected
+    assert row.level_nominal == 1
+    assert row.judged
+
+
+def overdamped_short_period(zeta, s_zeta):
+    return Mode("short period", complex(-1.25, 0.1), (NAN, NAN), 1.0, NAN, zeta, s_zeta,
+                NAN, NAN, NAN, NAN, NAN, NAN, {"q": 1.0})  # fmt: skip
+
+
+@pytest.mark.parametrize(("sigma", "expected"), [(0.03, 1), (0.032, 2)])
+def test_short_period_damping_upper_bound_with_sigma(sigma, expected):
+    # 1.25 + 1.645·0.030 = 1.299 ≤ 1.30: Level 1;  1.25 + 1.645·0.032 = 1.303 > 1.30: Level 2
+    row = level([overdamped_short_period(1.25, sigma)], "short_period_damping")
+    assert row.level == expected
+
+
+def test_dutch_roll_criteria_each_with_its_sigma():
+    # ω = 1.2, ζ = 0.3: ζω = 0.36; σ(Re λ) = 0.005: 0.36 − 0.0082 = 0.3518 ≥ 0.35 → Level 1
+    dr = oscillatory("Dutch roll", 1.2, 0.3, s_wn=0.05, s_zeta=0.02, s_re=0.005)
+    fq = flying_qualities(Modes((dr,), ("beta", "r")), "IV", "A")
+    assert fq["dutch_roll_damping_frequency"].value == pytest.approx(0.36)
+    assert fq["dutch_roll_damping_frequency"].level == 1
+    # ω − 1.645·0.05 = 1.118 ≥ 1.0 → Level 1;  ζ − 1.645·0.02 = 0.267 ≥ 0.19 → Level 1
+    assert fq["dutch_roll_frequency"].level == 1
+    assert fq["dutch_roll_damping"].level == 1
+    dr = oscillatory("Dutch roll", 1.2, 0.3, s_wn=0.15, s_zeta=0.02, s_re=0.01)
+    fq = flying_qualities(Modes((dr,), ("beta", "r")), "IV", "A")
+    # 1.2 − 1.645·0.15 = 0.953 < 1.0 → Level 2 (≥ 0.4);  0.36 − 0.01645 < 0.35 → Level 2
+    assert fq["dutch_roll_frequency"].level == 2
+    assert fq["dutch_roll_damping_frequency"].level == 2
+
+
+@pytest.mark.parametrize(
+    ("re", "sigma", "expected"),
+    # Class IV, A: τ ≤ 1.0 ⇔ λ ≤ −1;  −1.2 + 1.645·0.10 = −1.0355 → Level 1
+    # −1.2 + 1.645·0.13 = −0.986 > −1 → Level 2 (λ ≤ −1/1.4 = −0.714)
+    # −0.2 + 1.645·0.07 = −0.085 > −0.1 (τ ≤ 10 s) → none
+    [(-1.2, 0.10, 1), (-1.2, 0.13, 2), (-0.2, 0.07, None)],
+)
+def test_roll_time_constant_judged_on_the_eigenvalue(re, sigma, expected):
+    row = level([real("roll subsidence", re, sigma)], "roll_time_constant")
+    assert row.level == expected
+    assert row.value == pytest.approx(-1 / re)
+    assert row.std == pytest.approx(sigma / re**2)
+
+
+def test_spiral_time_to_double_and_the_unverified_level_2():
+    # a stable spiral never doubles: every level
+    stable = level([real("spiral", -0.01, 0.005)], "spiral_time_to_double")
+    assert stable.level == 1 and math.isinf(stable.value)
+    # T_2 = 15 s (λ = ln2/15): Category A needs T_2 ≥ 12 s → Level 1
+    lam = math.log(2) / 15
+    assert level([real("spiral", lam, 0.001)], "spiral_time_to_double").level == 1
+    # Category B needs 20 s; Level 2 (8 s) is unverified and skipped → Level 3 (4 s)
+    row = level([real("spiral", lam, 0.001)], "spiral_time_to_double", cat="B")
+    assert row.level == 3 and "Level 2 not judged" in row.note
+    with_all = level(
+        [real("spiral", lam, 0.001)], "spiral_time_to_double", cat="B", include_unverified=True
+    )
+    assert with_all.level == 2
+
+
+def test_cap_from_a_linear_model_closed_form():
+    values = {"Za": -1.2, "Zde": -0.15, "Ma": -6.0, "Mq": -1.8, "Mde": -8.0}
+    cov = np.diag([0.02, 0.005, 0.08, 0.04, 0.1]) ** 2
+    linear = linearize(short_period(values), [0.0, 0.0], [0.0], covariance=cov)
+    speed = 120.0
+    # n/α = −V Z_α / g
+    n_alpha = -speed * values["Za"] / 9.80665
+    assert load_factor_per_alpha(linear, speed) == pytest.approx(n_alpha, rel=1e-8)
+    fq = flying_qualities(linear, "IV", "A", speed_m_s=speed)
+    # ω_sp² = Z_α M_q − M_α
+    wn2 = values["Za"] * values["Mq"] - values["Ma"]
+    assert fq["cap"].value == pytest.approx(wn2 / n_alpha, rel=1e-8)
+    # σ: CAP = (Z_α M_q − M_α)·g/(−V Z_α): gradient over (Za, Zde, Ma, Mq, Mde) by hand
+    za, ma = values["Za"], values["Ma"]
+    k = 9.80665 / speed
+    # CAP = −k M_q + k M_α/Z_α,  k = g/V
+    grad = np.array([-k * ma / za**2, 0.0, k / za, -k, 0.0])
+    assert fq["cap"].std == pytest.approx(math.sqrt(grad @ cov @ grad), rel=1e-4)
+    # CAP = 0.47 ± 0.011, in 0.28–3.6 → Level 1
+    assert fq["cap"].level == 1
+
+
+def test_cap_from_a_given_n_alpha_and_the_unjudged_category():
+    sp = oscillatory("short period", 2.0, 0.5, s_wn=0.1, s_zeta=0.02)
+    modes = Modes((sp,), ("alpha", "q"))
+    fq = flying_qualities(modes, "IV", "A", n_alpha=(10.0, 0.5))
+    assert fq["cap"].value == pytest.approx(0.4)
+    # σ/CAP = √((2·0.1/2)² + (0.5/10)²)
+    assert fq["cap"].std == pytest.approx(0.4 * math.sqrt(0.1**2 + 0.05**2))
+    # Category C: every CAP limit unverified → not judged, no level
+    row = flying_qualities(modes, "IV", "C", n_alpha=10.0)["cap"]
+    assert row.level is None and not row.judged
+    assert "not judged" in flying_qualities(modes, "IV", "C", n_alpha=10.0).summary()
+    # without n/α and without the linear model: no CAP row, a note says why
+    fq = flying_qualities(modes, "IV", "A")
+    assert [r.criterion for r in fq.criteria] == ["short_period_damping"]
+    assert any("CAP not judged" in n for n in fq.notes)
+    with pytest.raises(FlyingQualitiesError, match="n_alpha"):
+        flying_qualities(modes, "IV", "A", n_alpha=-1.0)
+
+
+def test_to_dict_carries_limits_sources_and_levels():
+    sp = oscillatory("short period", 2.0, 0.5, s_wn=0.1, s_zeta=0.02)
+    entry = flying_qualities(Modes((sp,), ("alpha", "q")), "IV", "A").to_dict()
+    row = entry["criteria"][0]
+    assert row["criterion"] == "short_period_damping" and row["level"] == 1
+    assert row["limits"]["1"] == {
+        "minimum": 0.35, "maximum": 1.3, "source": "MIL-F-8785C 3.2.2.1.2",
+        "verified": True, "why": "",
+    }  # fmt: skip
