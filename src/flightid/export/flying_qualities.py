@@ -74,6 +74,8 @@ AIRPLANE_CLASSES = ("I", "II", "II-C", "II-L", "III", "IV")
 CATEGORIES = ("A", "B", "C")
 LEVELS = (1, 2, 3)
 _EVERY_CLASS = AIRPLANE_CLASSES
+# the linear model's note when inputs are measured states (flightid.model.linearization)
+MEASURED_STATES_NOTE = "are measured states"
 
 
 class FlyingQualitiesError(InputError):
@@ -530,6 +532,8 @@ def flying_qualities(
         )
     rows = _mode_rows(modes)
     notes = list(getattr(modes, "notes", ()))
+    # a model holding measured states as inputs: its modes are not the free airplane's
+    held = any(MEASURED_STATES_NOTE in n for n in notes)
     if "short period" in rows or "short period" in modes.names:
         cap = _cap(linear, modes, n_alpha, speed_m_s, notes)
         if cap is not None:
@@ -540,7 +544,10 @@ def flying_qualities(
         limits = limits_for(criterion, cls, cat)
         level, nominal, skipped = _judge(value, sigma, limits, include_unverified, transform)
         note = []
-        if skipped:
+        if held:
+            level, skipped = None, sorted(limits)
+            note.append("not judged: the model holds measured states as inputs (see notes)")
+        if skipped and not held:
             note.append(f"Level {', '.join(map(str, skipped))} not judged: limit unverified")
         if not np.isfinite(sigma):
             note.append("no σ: the value alone decides")
