@@ -305,6 +305,22 @@ class FlyingQualities:
             f"no criterion {criterion!r} judged; judged: {[r.criterion for r in self.criteria]}"
         )
 
+    def rows(self) -> list[list[str]]:
+        """One row per criterion: label, value ± σ [unit], Level 1/2/3 limits, level."""
+        from flightid.numbers import format_with_sigma
+
+        rows = []
+        for row in self.criteria:
+            value, sigma = format_with_sigma(row.value, row.std, missing="-")
+            unit = f" {row.unit}" if row.unit else ""
+            level = f"Level {row.level}" if row.level is not None else "not met at 95 %"
+            if not row.judged:
+                level = "not judged"
+            limits = [_bounds_text(row.limits[lvl]) if lvl in row.limits else "-" for lvl in LEVELS]
+            source = next(iter(row.limits.values())).source if row.limits else ""
+            rows.append([row.label, f"{value} ± {sigma}{unit}", *limits, level, source])
+        return rows
+
     def summary(self) -> str:
         """A table: criterion, value ± σ, the Level 1/2/3 limits, the level at 95 %."""
         from flightid.numbers import format_with_sigma

@@ -26,6 +26,7 @@ __all__ = [
     "ModalAnalysis",
     "linear_in_states_and_inputs",
     "modal_analysis",
+    "mode_rows",
     "modes_text",
     "summary_block",
 ]
@@ -89,6 +90,18 @@ def _table(headers: list[str], rows: list[list[str]]) -> str:
 def modes_text(modes, operating_point: str = "") -> str:
     """The modes as a table: ω_n and ζ (oscillatory modes) or τ (real ones) and the time to
     half or double amplitude, each ± 1σ at σ's decimal place."""
+    rows = mode_rows(modes)
+    head = "modes (± 1σ)" + (f" at {operating_point}" if operating_point else "")
+    table = _table(MODE_HEADERS, rows)
+    notes = [f"note: {n}" for n in modes.notes]
+    return "\n".join([head, table, *notes])
+
+
+MODE_HEADERS = ["mode", "ω_n [rad/s]", "ζ [–]", "τ [s]", "time to half/double [s]"]
+
+
+def mode_rows(modes) -> list[list[str]]:
+    """One row per mode: name, ω_n, ζ, τ, time to half (t½) or double (t2), each ± 1σ."""
     rows = []
     for mode in modes:
         halving = math.isfinite(mode.time_to_half)
@@ -103,10 +116,7 @@ def modes_text(modes, operating_point: str = "") -> str:
                 ("t½ " if halving else "t2 ") + _cell(*time) if math.isfinite(time[0]) else "-",
             ]
         )
-    head = "modes (± 1σ)" + (f" at {operating_point}" if operating_point else "")
-    table = _table(["mode", "ω_n [rad/s]", "ζ [–]", "τ [s]", "time to half/double [s]"], rows)
-    notes = [f"note: {n}" for n in modes.notes]
-    return "\n".join([head, table, *notes])
+    return rows
 
 
 def linear_in_states_and_inputs(estimate) -> bool:
