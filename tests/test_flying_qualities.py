@@ -3,11 +3,18 @@ against hand-written expectations, level verdicts with σ at the boundaries, CAP
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import math
+import tomllib
 
 import numpy as np
 import pytest
 
+from data_paths import DATA, ROOT, needs_data
+from flightid.cases.spec import CaseError, parse_case
+from flightid.cli.main import main
 from flightid.errors import InputError
 from flightid.export.flying_qualities import (
     LIMITS,
@@ -18,6 +25,7 @@ from flightid.export.flying_qualities import (
 )
 from flightid.model.linearization import linearize
 from flightid.model.modes import Mode, Modes
+from flightid.numbers import format_with_sigma
 from test_predict import short_period
 
 NAN = math.nan
@@ -217,3 +225,87 @@ def test_to_dict_carries_limits_sources_and_levels():
         "minimum": 0.35, "maximum": 1.3, "source": "MIL-F-8785C 3.2.2.1.2",
         "verified": True, "why": "",
     }  # fmt: skip
+
+
+def test_a_model_holding_measured_states_is_not_judged():
+    roll = real("roll subsidence", -2.0, 0.01)
+    note = "inputs ['beta'] are measured states: A holds the dynamics of ['p', 'r'] ..."
+    fq = flying_qualities(Modes((roll,), ("p", "r"), (note,)), "IV", "A")
+    row = fq["roll_time_constant"]
+    assert row.level is None and not row.judged and "measured states" in row.note
+
+
+# ---------------------------------------------------------------- the case table and a run
+CASE = ROOT / "examples" / "cases" / "hfb320_longitudinal.toml"
+
+
+def _raw_case(table):
+    raw = tomllib.loads(CASE.read_text(encoding="utf-8"))
+    raw["model"]["module"] = str(ROOT / "examples" / "models" / "hfb320.py")
+    if table is not None:
+        raw["flying_qualities"] = table
+    return raw
+
+
+def test_case_table_is_checked_with_named_errors():
+    case = parse_case(_raw_case({"class": "IV", "category": "A", "speed": 100}), CASE)
+    assert case.flying_qualities == {"class": "IV", "category": "A", "speed": 100.0}
+    assert parse_case(_raw_case(None), CASE).flying_qualities == {}
+    bad = [
+        ({"class": "IV"}, "flying_qualities.category: missing"),
+        ({"class": "V", "category": "A"}, "flying_qualities.class: expected one of"),
+        ({"class": "IV", "category": "D"}, "flying_qualities.category: expected one of"),
+        ({"class": "II", "category": "C"}, "II-C"),
+        ({"class": "IV", "category": "A", "speed": -3}, "flying_qualities.speed"),
+        ({"class": "IV", "category": "A", "levels": 2}, "flying_qualities.levels: unknown key"),
+        ({"class": "IV", "category": "A", "include_unverified": "yes"}, "include_unverified"),
+    ]
+    for table, message in bad:
+        with pytest.raises(CaseError, match=message.replace(".", r"\.")):
+            parse_case(_raw_case(table), CASE)
+
+
+@needs_data("fvsysid/hfb320_1_10.asc")
+@pytest.mark.filterwarnings("ignore:.*outlier")
+def test_hfb320_run_prints_modes_and_writes_them_to_results_json(tmp_path):
+    text = CASE.read_text(encoding="utf-8").replace(
+        '"../models/hfb320.py"', repr(str(ROOT / "examples" / "models" / "hfb320.py"))
+    )
+    case = tmp_path / "hfb320.toml"
+    case.write_text(text + '\n[flying_qualities]\nclass = "II-L"\ncategory = "C"\n', "utf-8")
+    out = tmp_path / "run"
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream):
+        code = main(["run", str(case), "--out", str(out), "--accuracy", "none",
+                     "--data-dir", str(DATA)])  # fmt: skip
+    assert code == 0
+    printed = stream.getvalue()
+    assert "short period" in printed and "phugoid" in printed
+    assert "short-period damping ratio" in printed and "Level 1" in printed
+    entry = json.loads((out / "results.json").read_text(encoding="utf-8"))["results"][0]
+    modes = {m["name"]: m for m in entry["modes"]["modes"]}
+    # regression values of this estimate (tests/test_modes.py pins them against a Monte Carlo)
+    assert modes["short period"]["omega_n_rad_per_s"] == pytest.approx(2.05, abs=0.02)
+    assert modes["short period"]["zeta"] == pytest.approx(0.41, abs=0.01)
+    assert modes["short period"]["zeta_std"] > 0
+    quality = {c["criterion"]: c for c in entry["modes"]["flying_qualities"]["criteria"]}
+    # ζ_sp = 0.41 ± 0.025: 0.41 − 1.645·0.025 = 0.369 ≥ 0.35 → Level 1 (Category C)
+    assert quality["short_period_damping"]["level"] == 1
+    # Category C CAP limits are unverified: not judged
+    assert quality["cap"]["judged"] is False and quality["cap"]["level"] is None
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert html.index("<h2>Convergence</h2>") < html.index("<h2>Modes and flying qualities</h2>")
+
+
+@needs_data("fvsysid")
+@pytest.mark.filterwarnings("ignore:.*outlier")
+def test_a_linear_models_summary_shows_its_modes():
+    from flightid.cases.run import run_case
+
+    run = run_case(ROOT / "examples" / "cases" / "attas_short_period.toml", accuracy="none")
+    text = run.estimate.summary()
+    assert "modes (± 1σ) at the initial state, inputs 0 (the model is linear)" in text
+    mode = run.estimate.linearize().modes()["short period"]
+    value, sigma = format_with_sigma(mode.natural_frequency, mode.natural_frequency_std)
+    assert f"{value} ± {sigma}" in text
+    assert "modes" in run.to_dict() and run.to_dict()["modes"]["flying_qualities"] is None
