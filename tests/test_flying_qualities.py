@@ -309,3 +309,16 @@ def test_a_linear_models_summary_shows_its_modes():
     value, sigma = format_with_sigma(mode.natural_frequency, mode.natural_frequency_std)
     assert f"{value} ± {sigma}" in text
     assert "modes" in run.to_dict() and run.to_dict()["modes"]["flying_qualities"] is None
+
+
+@needs_data("fvsysid/hfb320_1_10.asc")
+def test_docs_measured_block_matches_what_the_script_prints():
+    import importlib.util
+
+    path = ROOT / "docs" / "flying_qualities_numbers.py"
+    spec = importlib.util.spec_from_file_location("flying_qualities_numbers", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    # every number of docs/flying_qualities.md's block to 1e-3 relative (the script's check)
+    problems = script.check(script.block(DATA))
+    assert not problems, "\n".join(problems)

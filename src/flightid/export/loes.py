@@ -80,7 +80,7 @@ class LoesFit:
             f"short-period LOES q/δe = K (s + 1/T_θ2) e^(−τ_e s)/(s² + 2ζωs + ω²) over "
             f"{self.frequencies_rad_s[0]:.3g}–{self.frequencies_rad_s[-1]:.3g} rad/s: "
             f"ω_sp = {self.natural_frequency_rad_s:.4g} rad/s, ζ_sp = {self.damping_ratio:.4g}, "
-            f"1/T_θ2 = {self.inverse_t_theta2_1_per_s:.4g} 1/s, τ_e = {self.time_delay_s:.4g} s, "
+            f"1/T_θ2 = {self.inverse_t_theta2_1_per_s:.4g} 1/s, τ_e = {self.time_delay_s:.4f} s, "
             f"K = {self.gain:.4g}; mismatch M = {self.mismatch:.3g}"
         )
 

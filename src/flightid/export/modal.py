@@ -45,7 +45,10 @@ class ModalAnalysis:
     def summary(self) -> str:
         lines = [modes_text(self.modes, self.linear.operating_point)]
         if self.flying_qualities is not None:
-            lines += ["", self.flying_qualities.summary()]
+            # the linear model's notes stand under the modes already
+            shown = {f"note: {n}" for n in self.modes.notes}
+            quality = self.flying_qualities.summary().splitlines()
+            lines += ["", *(line for line in quality if line not in shown)]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
