@@ -322,3 +322,24 @@ def test_docs_measured_block_matches_what_the_script_prints():
     # every number of docs/flying_qualities.md's block to 1e-3 relative (the script's check)
     problems = script.check(script.block(DATA))
     assert not problems, "\n".join(problems)
+
+
+def test_summary_block_says_why_when_the_modes_cannot_be_computed():
+    from types import SimpleNamespace
+
+    from flightid.export.modal import summary_block
+    from flightid.model.parameters import Parameters
+    from flightid.model.statespace import StateSpaceModel
+
+    def f(t, x, u, th):
+        # undefined at the linearity test's second point x = 1.5: math.log raises ValueError
+        return np.array([th[0] * math.log(1.2 - float(x[0]))])
+
+    def h(t, x, u, th):
+        return np.array([x[0]])
+
+    model = StateSpaceModel(("x",), ("u",), ("x",), f, h, Parameters({"a": 1.0}), x0=(1.0,))
+    estimate = SimpleNamespace(model=model, values=model.parameters.values)
+    assert summary_block(estimate).startswith("modes: not computed (")
+    no_states = SimpleNamespace(model=SimpleNamespace(states=()))
+    assert summary_block(no_states) == ""

@@ -160,8 +160,9 @@ class CaseRun:
         ``{"error": message}`` where they could not be computed."""
         try:
             analysis = self.modal_analysis()
-        except InputError as error:
-            return {"error": str(error)}
+        except (ValueError, TypeError, ArithmeticError) as error:
+            # the results are written whatever the modes: the entry says why they are missing
+            return {"error": f"{type(error).__name__}: {error}"}
         return None if analysis is None else analysis.to_dict()
 
     @property

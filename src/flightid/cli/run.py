@@ -189,7 +189,6 @@ def _print_modes(result) -> None:
     """The run's modes at its first maneuver (and the flying qualities when the case asks),
     where the estimate's own summary could not show them: a nonlinear model, or a
     ``[flying_qualities]`` table."""
-    from flightid.errors import InputError
     from flightid.export.modal import linear_in_states_and_inputs
 
     if not hasattr(result, "modal_analysis"):
@@ -197,7 +196,7 @@ def _print_modes(result) -> None:
     try:
         analysis = result.modal_analysis()
         shown = linear_in_states_and_inputs(result.estimate) if analysis else True
-    except InputError as error:
+    except (ValueError, TypeError, ArithmeticError) as error:
         print(f"\nmodes: not computed ({error})")
         return
     if analysis is not None and (not shown or result.case.flying_qualities):

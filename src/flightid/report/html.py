@@ -577,13 +577,12 @@ def _modes_section(run) -> str:
     """The modes of the estimated model with σ at the first maneuver's operating point, and
     (with the case's ``[flying_qualities]``) the level each MIL-F-8785C criterion meets at
     95 % (``flightid.export``)."""
-    from flightid.errors import InputError
     from flightid.export.modal import MODE_HEADERS, mode_rows
 
     modal = getattr(run, "modal_analysis", None)
     try:
         analysis = modal() if modal is not None else None
-    except InputError as error:
+    except (ValueError, TypeError, ArithmeticError) as error:
         return f"<h2>Modes</h2><p class='bad'>not computed: {html.escape(str(error))}</p>"
     if analysis is None:
         return ""
