@@ -152,7 +152,31 @@ class CaseRun:
         entry["identifiability"] = (
             None if self.identifiability is None else self.identifiability.to_dict()
         )
+        entry["modes"] = self.modes_entry()
         return entry
+
+    def modal_analysis(self):
+        """The modes of the estimated model at the initial state and mean inputs of the first
+        estimation maneuver, with the flying qualities when the case has a
+        ``[flying_qualities]`` table (``flightid.export.modal``); None for a model without
+        states. Raises ``InputError`` where the linearization or the check cannot be made."""
+        from flightid.export.modal import modal_analysis
+
+        if not self.estimate.model.states:
+            return None
+        return modal_analysis(
+            self.estimate, at=self.maneuvers[0], settings=self.case.flying_qualities
+        )
+
+    def modes_entry(self) -> dict | None:
+        """results.json's ``modes``: ``ModalAnalysis.to_dict()``, None without states, or
+        ``{"error": message}`` where they could not be computed."""
+        try:
+            analysis = self.modal_analysis()
+        except (ValueError, TypeError, ArithmeticError) as error:
+            # the results are written whatever the modes: the entry says why they are missing
+            return {"error": f"{type(error).__name__}: {error}"}
+        return None if analysis is None else analysis.to_dict()
 
     @property
     def kinematic_spec(self) -> KinematicSpec | None:

@@ -498,3 +498,42 @@ def prediction_settings(
     x0 = _table(section.get("initial_state", {}), f"{key}.initial_state")
     _initial_state_types(x0, f"{key}.initial_state")
     return maneuvers, x0
+
+
+_FLYING_QUALITIES = {"class", "category", "speed", "n_alpha", "include_unverified"}
+
+
+def flying_qualities_settings(table: Mapping[str, Any], key: str = "flying_qualities") -> dict:
+    """``[flying_qualities]``: the airplane class and flight-phase category whose
+    MIL-F-8785C limits the report judges the modes against (``flightid.export``); optional
+    ``speed`` [m/s] and ``n_alpha`` [g/rad] for the control anticipation parameter and
+    ``include_unverified`` (judge with the limits marked unverified too). {} when absent."""
+    from flightid.export.flying_qualities import AIRPLANE_CLASSES, CATEGORIES
+
+    if not table:
+        return {}
+    _known(table, _FLYING_QUALITIES, key)
+    for required in ("class", "category"):
+        if required not in table:
+            raise CaseError(
+                f"{key}.{required}: missing; give the airplane class (one of "
+                f"{list(AIRPLANE_CLASSES)}) and the flight-phase category (one of "
+                f"{list(CATEGORIES)})"
+            )
+    settings: dict[str, Any] = {
+        "class": _string(table["class"], f"{key}.class", AIRPLANE_CLASSES),
+        "category": _string(table["category"], f"{key}.category", CATEGORIES),
+    }
+    if settings["class"] == "II" and settings["category"] == "C":
+        raise CaseError(
+            f"{key}.class: Category C limits differ for Class II carrier-based and land-based "
+            "airplanes; expected 'II-C' or 'II-L', got 'II'"
+        )
+    for name in ("speed", "n_alpha"):
+        if name in table:
+            settings[name] = _positive(table[name], f"{key}.{name}")
+    if "include_unverified" in table:
+        settings["include_unverified"] = _bool(
+            table["include_unverified"], f"{key}.include_unverified"
+        )
+    return settings

@@ -29,6 +29,8 @@ the walk-through and every key)::
                                             # seed, kind, distribution
     [prediction]                            # maneuvers to predict with the estimated model
     [output]                                # figures, report
+    [flying_qualities]                      # class ("I" … "IV"), category ("A", "B", "C"):
+                                            # the report judges the modes (MIL-F-8785C)
 
     [[stages]]                              # optional: an ordered list of stages, e.g.
     kind = "stepwise"                       # stepwise → output error → prediction
@@ -81,6 +83,7 @@ from flightid.cases.settings import (  # noqa: F401 (the shared sections, read f
     _positive,
     accuracy_settings,
     estimation_settings,
+    flying_qualities_settings,
     prediction_settings,
 )
 from flightid.data.loaders import ChannelSpec
@@ -108,6 +111,7 @@ _TOP = {
     "recursive",  # flightid.cases.recursive_case (EKF, UKF, EFRLS, FTR)
     "frequency_domain",  # flightid.cases.frequency_case
     "design",  # flightid.cases.design_case (flightid design CASE.toml)
+    "flying_qualities",  # class and category of the modes' flying-quality check
 }
 # keys of the old `flightid regress` dialect, and where they went in the one language
 _MIGRATED = {
@@ -208,6 +212,8 @@ class Case:
     recursive: Mapping[str, Any] = field(default_factory=dict)
     frequency_domain: Mapping[str, Any] = field(default_factory=dict)
     design: Mapping[str, Any] = field(default_factory=dict)
+    # [flying_qualities]: {class, category, speed?, n_alpha?, include_unverified?} or {}
+    flying_qualities: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def staged(self) -> bool:
@@ -572,6 +578,9 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
         recursive=_table(raw.get("recursive", {}), "recursive"),
         frequency_domain=_table(raw.get("frequency_domain", {}), "frequency_domain"),
         design=_table(raw.get("design", {}), "design"),
+        flying_qualities=flying_qualities_settings(
+            _table(raw.get("flying_qualities", {}), "flying_qualities")
+        ),
         **run,
     )
 

@@ -185,9 +185,28 @@ def print_sigma_note(estimate) -> None:
         print_note(text)
 
 
+def _print_modes(result) -> None:
+    """The run's modes at its first maneuver (and the flying qualities when the case asks),
+    where the estimate's own summary could not show them: a nonlinear model, or a
+    ``[flying_qualities]`` table."""
+    from flightid.export.modal import linear_in_states_and_inputs
+
+    if not hasattr(result, "modal_analysis"):
+        return
+    try:
+        analysis = result.modal_analysis()
+        shown = linear_in_states_and_inputs(result.estimate) if analysis else True
+    except (ValueError, TypeError, ArithmeticError) as error:
+        print(f"\nmodes: not computed ({error})")
+        return
+    if analysis is not None and (not shown or result.case.flying_qualities):
+        print("\n" + analysis.summary())
+
+
 def print_summary(result) -> None:
     """The estimates (and accuracy, predictions) as text on stdout."""
     print(result.estimate.summary())
+    _print_modes(result)
     if result.accuracy is not None:
         print("\naccuracy of the estimates:")
         print(result.accuracy.summary())

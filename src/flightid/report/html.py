@@ -573,6 +573,45 @@ def _convergence_section(run, figures) -> str:
     return "\n".join(text)
 
 
+def _modes_section(run) -> str:
+    """The modes of the estimated model with σ at the first maneuver's operating point, and
+    (with the case's ``[flying_qualities]``) the level each MIL-F-8785C criterion meets at
+    95 % (``flightid.export``)."""
+    from flightid.export.modal import MODE_HEADERS, mode_rows
+
+    modal = getattr(run, "modal_analysis", None)
+    try:
+        analysis = modal() if modal is not None else None
+    except (ValueError, TypeError, ArithmeticError) as error:
+        return f"<h2>Modes</h2><p class='bad'>not computed: {html.escape(str(error))}</p>"
+    if analysis is None:
+        return ""
+    quality = analysis.flying_qualities
+    title = "Modes and flying qualities" if quality is not None else "Modes"
+    parts = [
+        f"<h2>{title}</h2>",
+        f"<p>At {html.escape(analysis.linear.operating_point)}; ± 1σ (delta method from the "
+        "parameter covariance).</p>",
+        _table(MODE_HEADERS, [[html.escape(c) for c in r] for r in mode_rows(analysis.modes)]),
+    ]
+    parts += [f"<p>{html.escape(n)}</p>" for n in analysis.modes.notes]
+    if quality is not None:
+        parts.append(
+            f"<p>MIL-F-8785C, Class {html.escape(quality.airplane_class)}, Category "
+            f"{html.escape(quality.category)}: the level each criterion meets at 95 % "
+            "confidence (value ∓ 1.645σ inside the level's limits); limits marked "
+            "unverified take no part in the verdict.</p>"
+        )
+        headers = ["criterion", "value ± σ", "Level 1", "Level 2", "Level 3", "level", "source"]
+        parts.append(_table(headers, [[html.escape(c) for c in r] for r in quality.rows()]))
+        notes = [r for r in quality.criteria if r.note]
+        parts += [f"<p>{html.escape(r.label)}: {html.escape(r.note)}</p>" for r in notes]
+        parts += [
+            f"<p>{html.escape(n)}</p>" for n in quality.notes if n not in analysis.modes.notes
+        ]
+    return "\n".join(parts)
+
+
 def _correlation_section(run) -> str:
     est = run.estimate
     threshold = float(run.case.accuracy.get("correlation_warning", 0.9))
@@ -665,6 +704,7 @@ def render_html(
     if run.predictions:
         parts.append(_prediction_section(run, units, figures or Figures()))
     parts.append(_convergence_section(run, figures))
+    parts.append(_modes_section(run))
     parts.append(_trust_section(run))
     if directory is not None:
         parts.append("<h2>Files</h2>" + files_section(directory))

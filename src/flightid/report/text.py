@@ -166,7 +166,12 @@ def estimate_summary(result) -> str:
     noise = format_table(
         ["output", *(["unit"] if show else []), "R (variance)", "fit RMS"], noise_rows
     )
-    return "\n".join(head) + table + "\n\n" + noise
+    text = "\n".join(head) + table + "\n\n" + noise
+    # the modes of a model linear in its states and inputs (flightid.export.modal)
+    from flightid.export.modal import summary_block
+
+    modes = summary_block(result)
+    return text + ("\n\n" + modes if modes else "")
 
 
 def accuracy_summary(result) -> str:
