@@ -143,6 +143,7 @@ def _write_jsbsim(run, out: Path, args: argparse.Namespace) -> list[Path]:
         rate_speed=spec.get("rate_speed", "V"),
         draws=args.draws,
         seed=args.seed,
+        dynamic_pressure=args.dynamic_pressure,
         overwrite=args.overwrite,
     )
     return [Path(aircraft.folder)]
@@ -264,6 +265,13 @@ def register(subparsers) -> None:
         "aerodynamics files (aerodynamics/draw_0001.xml, ...) for dispersion studies",
     )
     parser.add_argument("--seed", type=int, default=0, help="jsbsim: seed of the draws")
+    parser.add_argument(
+        "--dynamic-pressure",
+        choices=("airplane", "atmosphere"),
+        default="airplane",
+        help="jsbsim: q̄ = ½ρV² with the case's constant air density, as in the identified "
+        "model (airplane, default), or JSBSim's atmosphere at the flown altitude (atmosphere)",
+    )
     parser.add_argument(
         "--overwrite",
         action="store_true",
