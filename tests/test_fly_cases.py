@@ -192,15 +192,17 @@ def navion_run():
 
 
 def test_navion_lateral_estimate_linearizes_with_its_lateral_modes(navion_run):
-    """The decoupled lateral model of example 3 (u, w, q measured inputs): Dutch roll and roll
-    subsidence named, each with σ; the note says the longitudinal states are held."""
+    """The decoupled lateral model of example 3 (u, w, q measured inputs): Dutch roll, roll
+    subsidence and spiral named, each with σ; the note says the longitudinal states are held."""
     estimate, data = navion_run["estimate"], navion_run["data"]
     linear = estimate.linearize(at=data)
     for block in "ABCD":
         assert np.all(np.isfinite(getattr(linear, block))), block
         assert np.all(np.isfinite(linear.block_std(block))), block
     modes = linear.modes()
-    assert {"Dutch roll", "roll subsidence"} <= set(modes.names), modes.names
+    # the spiral: the slowest real lateral mode, its bank angle in l_yz = sin Φ cos Θ
+    assert {"Dutch roll", "roll subsidence", "spiral"} <= set(modes.names), modes.names
+    assert modes["spiral"].time_constant > 5 * modes["roll subsidence"].time_constant
     dutch = modes["Dutch roll"]
     assert dutch.stable and 0.0 < dutch.damping_ratio < 1.0
     assert np.isfinite(dutch.damping_ratio_std) and dutch.damping_ratio_std > 0
@@ -224,7 +226,7 @@ def test_navion_estimate_flown_in_jsbsim_equals_flightid(navion_run, tmp_path):
     airplane, aero, values, model, trim = _navion_six_dof(estimate)
     six_dof = linearize(model, trim.x, [trim.inputs[n] for n in model.inputs])
     linear_modes = set(six_dof.modes().names)
-    assert {"short period", "phugoid", "Dutch roll", "roll subsidence"} <= linear_modes
+    assert {"short period", "phugoid", "Dutch roll", "roll subsidence", "spiral"} <= linear_modes
     aircraft = write_jsbsim(values, airplane, tmp_path / "Navion", aero=aero,
                             dynamic_pressure="airplane")  # fmt: skip
     assert aircraft.unmodelled_axes == ()
