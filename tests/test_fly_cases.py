@@ -83,15 +83,10 @@ def _case_params():
     return [pytest.param(key, marks=needs_data(spec[1]), id=key) for key, spec in FLY_CASES.items()]
 
 
-@pytest.mark.parametrize("key", _case_params())
-def test_shipped_case_predicts_linearizes_and_exports(key, tmp_path):
-    case_name, _, expected_modes, built_in = FLY_CASES[key]
-    case_file = CASES / case_name
-    run = _run(case_file)
+def _check_predictions(run) -> None:
+    """predict on each estimation maneuver, from the run's initial state, equals the fit."""
     estimate = run.estimate
     values = estimate.model.parameters.values
-
-    # predict on each estimation maneuver, from the run's initial state, equals the run's fit
     for k, maneuver in enumerate(run.maneuvers):
         x0 = estimate.model.initial_state(values, k)
         prediction = estimate.predict(maneuver, x0=x0)
@@ -102,8 +97,11 @@ def test_shipped_case_predicts_linearizes_and_exports(key, tmp_path):
             prediction.predicted, estimate.predicted[rows], rtol=0, atol=1e-9
         )
 
-    # the linear model at the first maneuver: finite matrices, each entry with a σ
-    linear = estimate.linearize(at=run.maneuvers[0])
+
+def _check_linear_model(run, expected_modes: set[str]):
+    """The linear model at the first maneuver: finite matrices, each entry with a σ, and
+    the expected modes named and stable."""
+    linear = run.estimate.linearize(at=run.maneuvers[0])
     for block in "ABCD":
         matrix = getattr(linear, block)
         assert matrix.size and np.all(np.isfinite(matrix)), block
@@ -111,28 +109,25 @@ def test_shipped_case_predicts_linearizes_and_exports(key, tmp_path):
         assert std.shape == matrix.shape and np.all(np.isfinite(std)), block
     modes = linear.modes()
     assert expected_modes <= set(modes.names), modes.names
-    for mode in modes:
-        if mode.name in expected_modes:
-            assert mode.stable, mode.name
-    if key == "attas_lateral":
-        assert any("['beta'] are measured states" in n for n in linear.notes), linear.notes
+    assert all(modes[name].stable for name in expected_modes)
+    return linear
 
-    # a result folder, then flightid export
-    out = tmp_path / "run"
-    code, text = _cli("run", str(case_file), "--out", str(out), "--quiet")
-    assert code == 0, text
+
+def _check_exports(run, out: Path, tmp_path: Path, built_in: bool) -> None:
+    """flightid export of the result folder ``out``: statespace and python succeed (the
+    module reproduces the estimation's simulation), jsbsim only for a built-in model."""
     code, text = _cli("export", str(out), "--format", "statespace", "--out", str(tmp_path / "ss"))
     assert code == 0, text
     assert (tmp_path / "ss.json").is_file() and (tmp_path / "ss.npz").is_file()
     code, text = _cli("export", str(out), "--format", "python", "--out", str(tmp_path / "mod"))
     assert code == 0, text
+    estimate, maneuver = run.estimate, run.maneuvers[0]
     module = _load_module(tmp_path / "mod.py")
-    maneuver = run.maneuvers[0]
     u = np.column_stack([maneuver.channel(n) for n in estimate.model.inputs])
-    y = module["simulate"](maneuver.time, u, x0=estimate.model.initial_state(values, 0))
+    x0 = estimate.model.initial_state(estimate.model.parameters.values, 0)
+    y = module["simulate"](maneuver.time, u, x0=x0)
     expected = estimate.predicted[estimate.maneuver_index == 0]
     np.testing.assert_allclose(y, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
-
     jsbsim_out = tmp_path / "aircraft" / "AC"
     code, text = _cli("export", str(out), "--format", "jsbsim", "--out", str(jsbsim_out))
     if built_in:
@@ -143,6 +138,21 @@ def test_shipped_case_predicts_linearizes_and_exports(key, tmp_path):
         assert code != 0
         assert "built-in airplane model" in text, text
         assert not jsbsim_out.exists()
+
+
+@pytest.mark.parametrize("key", _case_params())
+def test_shipped_case_predicts_linearizes_and_exports(key, tmp_path):
+    case_name, _, expected_modes, built_in = FLY_CASES[key]
+    case_file = CASES / case_name
+    run = _run(case_file)
+    _check_predictions(run)
+    linear = _check_linear_model(run, expected_modes)
+    if key == "attas_lateral":
+        assert any("['beta'] are measured states" in n for n in linear.notes), linear.notes
+    out = tmp_path / "run"
+    code, text = _cli("run", str(case_file), "--out", str(out), "--quiet")
+    assert code == 0, text
+    _check_exports(run, out, tmp_path, built_in)
 
 
 # ---------------------------------------------------------------- RP-1153 example 3, Navion
