@@ -254,3 +254,26 @@ def test_navion_estimate_flown_in_jsbsim_equals_flightid(navion_run, tmp_path):
             assert np.ptp(column) > 20 * sigma[i], (label, name)
             error = math.sqrt(float(np.mean((flown[name] - column) ** 2)))
             assert error < 0.1 * sigma[i], (label, name, error / sigma[i])
+
+
+def test_fly_cases_numbers_script_prints_the_navion_tables():
+    """docs/fly_cases_numbers.py (the modes, levels and round-trip table of the shipped cases)
+    on the Navion, which needs no data: the lateral modes with σ, the Level met by the
+    Dutch roll and roll mode (class I, category B), round-trip errors below 0.1 σ."""
+    pytest.importorskip("jsbsim")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("fly_cases_numbers", ROOT / "docs" /
+                                                  "fly_cases_numbers.py")  # fmt: skip
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    lines = script.navion()
+    text = "\n".join(lines)
+    for name in ("Dutch roll", "roll subsidence", "spiral", "short period", "phugoid"):
+        assert f"| {name} |" in text, name
+    assert "| roll-mode time constant τ_R | " in text
+    rows = [line for line in lines if line.startswith(("| estimation", "| held-out"))]
+    assert len(rows) == 2
+    for row in rows:
+        ratios = [float(cell) for cell in row.strip("|").split("|")[1:]]
+        assert len(ratios) == 5 and max(ratios) < 0.1, row
