@@ -228,7 +228,8 @@ def test_every_numbers_script_has_a_record() -> None:
     scripts = [s for s in scripts if s.name not in {"case_numbers.py", "docs_numbers.py"}]
     # a script re-run against its page by a test of its own needs no record
     tested = {"fly_numbers.py": "test_fly_numbers.py",
-              "flying_qualities_numbers.py": "test_flying_qualities.py"}  # fmt: skip
+              "flying_qualities_numbers.py": "test_flying_qualities.py",
+              "fly_cases_numbers.py": "test_fly_cases.py"}  # fmt: skip
     for script, test in tested.items():
         assert script in (ROOT / "tests" / test).read_text(encoding="utf-8"), (script, test)
     scripts = [s for s in scripts if s.name not in tested]

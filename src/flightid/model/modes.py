@@ -26,7 +26,8 @@ theta, to the lateral axis when it lies in v, beta, p, r, phi, psi.
   - lateral, oscillatory: the one of highest ω_n is the "Dutch roll";
   - lateral, real: the one with the largest roll-rate (p) participation, where p is its
     dominant state, is the "roll subsidence"; of the other real lateral modes the slowest
-    (smallest |λ|) is the "spiral" when the bank angle phi is a state;
+    (smallest |λ|) is the "spiral" when the bank angle is a state: phi, or l_yz = sin Φ cos Θ
+    of the direction-cosine attitude of flightid's lateral and 6-DOF airplane models;
   - an eigenvalue with |λ| ≤ 1e-9·max(1, max |λ|) is "neutral";
   - every other mode, and every mode of a model without airplane states, is "mode k" (k its
     row in the table, modes ordered by |λ| descending).
@@ -48,6 +49,8 @@ __all__ = ["Mode", "Modes", "ModeError", "modes_of"]
 LONGITUDINAL_STATES = ("u", "w", "V", "alpha", "q", "theta")
 LATERAL_STATES = ("v", "beta", "p", "r", "phi", "psi")
 SPEED_STATES = ("u", "V")
+# states that carry the bank angle: Φ itself, or l_yz = sin Φ cos Θ (direction cosines)
+BANK_STATES = ("phi", "l_yz")
 NEUTRAL_TOLERANCE = 1e-9
 LN2 = math.log(2.0)
 # the quantities of a mode with σ: (attribute, heading, unit)
@@ -260,7 +263,7 @@ def _name_longitudinal(names, eigenvalues, chosen, states) -> None:
 
 def _name_lateral(names, eigenvalues, participations, chosen, states) -> None:
     """Dutch roll (fastest oscillatory), roll subsidence (real, p dominant, most p), spiral
-    (the slowest other real mode, when phi is a state)."""
+    (the slowest other real mode, when a bank-angle state phi or l_yz is a state)."""
     oscillatory = [k for k in chosen if eigenvalues[k].imag > 0]
     if oscillatory:
         names[oscillatory[0]] = "Dutch roll"
@@ -270,7 +273,7 @@ def _name_lateral(names, eigenvalues, participations, chosen, states) -> None:
         picked = max(roll, key=lambda k: participations[k]["p"])
         names[picked] = "roll subsidence"
         real.remove(picked)
-    if real and "phi" in states:
+    if real and any(s in states for s in BANK_STATES):
         names[min(real, key=lambda k: abs(eigenvalues[k]))] = "spiral"
 
 
