@@ -17,7 +17,6 @@ App. B), which are taken as exact (σ = 0).
 from __future__ import annotations
 
 import math
-import sys
 import tempfile
 import warnings
 from pathlib import Path
@@ -138,6 +137,42 @@ def real_case(label: str, case_file: str, airplane_class: str, category: str) ->
     return lines
 
 
+def navion_six_dof(estimate):
+    """The lateral estimate completed with the Navion's longitudinal derivatives (Nelson,
+    App. B, as the example's 6-DOF truth): airplane, aero, values, trimmed 6-DOF model, trim."""
+    from flightid.aircraft import (
+        AeroModel,
+        navion,
+        navion_longitudinal_aero,
+        six_dof_model,
+        trim_level_flight,
+    )
+    from flightid.aircraft.library import NAVION_TRIM_SPEED
+    from flightid.paper.example3 import LATERAL_TERMS
+
+    lon_aero, lon_values = navion_longitudinal_aero()
+    aero = lon_aero + AeroModel(LATERAL_TERMS)
+    values = {**lon_values, **dict(zip(estimate.names, estimate.values, strict=True))}
+    airplane = navion()
+    model = six_dof_model(airplane, aero, aero.parameters(values))
+    trim = trim_level_flight(model, NAVION_TRIM_SPEED)
+    model = six_dof_model(airplane, aero, aero.parameters(values), x0=trim.x)
+    return airplane, aero, values, model, trim
+
+
+def navion_maneuvers(t):
+    """{name: control perturbations}: the estimation maneuver's doublets and a held-out
+    maneuver (other times, widths, amplitudes and signs)."""
+    from flightid.paper.example3 import _doublet, example3_inputs
+
+    held_out = {
+        "da": _doublet(t, 2.0, 0.75, -0.08),
+        "dr": _doublet(t, 8.0, 1.5, 0.06),
+        "de": _doublet(t, 14.0, 0.5, -0.04),
+    }
+    return {"estimation": example3_inputs(t), "held-out": held_out}
+
+
 def navion() -> list[str]:
     """Example 3, noise case 2: the lateral model's modes, the completed 6-DOF airplane's
     modes and levels (class I, category B), and the JSBSim round trip on the estimation and
@@ -149,10 +184,6 @@ def navion() -> list[str]:
     from flightid.paper.example3 import DT, DURATION, OUTPUTS, run_example3
     from flightid.simulation import simulate
 
-    if str(ROOT) not in sys.path:
-        sys.path.insert(0, str(ROOT))
-    from tests.test_fly_cases import _navion_maneuvers, _navion_six_dof
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         estimate = run_example3(2)["estimate"]
@@ -160,7 +191,7 @@ def navion() -> list[str]:
     lines = ["## RP-1153 example 3 Navion (noise case 2) — class I, category B", ""]
     lines += ["Decoupled lateral model (u, w, q held as measured inputs):", ""]
     lines += modes_table(estimate.linearize(at=data)) + [""]
-    airplane, aero, values, model, trim = _navion_six_dof(estimate)
+    airplane, aero, values, model, trim = navion_six_dof(estimate)
     # Cov θ of the 6-DOF parameters: the lateral estimate's, longitudinal values exact
     names = model.parameters.free_names
     index = [names.index(n) for n in np.asarray(estimate.names)[np.asarray(estimate.free)]]
@@ -177,7 +208,7 @@ def navion() -> list[str]:
     with tempfile.TemporaryDirectory() as folder:
         aircraft = write_jsbsim(values, airplane, Path(folder) / "Navion", aero=aero,
                                 dynamic_pressure="airplane")  # fmt: skip
-        for label, perturbation in _navion_maneuvers(t).items():
+        for label, perturbation in navion_maneuvers(t).items():
             inputs = {n: np.full(t.shape, v) for n, v in trim.inputs.items()}
             for name, series in perturbation.items():
                 inputs[name] = inputs[name] + series

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.data_paths import needs_data
 
+from data_paths import needs_data
 from flightid.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -156,40 +156,26 @@ def test_shipped_case_predicts_linearizes_and_exports(key, tmp_path):
 
 
 # ---------------------------------------------------------------- RP-1153 example 3, Navion
-def _navion_six_dof(estimate):
-    """The lateral estimate completed with the Navion's longitudinal derivatives (Nelson,
-    App. B, as the example's 6-DOF truth): airplane, aero, values, trimmed 6-DOF model, trim."""
-    from flightid.aircraft import (
-        AeroModel,
-        navion,
-        navion_longitudinal_aero,
-        six_dof_model,
-        trim_level_flight,
-    )
-    from flightid.aircraft.library import NAVION_TRIM_SPEED
-    from flightid.paper.example3 import LATERAL_TERMS
 
-    lon_aero, lon_values = navion_longitudinal_aero()
-    aero = lon_aero + AeroModel(LATERAL_TERMS)
-    values = {**lon_values, **dict(zip(estimate.names, estimate.values, strict=True))}
-    airplane = navion()
-    model = six_dof_model(airplane, aero, aero.parameters(values))
-    trim = trim_level_flight(model, NAVION_TRIM_SPEED)
-    model = six_dof_model(airplane, aero, aero.parameters(values), x0=trim.x)
-    return airplane, aero, values, model, trim
+
+def _script():
+    """docs/fly_cases_numbers.py, which holds the Navion 6-DOF set-up both use."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "fly_cases_numbers", ROOT / "docs" / "fly_cases_numbers.py"
+    )
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    return script
+
+
+def _navion_six_dof(estimate):
+    return _script().navion_six_dof(estimate)
 
 
 def _navion_maneuvers(t):
-    """{name: control perturbations}: the estimation maneuver's doublets and a held-out
-    maneuver (other times, widths, amplitudes and signs)."""
-    from flightid.paper.example3 import _doublet, example3_inputs
-
-    held_out = {
-        "da": _doublet(t, 2.0, 0.75, -0.08),
-        "dr": _doublet(t, 8.0, 1.5, 0.06),
-        "de": _doublet(t, 14.0, 0.5, -0.04),
-    }
-    return {"estimation": example3_inputs(t), "held-out": held_out}
+    return _script().navion_maneuvers(t)
 
 
 @pytest.fixture(scope="module")
