@@ -332,8 +332,18 @@ def test_interrupt_during_estimation_writes_nothing(small, tmp_path, capsys, mon
     assert os.listdir(tmp_path) == []
 
 
+@pytest.fixture
+def sigint_as_at_a_terminal():
+    """SIGINT raising KeyboardInterrupt, as in a program started from a terminal: a test run
+    started in the background (a CI job, ``cmd &``) inherits SIGINT ignored, and flightid
+    rightly leaves an ignored signal ignored."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 def test_sigint_during_the_final_rename_is_held_until_the_run_is_in_place(
-    small, tmp_path, monkeypatch
+    small, tmp_path, monkeypatch, sigint_as_at_a_terminal
 ):
     """A real SIGINT sent while the folder is being moved in arrives after the move."""
     _, run = small
@@ -387,6 +397,8 @@ def test_real_sigint_in_a_subprocess(small, tmp_path):
     seen = tmp_path / "stdout_bytes_when_writing"
     script = (
         "import os, signal, sys, time\n"
+        # as started from a terminal, whatever SIGINT disposition the test run inherited
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
         "import flightid.report.html as h\n"
         "real = h.write_csv\n"
         "def write_csv(run, path):\n"
