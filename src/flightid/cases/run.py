@@ -392,16 +392,9 @@ def _predict(prepared: Prepared, result: Estimate) -> list[Prediction]:
             )
         except SimulationError as exc:
             raise CaseError(f"prediction ({maneuver.name}): {exc}") from None
-        z = np.column_stack([data.output(n) for n in model.outputs])
-        prediction = Prediction.from_outputs(maneuver.name, data.time, z, y, model.outputs)
-        predictions.append(
-            replace(
-                prediction,
-                inputs=np.asarray(data.inputs) if data.input_names else None,
-                input_names=tuple(data.input_names),
-                units=dict(data.units),
-            )
-        )
+        prediction = Prediction.of_maneuver(data, y, model.outputs)
+        # the case's name for the maneuver (its data may carry the file's)
+        predictions.append(replace(prediction, name=maneuver.name))
     return predictions
 
 

@@ -120,6 +120,28 @@ class Prediction:
             r2 = 1.0 - np.sum(residual**2, axis=0) / total
         return cls(name, time, measured, predicted, tuple(output_names), rms, r2)
 
+    @classmethod
+    def of_maneuver(
+        cls,
+        maneuver: FlightData,
+        predicted: np.ndarray,
+        output_names: Sequence[str],
+        predicted_std: np.ndarray | None = None,
+    ) -> Prediction:
+        """``from_outputs`` on a maneuver's measured outputs, keeping its inputs and channel
+        units for the report's figures (and the outputs' σ when given, (N, n_o))."""
+        measured = np.column_stack([maneuver.output(n) for n in output_names])
+        prediction = cls.from_outputs(
+            maneuver.name, maneuver.time, measured, predicted, output_names
+        )
+        return replace(
+            prediction,
+            inputs=np.asarray(maneuver.inputs) if maneuver.input_names else None,
+            input_names=tuple(maneuver.input_names),
+            units=dict(maneuver.units),
+            predicted_std=predicted_std,
+        )
+
     @property
     def residuals(self) -> np.ndarray:
         """z − y (N, n_o), in the outputs' units."""
@@ -366,17 +388,9 @@ def predict_maneuvers(
     start = 0
     for maneuver in maneuvers:
         stop = start + maneuver.n_samples
-        y = outputs[start:stop]
-        z = np.column_stack([maneuver.output(n) for n in model.outputs])
-        prediction = Prediction.from_outputs(maneuver.name, maneuver.time, z, y, model.outputs)
+        band = None if std is None else std[start:stop]
         predictions.append(
-            replace(
-                prediction,
-                inputs=np.asarray(maneuver.inputs) if maneuver.input_names else None,
-                input_names=tuple(maneuver.input_names),
-                units=dict(maneuver.units),
-                predicted_std=None if std is None else std[start:stop],
-            )
+            Prediction.of_maneuver(maneuver, outputs[start:stop], model.outputs, band)
         )
         start = stop
     return predictions
