@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # the columns of the output-error run's estimates.csv (flightid.report.html.write_csv)
 OUTPUT_ERROR_COLUMNS = [
     "name", "unit", "value", "std", "std_cr", "std_kind", "relative_percent", "lower", "upper",
-    "initial", "free",
+    "initial", "free", "role",
 ]  # fmt: skip
 
 

@@ -281,3 +281,15 @@ def test_estimates_show_the_digits_their_sigma_supports(walk_run):
     row = re.search(rf"<tr><td>{name}</td>(.*?)</tr>", page).group(1)
     assert "<td>1234.56789</td>" in row and "<td>0.00012</td>" in row
     assert "<td>1234.56765</td>" in row and "<td>1234.56813</td>" in row
+
+
+def test_output_error_estimates_csv_has_the_columns_of_every_estimator(walk_page):
+    """estimates.csv of an output-error run has the columns every other estimator's folder
+    writes (flightid.report.page.CSV_COLUMNS), in that order."""
+    import csv
+
+    from flightid.report.page import CSV_COLUMNS
+
+    path, _ = walk_page
+    with (path.parent / "estimates.csv").open(encoding="utf-8") as stream:
+        assert next(csv.reader(stream)) == list(CSV_COLUMNS)

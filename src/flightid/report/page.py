@@ -86,6 +86,7 @@ CSV_COLUMNS = (
     "upper",
     "initial",
     "free",
+    "role",
 )
 
 # what the page calls each kind of default σ
@@ -212,6 +213,8 @@ class EstimateRow:
     initial: float | None = None
     free: bool = True
     note: str = ""
+    # free, fixed, solved (from a constraint) or at_bound, as the output-error report says
+    role: str | None = None
 
 
 def _interval_half_width(std: float, confidence: float) -> float:
@@ -242,6 +245,7 @@ def estimate_csv_rows(rows: Sequence[EstimateRow], confidence: float = 0.95) -> 
                 "upper": value + half if half is not None else None,
                 "initial": None if row.initial is None else float(row.initial),
                 "free": bool(row.free),
+                "role": row.role or ("free" if row.free else "fixed"),
             }
         )
     return out
