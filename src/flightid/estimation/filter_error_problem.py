@@ -17,6 +17,7 @@ from flightid.data.flightdata import FlightData
 from flightid.errors import EstimationError, InputError
 from flightid.estimation.problem import OutputErrorProblem
 from flightid.filtering.kalman import RiccatiError, linearise, steady_state_gain
+from flightid.model.binding import input_matrix, output_matrix
 from flightid.model.forms import kernel_function, out_form_of
 from flightid.model.statespace import StateSpaceModel
 from flightid.simulation.kernels import RK4, make_step, record_sample, step_buffers
@@ -174,18 +175,9 @@ def _maneuver_arrays(
 ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     """Per maneuver the contiguous time (N,), inputs (N, n_u) and measured outputs (N, n_o)
     in the model's channel order."""
-    times, inputs, measured = [], [], []
-    for maneuver in maneuvers:
-        times.append(np.ascontiguousarray(maneuver.time, dtype=float))
-        u = (
-            np.column_stack([maneuver.channel(n) for n in model.inputs])
-            if model.inputs
-            else np.zeros((maneuver.n_samples, 0))
-        )
-        inputs.append(np.ascontiguousarray(u, dtype=float))
-        measured.append(
-            np.ascontiguousarray(np.column_stack([maneuver.output(n) for n in model.outputs]))
-        )
+    times = [np.ascontiguousarray(maneuver.time, dtype=float) for maneuver in maneuvers]
+    inputs = [input_matrix(model, maneuver) for maneuver in maneuvers]
+    measured = [output_matrix(model, maneuver) for maneuver in maneuvers]
     return times, inputs, measured
 
 

@@ -34,6 +34,8 @@ __all__ = [
     "bind_feedback",
     "bind_maneuvers",
     "check_method",
+    "input_matrix",
+    "output_matrix",
 ]
 
 # the fixed-step integration methods of flightid.simulation (names as case files write them)
@@ -118,12 +120,7 @@ def bind_maneuvers(
                 f"{list(maneuver.output_names)})"
             )
         times.append(np.ascontiguousarray(maneuver.time, dtype=float))
-        u = (
-            np.column_stack([maneuver.channel(n) for n in model.inputs])
-            if model.inputs
-            else np.zeros((maneuver.n_samples, 0))
-        )
-        inputs.append(np.ascontiguousarray(u, dtype=float))
+        inputs.append(input_matrix(model, maneuver))
     x0_maps = [
         model.initial_state_maps(i if model.per_maneuver_x0 else 0) for i in range(len(maneuvers))
     ]
@@ -167,12 +164,26 @@ def _measured_outputs(model: StateSpaceModel, maneuvers: list[FlightData]) -> li
                 f"needs the measured outputs {missing}; outputs "
                 f"{list(maneuver.output_names)}"
             )
-        measured.append(
-            np.ascontiguousarray(
-                np.column_stack([maneuver.output(n) for n in model.outputs]), dtype=float
-            )
-        )
+        measured.append(output_matrix(model, maneuver))
     return measured
+
+
+def input_matrix(model: StateSpaceModel, maneuver: FlightData) -> np.ndarray:
+    """The model's inputs u (N × n_u, contiguous, in the model's input order) from the
+    maneuver's channels (a model input may be a measured output); N × 0 without inputs."""
+    u = (
+        np.column_stack([maneuver.channel(n) for n in model.inputs])
+        if model.inputs
+        else np.zeros((maneuver.n_samples, 0))
+    )
+    return np.ascontiguousarray(u, dtype=float)
+
+
+def output_matrix(model: StateSpaceModel, maneuver: FlightData) -> np.ndarray:
+    """The measured outputs z (N × n_o, contiguous, in the model's output order)."""
+    return np.ascontiguousarray(
+        np.column_stack([maneuver.output(n) for n in model.outputs]), dtype=float
+    )
 
 
 def _shooting_intervals(
