@@ -42,7 +42,7 @@ import numpy as np
 from flightid.numbers import format_at_sigma, format_sigma
 from flightid.report.diagnostics import COLOURED_RATIO_WARNING
 from flightid.report.page import STYLE as _STYLE
-from flightid.report.page import files_section
+from flightid.report.page import correlation_section, files_section
 from flightid.report.page import image as _img
 from flightid.report.page import table as _table
 
@@ -613,35 +613,16 @@ def _modes_section(run) -> str:
 
 
 def _correlation_section(run) -> str:
+    """The correlation matrix of the free estimates, as every report draws it
+    (``flightid.report.page.correlation_section``)."""
     est = run.estimate
     threshold = float(run.case.accuracy.get("correlation_warning", 0.9))
     corr = np.asarray(est.correlation, dtype=float)
     if corr.size <= 1:
         return ""
-    names = est.free_names
-    crow = []
-    for i, name in enumerate(names):
-        cells = [html.escape(name)]
-        for j in range(len(names)):
-            v = corr[i, j]
-            high = i != j and np.isfinite(v) and abs(v) > threshold
-            text = _fmt(v, 2)
-            cells.append(f"<span class='high'>{text}</span>" if high else text)
-        crow.append(cells)
-    high_pairs = [
-        f"{names[i]}–{names[j]} ({corr[i, j]:.3f})"
-        for i in range(len(names))
-        for j in range(i + 1, len(names))
-        if np.isfinite(corr[i, j]) and abs(corr[i, j]) > threshold
-    ]
-    parts = ["<h2>Correlation matrix [–]</h2>"]
-    if high_pairs:
-        parts.append(
-            f"<p class='bad'>|correlation| above {threshold:g}: "
-            f"{html.escape(', '.join(high_pairs))}</p>"
-        )
-    parts.append(_table([""] + [html.escape(n) for n in names], crow))
-    return "\n".join(parts)
+    return "<h2>Correlation matrix [–]</h2>\n" + correlation_section(
+        est.free_names, corr, threshold
+    )
 
 
 def render_html(
