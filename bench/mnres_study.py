@@ -8,7 +8,9 @@ integration through ``Simulator.run`` is recorded; "sims to J*+0.01" counts simu
 the first whose cost is within 0.01 of the lowest any method reached on that seed. Methods:
 MNRES (default: secant form), MNRES surface (``form="algebraic"``, the earlier form),
 MNR, scipy lm. ``--cases`` runs the standard example cases (examples/cases/*.toml that name
-solver mnres) with MNRES and MNR and prints simulations and wall time. ``--variant hard40``:
+solver mnres) with MNRES and MNR and prints simulations (split into those to the optimum and
+those confirming it, with the bounds' beside them) and wall time. The paper's examples 1 and
+2: ``bench/mnres_paper.py``. ``--variant hard40``:
 the 40-parameter variant of bench/peers.py (derivatives, output biases, initial states;
 ``--free`` ignored).
 """
@@ -91,8 +93,11 @@ def cases_table():
 
     from flightid.cases import load_case, run_case  # noqa: PLC0415
 
-    print("| case | method | converged | simulations | estimation wall, s | cost |")
-    print("|---|---|---|---:|---:|---:|")
+    print(
+        "| case | method | converged | simulations | to optimum | confirming | bounds | "
+        "estimation wall, s | cost |"
+    )
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|")
     for case in CASES:
         path = HERE.parent / "examples" / "cases" / f"{case}.toml"
         spec = load_case(path)
@@ -105,7 +110,8 @@ def cases_table():
             result = runs[name]
             print(
                 f"| {case} | {name} | {result.converged} | {result.equivalent_evaluations} | "
-                f"{result.wall_time_s:.3f} | {result.cost:.6g} |",
+                f"{result.evaluations_to_optimum} | {result.confirmation_evaluations} | "
+                f"{result.accuracy_evaluations} | {result.wall_time_s:.3f} | {result.cost:.6g} |",
                 flush=True,
             )
 

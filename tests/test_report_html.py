@@ -293,3 +293,15 @@ def test_output_error_estimates_csv_has_the_columns_of_every_estimator(walk_page
     path, _ = walk_page
     with (path.parent / "estimates.csv").open(encoding="utf-8") as stream:
         assert next(csv.reader(stream)) == list(CSV_COLUMNS)
+
+
+def test_page_splits_the_evaluations(walk_run, walk_page):
+    # the evaluations to the optimum, confirming it and for the bounds, each named
+    _, page = walk_page
+    est = walk_run.estimate
+    assert est.evaluations_to_optimum + est.confirmation_evaluations == (est.equivalent_evaluations)
+    assert (
+        f"{est.total_evaluations}: {est.evaluations_to_optimum} to the optimum, "
+        f"{est.confirmation_evaluations} confirming it, {est.accuracy_evaluations} for the "
+        "information matrix"
+    ) in page

@@ -176,6 +176,38 @@ def _optimise(
     return _Run(objective, confirmation, iterations, cycles)
 
 
+def evaluations_to_optimum(
+    objective: Objective,
+    theta: np.ndarray,
+    cost: float,
+    m: np.ndarray,
+    offset: int = 0,
+) -> int:
+    """Equivalent evaluations spent until the path first reached the optimum.
+
+    The path is the points the objective recorded (the start and every accepted pass, the
+    confirming passes included), each with the evaluations spent when it was recorded. The
+    optimum is reached at the first point θ_k whose cost exceeds the final cost J(θ̂) by no
+    more than the convergence's cost tolerance, the excess predicted under the final R by
+    the quadratic model at θ̂ (the same under every noise policy, since costs recorded under
+    an earlier R do not compare with the final one):
+
+        (θ_k − θ̂)ᵀ M (θ_k − θ̂)  ≤  cost_rtol·J(θ̂) + cost_atol,    M = Σ GᵀR⁻¹G at θ̂
+
+    ``offset``: evaluations spent before this objective began (a first run the driver
+    discarded). Later evaluations are the confirmation's (the solver's own checks and the
+    confirming passes) and the bounds'.
+    """
+    conv = objective.convergence
+    tolerance = conv.cost_rtol * abs(cost) + conv.cost_atol
+    for point, spent in zip(objective.theta_history, objective.evaluation_history, strict=True):
+        change = np.asarray(point, dtype=float) - theta
+        # predicted excess J(θ_k) − J(θ̂) ≈ ΔθᵀMΔθ (the gradient vanishes at θ̂)
+        if float(change @ m @ change) <= tolerance:
+            return offset + int(spent)
+    return offset + objective.evaluations
+
+
 def _negative_log_likelihood(problem: OutputErrorProblem, noise: str, run: _Run) -> float:
     """What ML minimises: J under a fixed R, else ln det R̂ (R estimated [3.45])."""
     outputs = run.confirmation.outcome.outputs
@@ -310,6 +342,18 @@ def estimate(
     # the Estimate keeps this G itself (read-only, not copied; nothing else holds it)
     g.flags.writeable = False
     m = information_matrix(g, objective.r_diag)
+    final_cost = float(objective.costs_of(outcome.outputs)[0])
+    # a discarded first run (MNR's second opinion) counts towards reaching the optimum
+    to_optimum = min(
+        evaluations_to_optimum(
+            objective,
+            outcome.theta,
+            final_cost,
+            m,
+            objective.start_evaluations - evaluations_before,
+        ),
+        optimizer_evaluations,
+    )
     on_bound = problem.at_bound(outcome.theta)
     covariance, std_free, undetermined = _covariance(m, on_bound)
     status, message = outcome.status, outcome.message
@@ -353,7 +397,7 @@ def estimate(
         information_matrix=m,
         sensitivities=g[: problem.n_data],
         r_diag=objective.r_diag,
-        cost=float(objective.costs_of(outcome.outputs)[0]),
+        cost=final_cost,
         cost_history=tuple(objective.cost_history),
         evaluation_history=tuple(objective.evaluation_history),
         noise_update_passes=tuple(objective.noise_update_passes),
@@ -361,6 +405,8 @@ def estimate(
         r_history=tuple(tuple(float(v) for v in r) for r in objective.r_history),
         equivalent_evaluations=optimizer_evaluations,
         accuracy_evaluations=accuracy_evaluations,
+        evaluations_to_optimum=to_optimum,
+        confirmation_evaluations=optimizer_evaluations - to_optimum,
         iterations=iterations,
         noise_cycles=cycles,
         converged=outcome.converged,

@@ -79,8 +79,20 @@ class Estimate(ResultSurface):
         r_history: the noise variances R (n_o,) each entry of ``cost_history`` is computed
             under.
         evaluation_history: equivalent evaluations spent at those points.
-        equivalent_evaluations: system integrations used by the optimizer (incl. R cycles).
-        accuracy_evaluations: integrations for the final information matrix.
+        equivalent_evaluations: system integrations used by the optimizer (incl. R cycles
+            and the confirming passes): ``evaluations_to_optimum`` +
+            ``confirmation_evaluations``.
+        accuracy_evaluations: integrations for the final information matrix (the
+            sensitivities at θ̂ that give the Cramér–Rao bounds and judge the confirmation).
+        evaluations_to_optimum: integrations spent until the path first reached the optimum:
+            the first recorded point θ_k (the start or an accepted pass) whose cost excess
+            over the final cost, predicted under the final R by the quadratic model at θ̂,
+            (θ_k − θ̂)ᵀM(θ_k − θ̂), is within the cost tolerance cost_rtol·J(θ̂) + cost_atol
+            (``flightid.estimation.driver.evaluations_to_optimum``); None where the
+            estimator does not record it.
+        confirmation_evaluations: the optimizer's integrations after that point: the
+            solver's own convergence checks and the confirming passes (None with
+            ``evaluations_to_optimum``).
         iterations: passes (all noise cycles).
         noise_cycles: R re-estimations.
         noise_update_passes: for each R re-estimation, the index in ``cost_history`` of the
@@ -152,6 +164,8 @@ class Estimate(ResultSurface):
     solved: tuple[str, ...] = ()
     log_det_r_history: tuple[float, ...] = ()
     r_history: tuple[tuple[float, ...], ...] = ()
+    evaluations_to_optimum: int | None = None
+    confirmation_evaluations: int | None = None
 
     def __post_init__(self) -> None:
         # without a separate default σ, the default is the Cramér–Rao σ
@@ -213,6 +227,25 @@ class Estimate(ResultSurface):
         if name in self.at_bound:
             return "at_bound"
         return "free" if self.free[self.names.index(name)] else "fixed"
+
+    @property
+    def total_evaluations(self) -> int:
+        """All integrations of the estimation: the optimizer's and the bounds'."""
+        return int(self.equivalent_evaluations) + int(self.accuracy_evaluations)
+
+    def evaluations_text(self) -> str:
+        """The equivalent evaluations in words, split where the split is known: "32: 13 to
+        the optimum, 7 confirming it, 12 for the information matrix"."""
+        if self.evaluations_to_optimum is None or self.confirmation_evaluations is None:
+            return (
+                f"{self.equivalent_evaluations} (+{self.accuracy_evaluations} for the "
+                "information matrix)"
+            )
+        return (
+            f"{self.total_evaluations}: {self.evaluations_to_optimum} to the optimum, "
+            f"{self.confirmation_evaluations} confirming it, {self.accuracy_evaluations} for "
+            "the information matrix"
+        )
 
     @property
     def parameters(self) -> Parameters:
@@ -449,6 +482,12 @@ class Estimate(ResultSurface):
             "iterations": int(self.iterations),
             "equivalent_evaluations": int(self.equivalent_evaluations),
             "accuracy_evaluations": int(self.accuracy_evaluations),
+            "evaluations_to_optimum": None
+            if self.evaluations_to_optimum is None
+            else int(self.evaluations_to_optimum),
+            "confirmation_evaluations": None
+            if self.confirmation_evaluations is None
+            else int(self.confirmation_evaluations),
             "noise_cycles": int(self.noise_cycles),
             "noise_policy": self.noise_policy,
             "integration": self.method,

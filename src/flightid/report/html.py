@@ -311,8 +311,12 @@ def _run_facts(run) -> list[list[str]]:
         ["passes / R re-estimations", f"{est.iterations} / {est.noise_cycles}"],
         [
             "equivalent evaluations",
-            f"{est.equivalent_evaluations} (+{est.accuracy_evaluations} for the information "
-            "matrix)",
+            html.escape(
+                est.evaluations_text()
+                if hasattr(est, "evaluations_text")
+                else f"{est.equivalent_evaluations} (+{est.accuracy_evaluations} for the "
+                "information matrix)"
+            ),
         ],
         [
             "optimality (next Gauss–Newton step) [σ]",

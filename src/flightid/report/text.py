@@ -142,8 +142,7 @@ def estimate_summary(result) -> str:
         f"solver {result.solver}, noise policy {result.noise_policy}, integration {result.method}",
         f"status: {result.status} — {_without_status(result.message, result.status)}",
         f"cost J = {result.cost:.6g}{_log_det_text(result)}   iterations {result.iterations}   "
-        f"equivalent evaluations {result.equivalent_evaluations} "
-        f"(+{result.accuracy_evaluations} for the information matrix)   "
+        f"equivalent evaluations {result.evaluations_text()}   "
         f"wall time {result.wall_time_s:.3g} s",
         f"optimality: the next Gauss–Newton step is {result.optimality_sigma:.2g} σ long "
         "(central differences)",
