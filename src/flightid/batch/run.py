@@ -54,6 +54,9 @@ class BatchResult:
         skipped: names of the cases whose stored result was current.
         engine: which engine ran the tasks ("" when nothing ran).
         files: estimates.csv, estimates.parquet (when written), plots, index.html.
+        startup_s: the start-up of the Dask engine this call made (s; connecting or
+            starting the cluster and warming its workers); 0 for the serial engine and for
+            an engine handed in.
     """
 
     out: Path
@@ -62,6 +65,7 @@ class BatchResult:
     skipped: tuple[str, ...] = ()
     engine: str = ""
     files: tuple[Path, ...] = field(default_factory=tuple)
+    startup_s: float = 0.0
 
     @property
     def failed(self) -> tuple[str, ...]:
@@ -114,6 +118,17 @@ def _eta(started: float, done: int, remaining: int) -> str:
     return f", about {left:.0f} s left"
 
 
+def _task_estimate_s(earlier_s: list[float]) -> float | None:
+    """The expected wall time of one case (s): the median of the earlier runs' wall times
+    recorded in the batch folder, None where there are none (``DEFAULT_TASK_S``)."""
+    if not earlier_s:
+        return None
+    ordered = sorted(earlier_s)
+    middle = len(ordered) // 2
+    # median: the middle value, or the mean of the two middle values
+    return ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
+
+
 def run_batch(
     sources: Sequence[str | Path] | Sequence[BatchCase],
     out: str | Path,
@@ -132,7 +147,10 @@ def run_batch(
     Args:
         sources: case files and batch files (``flightid.batch.plan``), or planned cases.
         out: the batch folder (made if missing); cases go to ``out/cases/<name>/``.
-        workers: worker processes of a LocalCluster (1: serial; None: one per core).
+        workers: worker processes of a LocalCluster (1: serial; never more than cases to
+            run; None: one per core where that pays, else serial,
+            ``flightid.batch.engine.choose_workers``, with the earlier runs' median wall
+            time in this folder as the estimate of a case's time).
         scheduler: address of a running Dask scheduler (instead of ``workers``).
         engine: an engine to use (not closed here); overrides ``workers``/``scheduler``.
         data_dir: the data directory for every case (overrides the cases').
@@ -161,11 +179,14 @@ def run_batch(
     records: dict[str, dict[str, Any]] = {}
     tasks: list[CaseTask] = []
     skipped: list[str] = []
+    earlier_s: list[float] = []  # wall times of the cases' earlier runs in this folder
     with _locked(out):
         for case in cases:
             fp = fingerprint(case, data_dir, accuracy)
             folder = out / "cases" / case.name
             stored = read_record(folder)
+            if stored is not None and isinstance(stored.get("wall_s"), int | float):
+                earlier_s.append(float(stored["wall_s"]))
             if (
                 stored is not None
                 and stored.get("fingerprint") == fp
@@ -182,12 +203,19 @@ def run_batch(
         )
         ran: list[str] = []
         description = ""
+        startup_s = 0.0
         try:
             if tasks:
                 own = engine is None
-                engine = engine or make_engine(workers, scheduler, len(tasks))
+                engine = engine or make_engine(
+                    workers, scheduler, len(tasks), task_s=_task_estimate_s(earlier_s)
+                )
                 description = engine.description
-                say(f"batch: engine {description}")
+                started_in = ""
+                if own and isinstance(engine, DaskEngine):
+                    startup_s = engine.startup_s
+                    started_in = f", started in {startup_s:.1f} s"
+                say(f"batch: engine {description}{started_in}")
                 started = time.monotonic()
                 n_failed = 0
                 try:
@@ -225,4 +253,6 @@ def run_batch(
             plots = carpet_plots(rows, plot_against, out)
         files += plots
         files.append(write_index(ordered, out, plots, description))
-    return BatchResult(out, tuple(ordered), tuple(ran), tuple(skipped), description, tuple(files))
+    return BatchResult(
+        out, tuple(ordered), tuple(ran), tuple(skipped), description, tuple(files), startup_s
+    )
