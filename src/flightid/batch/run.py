@@ -118,6 +118,67 @@ def _eta(started: float, done: int, remaining: int) -> str:
     return f", about {left:.0f} s left"
 
 
+def _sort_cases(
+    cases: list[BatchCase],
+    out: Path,
+    data_dir: str | None,
+    accuracy: str | None,
+    retry_failed: bool,
+) -> tuple[dict[str, dict[str, Any]], list[CaseTask], list[str], list[float]]:
+    """(records of the cases whose stored result is current, tasks of the others, names
+    skipped, the wall times (s) of every case's earlier run recorded in ``out``)."""
+    records: dict[str, dict[str, Any]] = {}
+    tasks: list[CaseTask] = []
+    skipped: list[str] = []
+    earlier_s: list[float] = []
+    for case in cases:
+        fp = fingerprint(case, data_dir, accuracy)
+        folder = out / "cases" / case.name
+        stored = read_record(folder)
+        if stored is not None and isinstance(stored.get("wall_s"), int | float):
+            earlier_s.append(float(stored["wall_s"]))
+        if (
+            stored is not None
+            and stored.get("fingerprint") == fp
+            and not (retry_failed and stored.get("status") == "failed")
+        ):
+            stored["conditions"] = dict(case.conditions)
+            records[case.name] = stored
+            skipped.append(case.name)
+            continue
+        tasks.append(CaseTask(case, fp, folder, data_dir, accuracy))
+    return records, tasks, skipped, earlier_s
+
+
+def _run_tasks(
+    engine: SerialEngine | DaskEngine,
+    tasks: list[CaseTask],
+    records: dict[str, dict[str, Any]],
+    ran: list[str],
+    counts: tuple[int, int],
+    say: Progress,
+) -> None:
+    """Run ``tasks`` on ``engine``, adding each record to ``records`` and its name to
+    ``ran`` as it finishes, with a progress line (``counts``: cases skipped, cases)."""
+    n_skipped, n_cases = counts
+    started = time.monotonic()
+    n_failed = 0
+    for i, (task, record, exc) in enumerate(engine.map_unordered(run_task, tasks), start=1):
+        if exc is not None:
+            record = _failed_record(task.case, task.fingerprint, exc)
+        records[task.case.name] = record
+        ran.append(task.case.name)
+        failed = record.get("status") == "failed"
+        n_failed += failed
+        remaining = len(tasks) - i
+        running = min(engine.workers, remaining)
+        what = f"failed: {record.get('error')}" if failed else record.get("status")
+        say(
+            f"batch: {i + n_skipped}/{n_cases} done ({n_skipped} skipped), {running} running, "
+            f"{n_failed} failed{_eta(started, i, remaining)} — {task.case.name}: {what}"
+        )
+
+
 def _task_estimate_s(earlier_s: list[float]) -> float | None:
     """The expected wall time of one case (s): the median of the earlier runs' wall times
     recorded in the batch folder, None where there are none (``DEFAULT_TASK_S``)."""
@@ -176,27 +237,10 @@ def run_batch(
         raise BatchError(f"--out {out}: is a file, expected a folder")
     out.mkdir(parents=True, exist_ok=True)
     data_dir = None if data_dir is None else str(Path(data_dir).expanduser().resolve())
-    records: dict[str, dict[str, Any]] = {}
-    tasks: list[CaseTask] = []
-    skipped: list[str] = []
-    earlier_s: list[float] = []  # wall times of the cases' earlier runs in this folder
     with _locked(out):
-        for case in cases:
-            fp = fingerprint(case, data_dir, accuracy)
-            folder = out / "cases" / case.name
-            stored = read_record(folder)
-            if stored is not None and isinstance(stored.get("wall_s"), int | float):
-                earlier_s.append(float(stored["wall_s"]))
-            if (
-                stored is not None
-                and stored.get("fingerprint") == fp
-                and not (retry_failed and stored.get("status") == "failed")
-            ):
-                stored["conditions"] = dict(case.conditions)
-                records[case.name] = stored
-                skipped.append(case.name)
-                continue
-            tasks.append(CaseTask(case, fp, folder, data_dir, accuracy))
+        records, tasks, skipped, earlier_s = _sort_cases(
+            cases, out, data_dir, accuracy, retry_failed
+        )
         (out / "cases").mkdir(exist_ok=True)
         say(
             f"batch: {len(cases)} case(s), {len(skipped)} up to date (skipped), {len(tasks)} to run"
@@ -216,25 +260,8 @@ def run_batch(
                     startup_s = engine.startup_s
                     started_in = f", started in {startup_s:.1f} s"
                 say(f"batch: engine {description}{started_in}")
-                started = time.monotonic()
-                n_failed = 0
                 try:
-                    outcomes = engine.map_unordered(run_task, tasks)
-                    for i, (task, record, exc) in enumerate(outcomes, start=1):
-                        if exc is not None:
-                            record = _failed_record(task.case, task.fingerprint, exc)
-                        records[task.case.name] = record
-                        ran.append(task.case.name)
-                        failed = record.get("status") == "failed"
-                        n_failed += failed
-                        remaining = len(tasks) - i
-                        running = min(engine.workers, remaining)
-                        what = f"failed: {record.get('error')}" if failed else record.get("status")
-                        say(
-                            f"batch: {i + len(skipped)}/{len(cases)} done ({len(skipped)} "
-                            f"skipped), {running} running, {n_failed} failed"
-                            f"{_eta(started, i, remaining)} — {task.case.name}: {what}"
-                        )
+                    _run_tasks(engine, tasks, records, ran, (len(skipped), len(cases)), say)
                 finally:
                     if own:
                         engine.close()
