@@ -263,3 +263,28 @@ def test_cli_batch_on_two_workers_shuts_down_cleanly(tmp_path):
     assert {
         k: [(p["parameter"], p["value"], p["std"]) for p in r["rows"]] for k, r in on_dask.items()
     } == _values(serial)
+
+
+def _sleep_s(seconds: float) -> float:
+    import time
+
+    time.sleep(seconds)
+    return seconds
+
+
+def test_an_interrupted_run_is_not_held_up_by_the_running_tasks():
+    """Ctrl-C during a batch: the engine closes in Dask's few seconds, without waiting the
+    60 s a worker gets to exit after a finished batch (its task would run 60 s more)."""
+    pytest.importorskip("distributed", reason="dask[distributed] not installed (flightid[dask])")
+    import time
+
+    from flightid.batch.engine import CLOSE_TIMEOUT_S, DaskEngine
+
+    engine = DaskEngine(2, warm=False)
+    outcomes = engine.map_unordered(_sleep_s, [0.01, 60.0])
+    task, result, exc = next(outcomes)  # the short task; the long one is running
+    assert (task, result, exc) == (0.01, 0.01, None)
+    started = time.perf_counter()
+    outcomes.close()  # the interrupt leaves the loop of map_unordered
+    engine.close()
+    assert time.perf_counter() - started < CLOSE_TIMEOUT_S / 2

@@ -269,6 +269,7 @@ class DaskEngine:
         started = time.perf_counter()
         self._own = client is None
         self._cluster = None
+        self._interrupted = False  # a map_unordered left before all its tasks finished
         if client is not None:
             self.client = client
         elif scheduler is not None:
@@ -288,11 +289,17 @@ class DaskEngine:
                 env=worker_environment(n),
             )
             self.client = Client(self._cluster)
-            self.client.wait_for_workers(n, timeout=120)
-        addresses = list(self.client.scheduler_info().get("workers", {}))
-        self.workers = len(addresses)
-        if warm and addresses:
-            self._warm_up(addresses)
+        try:
+            if self._cluster is not None:
+                self.client.wait_for_workers(n, timeout=120)
+            addresses = list(self.client.scheduler_info().get("workers", {}))
+            self.workers = len(addresses)
+            if warm and addresses:
+                self._warm_up(addresses)
+        except BaseException:
+            self._interrupted = True
+            self.close()  # what this engine started, and only that
+            raise
         self.startup_s = time.perf_counter() - started
         where = scheduler or ("LocalCluster" if self._cluster is not None else "client")
         self.description = f"dask distributed ({where}, {self.workers} worker(s))"
@@ -320,12 +327,14 @@ class DaskEngine:
         tasks = list(tasks)
         futures = [self.client.submit(fn, task, pure=False) for task in tasks]
         of = {future.key: task for future, task in zip(futures, tasks, strict=True)}
+        self._interrupted = True  # until every task has finished
         try:
             for future in as_completed(futures):
                 try:
                     yield of[future.key], future.result(), None
                 except Exception as exc:
                     yield of[future.key], None, exc
+            self._interrupted = False
         finally:
             for future in futures:
                 future.cancel()
@@ -333,14 +342,19 @@ class DaskEngine:
     def close(self) -> None:
         """Close what this engine made: the client, and the LocalCluster with its worker
         processes, each given ``CLOSE_TIMEOUT_S`` to exit by itself (no nanny kills it).
-        A cluster reached by its scheduler address, or a client handed in, stays open."""
+        After an interrupted run (tasks still running: Ctrl-C, an error) the workers get
+        Dask's own few seconds instead, so that the interrupt is not held up by the cases
+        still running. A cluster reached by its scheduler address, or a client handed in,
+        stays open."""
         if not self._own:
             return
         cluster, self._own = self._cluster, False
         try:
             self.client.close()
         finally:
-            if cluster is not None:
+            if cluster is not None and self._interrupted:
+                cluster.close()
+            elif cluster is not None:
                 try:
                     cluster.sync(_close_workers, cluster, CLOSE_TIMEOUT_S)
                 finally:
