@@ -34,7 +34,8 @@ loaded machine) is not killed by its nanny.
 serial; ``--workers N`` starts ``min(N, tasks)`` worker processes (never more than tasks, with
 a note); without ``--workers``, Dask runs only where it pays — at least ``MIN_DASK_TASKS``
 tasks, and the time the workers save, ``t_task (n − ⌈n/N⌉)``, more than their start-up
-(``estimated_startup_s``) — otherwise the batch runs serially with a note saying why.
+(measured by an earlier batch into the same folder, else ``estimated_startup_s``) —
+otherwise the batch runs serially with a note saying why.
 ``make_engine`` builds the engine it chose; ``engine.description`` says which ran, for the
 progress line.
 """
@@ -136,7 +137,7 @@ def choose_workers(
     *,
     cores: int | None = None,
     task_s: float | None = None,
-    startup_s: float | None = None,
+    startup_s: dict[int, float] | None = None,
 ) -> EngineChoice:
     """How many worker processes a batch of ``n_tasks`` tasks starts (1: serial).
 
@@ -145,7 +146,8 @@ def choose_workers(
         n_tasks: tasks to run (None: unknown; no clamp, no estimate).
         cores: cores of this machine (None: ``os.cpu_count()``).
         task_s: estimated wall time of one task (None: ``DEFAULT_TASK_S``).
-        startup_s: start-up of the cluster (None: ``estimated_startup_s``).
+        startup_s: measured start-ups of earlier clusters by their number of workers (s);
+            ``estimated_startup_s`` for a number without one.
 
     ``requested`` N > 1 gives ``min(N, n_tasks)`` (a worker per task at most). Without it,
     N = min(cores, n_tasks), and the batch runs serially where N is 1, where it has fewer
@@ -178,14 +180,16 @@ def choose_workers(
             f"take longer than it saves; --workers {n} starts them anyway",
         )
     task_s = DEFAULT_TASK_S if task_s is None else task_s
-    startup_s = estimated_startup_s(n, cores) if startup_s is None else startup_s
+    measured = (startup_s or {}).get(n)
+    start_s = estimated_startup_s(n, cores) if measured is None else measured
     # time saved by N workers: t_task · (n − ⌈n/N⌉)
     saved_s = task_s * (n_tasks - math.ceil(n_tasks / n))
-    if saved_s <= startup_s:
+    if saved_s <= start_s:
+        how = "estimated" if measured is None else "measured"
         return EngineChoice(
             1,
             f"{n_tasks} cases of about {task_s:.2g} s would save about {saved_s:.2g} s on "
-            f"{n} workers, not more than their start-up of about {startup_s:.2g} s; "
+            f"{n} workers, not more than their start-up ({how}: {start_s:.2g} s); "
             f"--workers {n} starts them anyway",
         )
     return EngineChoice(n)
@@ -304,6 +308,11 @@ class DaskEngine:
         where = scheduler or ("LocalCluster" if self._cluster is not None else "client")
         self.description = f"dask distributed ({where}, {self.workers} worker(s))"
 
+    @property
+    def started_cluster(self) -> bool:
+        """True where this engine started its cluster (a LocalCluster)."""
+        return self._cluster is not None
+
     def _warm_up(self, addresses: list[str]) -> None:
         """One ``warm_up`` task on each worker (its imports), waited for."""
         from distributed import wait
@@ -373,10 +382,12 @@ def make_engine(
     n_tasks: int | None = None,
     *,
     task_s: float | None = None,
+    startup_s: dict[int, float] | None = None,
 ) -> SerialEngine | DaskEngine:
     """The engine for ``--workers`` / ``--scheduler`` (see the module docstring): the
     scheduler's cluster, or ``choose_workers(workers, n_tasks, task_s=task_s)`` worker
-    processes of a LocalCluster (serial where that is 1, or where Dask is not installed).
+    processes of a LocalCluster (serial where that is 1, or where Dask is not installed);
+    ``task_s`` and ``startup_s`` as for ``choose_workers``.
     A note of ``choose_workers`` (serial because it does not pay, workers lowered to the
     tasks) is in ``engine.description``.
 
@@ -391,7 +402,7 @@ def make_engine(
                 f"--scheduler {scheduler}: Dask is not installed (pip install 'flightid[dask]')"
             )
         return DaskEngine(scheduler=scheduler)
-    choice = choose_workers(workers, n_tasks, task_s=task_s)
+    choice = choose_workers(workers, n_tasks, task_s=task_s, startup_s=startup_s)
     if choice.workers == 1:
         return SerialEngine(choice.note)
     if not dask_available():

@@ -20,6 +20,7 @@ stderr, one line per finished case::
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -179,6 +180,29 @@ def _run_tasks(
         )
 
 
+STARTUP_FILE = ".flightid-startup.json"  # measured LocalCluster start-ups, by workers
+
+
+def _read_startups(out: Path) -> dict[int, float]:
+    """The LocalCluster start-ups (s) measured by earlier batches into ``out``, by the
+    number of workers ({} where none was, or the file is not what this writes)."""
+    try:
+        raw = json.loads((out / STARTUP_FILE).read_text(encoding="utf-8"))
+        return {int(n): float(s) for n, s in raw.items() if float(s) >= 0.0}
+    except (OSError, ValueError, TypeError, AttributeError):
+        return {}
+
+
+def _write_startup(out: Path, workers: int, startup_s: float) -> None:
+    """Keep the start-up of a LocalCluster of ``workers`` in ``out`` (the next batch's
+    choice of serial or Dask uses it)."""
+    startups = _read_startups(out)
+    startups[workers] = round(startup_s, 3)
+    text = json.dumps({str(n): s for n, s in sorted(startups.items())})
+    with contextlib.suppress(OSError):
+        (out / STARTUP_FILE).write_text(text + "\n", encoding="utf-8")
+
+
 def _task_estimate_s(earlier_s: list[float]) -> float | None:
     """The expected wall time of one case (s): the median of the earlier runs' wall times
     recorded in the batch folder, None where there are none (``DEFAULT_TASK_S``)."""
@@ -252,13 +276,19 @@ def run_batch(
             if tasks:
                 own = engine is None
                 engine = engine or make_engine(
-                    workers, scheduler, len(tasks), task_s=_task_estimate_s(earlier_s)
+                    workers,
+                    scheduler,
+                    len(tasks),
+                    task_s=_task_estimate_s(earlier_s),
+                    startup_s=_read_startups(out),
                 )
                 description = engine.description
                 started_in = ""
                 if own and isinstance(engine, DaskEngine):
                     startup_s = engine.startup_s
                     started_in = f", started in {startup_s:.1f} s"
+                    if engine.started_cluster:  # a LocalCluster's: for the next batch
+                        _write_startup(out, engine.workers, startup_s)
                 say(f"batch: engine {description}{started_in}")
                 try:
                     _run_tasks(engine, tasks, records, ran, (len(skipped), len(cases)), say)
