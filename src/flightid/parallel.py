@@ -52,6 +52,12 @@ class SerialEngine:
     def close(self) -> None:
         """Nothing to release."""
 
+    def __enter__(self) -> SerialEngine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
 
 def map_ordered(
     engine: Engine | None,

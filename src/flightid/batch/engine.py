@@ -10,30 +10,78 @@ on either; only the order of completion differs.
   threads_per_worker=1)`` (one process per worker: the estimation holds the GIL in Python
   and numba code alike, so threads would not run in parallel; numba's own thread pool for
   the parallel batch kernels gets ``cores // N`` threads per worker, ``worker_environment``)
-  or on a running scheduler
-  (``--scheduler tcp://host:8786``). Each case is one task (``pure=False``: every submission
-  runs). A worker that dies (killed, out of memory) is replaced by its nanny, and the
-  scheduler runs its tasks again elsewhere (up to ``distributed.scheduler.allowed-failures``
-  times, 3 by default): a task's result folder is written atomically, so a task killed
-  half-way leaves nothing behind and its rerun starts clean.
+  or on a running scheduler (``--scheduler tcp://host:8786``: any Dask cluster, e.g. one
+  of dask-jobqueue on an HPC batch system, is used and never started or closed here). Each
+  case is one task (``pure=False``: every submission runs). A worker that dies (killed, out
+  of memory) is replaced by its nanny, and the scheduler runs its tasks again elsewhere (up
+  to ``distributed.scheduler.allowed-failures`` times, 3 by default): a task's result folder
+  is written atomically, so a task killed half-way leaves nothing behind and its rerun
+  starts clean.
 
-``make_engine(workers, scheduler, n_tasks)`` picks one: Dask when a scheduler is given or
-``workers`` is more than 1 (None: one worker per core, at most one per task), serial for
-``workers=1`` (or one task, or one core) or when Dask is not installed
-(``pip install flightid[dask]``); ``engine.description`` says which ran, for the progress
-line.
+**Warm workers.** ``DaskEngine`` starts its workers warm: one warm-up task per worker
+(``warm_up``) imports the case, estimation and report code and numba before the first case
+arrives, so no case pays the imports; its time is part of the measured start-up
+(``DaskEngine.startup_s``: cluster start + warm-up). Compiled kernels come from flightid's
+disk cache (``flightid.model.kernel_cache``, in numba's cache folder), which the worker
+processes share with this one: ``NUMBA_CACHE_DIR`` and ``FLIGHTID_KERNEL_CACHE`` of this
+process are passed on to the LocalCluster's workers.
+
+**Clean shutdown.** ``close`` waits for the worker processes to exit by themselves
+(``CLOSE_TIMEOUT_S``) before the cluster is closed, so a worker that is slow to exit (a
+loaded machine) is not killed by its nanny.
+
+**Serial or Dask.** ``choose_workers`` decides, before anything starts: ``--workers 1`` is
+serial; ``--workers N`` starts ``min(N, tasks)`` worker processes (never more than tasks, with
+a note); without ``--workers``, Dask runs only where it pays — at least ``MIN_DASK_TASKS``
+tasks, and the time the workers save, ``t_task (n − ⌈n/N⌉)``, more than their start-up
+(measured by an earlier batch into the same folder, else ``estimated_startup_s``) —
+otherwise the batch runs serially with a note saying why.
+``make_engine`` builds the engine it chose; ``engine.description`` says which ran, for the
+progress line.
 """
 
 from __future__ import annotations
 
+import asyncio
+import math
 import os
+import time
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 from flightid.errors import InputError
 from flightid.parallel import SerialEngine
 
-__all__ = ["DaskEngine", "dask_available", "make_engine", "worker_environment"]
+__all__ = [
+    "CLOSE_TIMEOUT_S",
+    "DEFAULT_TASK_S",
+    "MIN_DASK_TASKS",
+    "WARM_MODULES",
+    "DaskEngine",
+    "EngineChoice",
+    "choose_workers",
+    "dask_available",
+    "estimated_startup_s",
+    "make_engine",
+    "warm_up",
+    "worker_environment",
+]
+
+# the assumed wall time of one case (s) where no earlier record of the batch folder says
+# (the shipped cases take 0.2–2 s each in a fresh process, kernels loaded from the disk cache)
+DEFAULT_TASK_S = 1.0
+# fewer tasks than this never start worker processes unless --workers asks for them
+MIN_DASK_TASKS = 4
+# how long a worker process may take to exit by itself when the engine closes (s)
+CLOSE_TIMEOUT_S = 60.0
+# start-up of a warm LocalCluster (cluster, then one warm-up task per worker), measured on
+# 2 cores: about 1 s for the scheduler and the processes, and about 1.5 s of imports per
+# worker, of which the cores run ``cores`` at once
+STARTUP_BASE_S = 1.0
+STARTUP_IMPORT_S = 1.5
+# the environment variables that point the worker processes at this process's kernel cache
+CACHE_VARIABLES = ("NUMBA_CACHE_DIR", "FLIGHTID_KERNEL_CACHE")
 
 
 def dask_available() -> bool:
@@ -46,13 +94,150 @@ def dask_available() -> bool:
 
 
 def worker_environment(n_workers: int) -> dict[str, str]:
-    """Environment of the LocalCluster's worker processes: numba's thread pool (the parallel
-    batch kernels of ``flightid.simulation.kernels``) shares the cores among the workers,
-    ``NUMBA_NUM_THREADS = max(1, cores // n_workers)``, unless it is set already. Without
-    it, N workers would each start one thread per core and contend for them."""
-    if "NUMBA_NUM_THREADS" in os.environ:
-        return {}
-    return {"NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // n_workers))}
+    """Environment of the LocalCluster's worker processes.
+
+    * numba's thread pool (the parallel batch kernels of ``flightid.simulation.kernels``)
+      shares the cores among the workers, ``NUMBA_NUM_THREADS = max(1, cores //
+      n_workers)``, unless it is set already: without it, N workers would each start one
+      thread per core and contend for them;
+    * ``NUMBA_CACHE_DIR`` and ``FLIGHTID_KERNEL_CACHE``, where set here, so that the
+      workers load the kernels this process (and every earlier run) compiled.
+    """
+    env = {name: os.environ[name] for name in CACHE_VARIABLES if name in os.environ}
+    if "NUMBA_NUM_THREADS" not in os.environ:
+        env["NUMBA_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // n_workers))
+    return env
+
+
+def estimated_startup_s(n_workers: int, cores: int | None = None) -> float:
+    """Start-up of a warm LocalCluster of ``n_workers`` processes on ``cores`` cores (s):
+    ``STARTUP_BASE_S + STARTUP_IMPORT_S · ⌈n_workers / cores⌉`` (the workers import
+    flightid at the same time, ``cores`` of them at once)."""
+    cores = max(1, cores or os.cpu_count() or 1)
+    # t_start = t_base + t_import · ⌈N / cores⌉
+    return STARTUP_BASE_S + STARTUP_IMPORT_S * math.ceil(n_workers / cores)
+
+
+@dataclass(frozen=True)
+class EngineChoice:
+    """What ``choose_workers`` decided.
+
+    Attributes:
+        workers: worker processes to start (1: serial, in this process).
+        note: why (the progress line prints it; "" where nothing needs saying).
+    """
+
+    workers: int
+    note: str = ""
+
+
+def choose_workers(
+    requested: int | None,
+    n_tasks: int | None,
+    *,
+    cores: int | None = None,
+    task_s: float | None = None,
+    startup_s: dict[int, float] | None = None,
+) -> EngineChoice:
+    """How many worker processes a batch of ``n_tasks`` tasks starts (1: serial).
+
+    Args:
+        requested: ``--workers`` (None: decide).
+        n_tasks: tasks to run (None: unknown; no clamp, no estimate).
+        cores: cores of this machine (None: ``os.cpu_count()``).
+        task_s: estimated wall time of one task (None: ``DEFAULT_TASK_S``).
+        startup_s: measured start-ups of earlier clusters by their number of workers (s);
+            ``estimated_startup_s`` for a number without one.
+
+    ``requested`` N > 1 gives ``min(N, n_tasks)`` (a worker per task at most). Without it,
+    N = min(cores, n_tasks), and the batch runs serially where N is 1, where it has fewer
+    than ``MIN_DASK_TASKS`` tasks, or where the time N workers save,
+    ``t_task (n − ⌈n/N⌉)``, is not more than their start-up.
+
+    Raises:
+        InputError: ``requested`` < 1.
+    """
+    if requested is not None and requested < 1:
+        raise InputError(f"--workers: expected a number ≥ 1, got {requested}")
+    if requested == 1:
+        return EngineChoice(1, "--workers 1")
+    if requested is not None:
+        if n_tasks is None or requested <= n_tasks:
+            return EngineChoice(requested)
+        n = max(1, n_tasks)
+        note = f"--workers {requested} lowered to {n}: never more worker processes than cases"
+        return EngineChoice(n, note if n > 1 else "one case to run")
+    cores = max(1, cores or os.cpu_count() or 1)
+    if n_tasks is None:
+        return EngineChoice(cores, "" if cores > 1 else "one core")
+    n = min(cores, n_tasks)
+    if n <= 1:
+        return EngineChoice(1, "one case to run" if n_tasks <= 1 else "one core")
+    if n_tasks < MIN_DASK_TASKS:
+        return EngineChoice(
+            1,
+            f"{n_tasks} cases, fewer than {MIN_DASK_TASKS}: starting worker processes would "
+            f"take longer than it saves; --workers {n} starts them anyway",
+        )
+    task_s = DEFAULT_TASK_S if task_s is None else task_s
+    measured = (startup_s or {}).get(n)
+    start_s = estimated_startup_s(n, cores) if measured is None else measured
+    # time saved by N workers: t_task · (n − ⌈n/N⌉)
+    saved_s = task_s * (n_tasks - math.ceil(n_tasks / n))
+    if saved_s <= start_s:
+        how = "estimated" if measured is None else "measured"
+        return EngineChoice(
+            1,
+            f"{n_tasks} cases of about {task_s:.2g} s would save about {saved_s:.2g} s on "
+            f"{n} workers, not more than their start-up ({how}: {start_s:.2g} s); "
+            f"--workers {n} starts them anyway",
+        )
+    return EngineChoice(n)
+
+
+# what a case's task imports (the case, estimation, accuracy and report code): a worker's
+# warm-up imports them before its first case (tests/test_batch_engine.py checks each exists)
+WARM_MODULES = (
+    "flightid.batch.task",
+    "flightid.cases.run",
+    "flightid.cases.stagespec",
+    "flightid.accuracy.profile",
+    "flightid.model.kernel_cache",
+    "flightid.model.linearization",
+    "flightid.model.modes",
+    "flightid.data.pipeline",
+    "flightid.data.coefficients",
+    "flightid.compat",
+    "flightid.export",
+    "flightid.jsonout",
+    "flightid.report.folder",
+    "flightid.report.histories",
+    "flightid.report.html",
+)
+
+
+def warm_up() -> int:
+    """A worker's warm-up task: import what a case needs (``WARM_MODULES``, numba with
+    them) so that the first case does not pay the imports. A module that cannot be
+    imported is passed over: the case that needs it names the error. Returns the process
+    id."""
+    import importlib
+
+    for name in WARM_MODULES:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            continue
+    return os.getpid()
+
+
+async def _close_workers(cluster: Any, timeout_s: float) -> None:
+    """Ask every worker process of ``cluster`` to close and wait up to ``timeout_s`` for it
+    to exit by itself (the nanny's own wait, 4 s, kills a worker that is slow to exit)."""
+    nannies = list(getattr(cluster, "workers", {}).values())
+    await asyncio.gather(
+        *(nanny.close(timeout=timeout_s) for nanny in nannies), return_exceptions=True
+    )
 
 
 class DaskEngine:
@@ -60,17 +245,35 @@ class DaskEngine:
 
     Args:
         workers: worker processes of the LocalCluster (ignored with ``scheduler``).
-        scheduler: address of a running scheduler (``tcp://host:8786``), or None.
+        scheduler: address of a running scheduler (``tcp://host:8786``), or None; its
+            cluster is used as it is, never started or closed here.
         client: an existing ``distributed.Client`` to use (not closed by ``close``).
+        warm: run the warm-up task (``warm_up``) on every worker before the first task.
+
+    Attributes:
+        workers: the workers the cluster has.
+        startup_s: the measured start-up (s): connecting or starting the cluster, and the
+            warm-up of its workers.
+        description: which cluster ran, for the progress line.
+
+    Raises:
+        InputError: no scheduler answered at ``scheduler``.
     """
 
     def __init__(
-        self, workers: int | None = None, scheduler: str | None = None, client: Any = None
+        self,
+        workers: int | None = None,
+        scheduler: str | None = None,
+        client: Any = None,
+        *,
+        warm: bool = True,
     ) -> None:
         from distributed import Client, LocalCluster
 
+        started = time.perf_counter()
         self._own = client is None
         self._cluster = None
+        self._interrupted = False  # a map_unordered left before all its tasks finished
         if client is not None:
             self.client = client
         elif scheduler is not None:
@@ -90,9 +293,37 @@ class DaskEngine:
                 env=worker_environment(n),
             )
             self.client = Client(self._cluster)
-        self.workers = len(self.client.scheduler_info().get("workers", {}))
+        try:
+            if self._cluster is not None:
+                self.client.wait_for_workers(n, timeout=120)
+            addresses = list(self.client.scheduler_info().get("workers", {}))
+            self.workers = len(addresses)
+            if warm and addresses:
+                self._warm_up(addresses)
+        except BaseException:
+            self._interrupted = True
+            self.close()  # what this engine started, and only that
+            raise
+        self.startup_s = time.perf_counter() - started
         where = scheduler or ("LocalCluster" if self._cluster is not None else "client")
         self.description = f"dask distributed ({where}, {self.workers} worker(s))"
+
+    @property
+    def started_cluster(self) -> bool:
+        """True where this engine started its cluster (a LocalCluster)."""
+        return self._cluster is not None
+
+    def _warm_up(self, addresses: list[str]) -> None:
+        """One ``warm_up`` task on each worker (its imports), waited for."""
+        from distributed import wait
+
+        futures = [
+            self.client.submit(warm_up, pure=False, workers=[address], allow_other_workers=False)
+            for address in addresses
+        ]
+        wait(futures)
+        for future in futures:
+            future.release()
 
     def map_unordered(
         self, fn: Callable[[Any], Any], tasks: Iterable[Any]
@@ -105,48 +336,78 @@ class DaskEngine:
         tasks = list(tasks)
         futures = [self.client.submit(fn, task, pure=False) for task in tasks]
         of = {future.key: task for future, task in zip(futures, tasks, strict=True)}
+        self._interrupted = True  # until every task has finished
         try:
             for future in as_completed(futures):
                 try:
                     yield of[future.key], future.result(), None
                 except Exception as exc:
                     yield of[future.key], None, exc
+            self._interrupted = False
         finally:
             for future in futures:
                 future.cancel()
 
     def close(self) -> None:
-        """Close the client and the LocalCluster this engine made."""
-        if self._own:
+        """Close what this engine made: the client, and the LocalCluster with its worker
+        processes, each given ``CLOSE_TIMEOUT_S`` to exit by itself (no nanny kills it).
+        After an interrupted run (tasks still running: Ctrl-C, an error) the workers get
+        Dask's own few seconds instead, so that the interrupt is not held up by the cases
+        still running. A cluster reached by its scheduler address, or a client handed in,
+        stays open."""
+        if not self._own:
+            return
+        cluster, self._own = self._cluster, False
+        try:
             self.client.close()
-            if self._cluster is not None:
-                self._cluster.close()
+        finally:
+            if cluster is not None and self._interrupted:
+                cluster.close()
+            elif cluster is not None:
+                try:
+                    cluster.sync(_close_workers, cluster, CLOSE_TIMEOUT_S)
+                finally:
+                    cluster.close(timeout=CLOSE_TIMEOUT_S)
+
+    def __enter__(self) -> DaskEngine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def make_engine(
-    workers: int | None = None, scheduler: str | None = None, n_tasks: int | None = None
+    workers: int | None = None,
+    scheduler: str | None = None,
+    n_tasks: int | None = None,
+    *,
+    task_s: float | None = None,
+    startup_s: dict[int, float] | None = None,
 ) -> SerialEngine | DaskEngine:
-    """The engine for ``--workers`` / ``--scheduler`` (see the module docstring). Without
-    either, a LocalCluster of ``min(cores, n_tasks)`` workers (serial where that is 1: one
-    case to run, or one core).
+    """The engine for ``--workers`` / ``--scheduler`` (see the module docstring): the
+    scheduler's cluster, or ``choose_workers(workers, n_tasks, task_s=task_s)`` worker
+    processes of a LocalCluster (serial where that is 1, or where Dask is not installed);
+    ``task_s`` and ``startup_s`` as for ``choose_workers``.
+    A note of ``choose_workers`` (serial because it does not pay, workers lowered to the
+    tasks) is in ``engine.description``.
 
     Raises:
         InputError: ``workers`` < 1, both options given, or a scheduler without Dask.
     """
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers: expected a number ≥ 1, got {workers}")
     if workers is not None and scheduler is not None:
         raise InputError("give --workers or --scheduler, not both")
-    if scheduler is None and workers == 1:
-        return SerialEngine("--workers 1")
-    if scheduler is None and workers is None:
-        workers = max(1, min(os.cpu_count() or 1, n_tasks or os.cpu_count() or 1))
-        if workers == 1:
-            return SerialEngine("one case to run" if n_tasks == 1 else "one core")
-    if not dask_available():
-        if scheduler is not None:
+    if scheduler is not None:
+        if not dask_available():
             raise InputError(
                 f"--scheduler {scheduler}: Dask is not installed (pip install 'flightid[dask]')"
             )
+        return DaskEngine(scheduler=scheduler)
+    choice = choose_workers(workers, n_tasks, task_s=task_s, startup_s=startup_s)
+    if choice.workers == 1:
+        return SerialEngine(choice.note)
+    if not dask_available():
         return SerialEngine("Dask is not installed: pip install 'flightid[dask]'")
-    return DaskEngine(workers, scheduler)
+    engine = DaskEngine(choice.workers)
+    if choice.note:
+        engine.description += f"; {choice.note}"
+    return engine

@@ -20,6 +20,7 @@ stderr, one line per finished case::
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -54,6 +55,9 @@ class BatchResult:
         skipped: names of the cases whose stored result was current.
         engine: which engine ran the tasks ("" when nothing ran).
         files: estimates.csv, estimates.parquet (when written), plots, index.html.
+        startup_s: the start-up of the Dask engine this call made (s; connecting or
+            starting the cluster and warming its workers); 0 for the serial engine and for
+            an engine handed in.
     """
 
     out: Path
@@ -62,6 +66,7 @@ class BatchResult:
     skipped: tuple[str, ...] = ()
     engine: str = ""
     files: tuple[Path, ...] = field(default_factory=tuple)
+    startup_s: float = 0.0
 
     @property
     def failed(self) -> tuple[str, ...]:
@@ -114,6 +119,101 @@ def _eta(started: float, done: int, remaining: int) -> str:
     return f", about {left:.0f} s left"
 
 
+def _sort_cases(
+    cases: list[BatchCase],
+    out: Path,
+    data_dir: str | None,
+    accuracy: str | None,
+    retry_failed: bool,
+) -> tuple[dict[str, dict[str, Any]], list[CaseTask], list[str], list[float]]:
+    """(records of the cases whose stored result is current, tasks of the others, names
+    skipped, the wall times (s) of every case's earlier run recorded in ``out``)."""
+    records: dict[str, dict[str, Any]] = {}
+    tasks: list[CaseTask] = []
+    skipped: list[str] = []
+    earlier_s: list[float] = []
+    for case in cases:
+        fp = fingerprint(case, data_dir, accuracy)
+        folder = out / "cases" / case.name
+        stored = read_record(folder)
+        if stored is not None and isinstance(stored.get("wall_s"), int | float):
+            earlier_s.append(float(stored["wall_s"]))
+        if (
+            stored is not None
+            and stored.get("fingerprint") == fp
+            and not (retry_failed and stored.get("status") == "failed")
+        ):
+            stored["conditions"] = dict(case.conditions)
+            records[case.name] = stored
+            skipped.append(case.name)
+            continue
+        tasks.append(CaseTask(case, fp, folder, data_dir, accuracy))
+    return records, tasks, skipped, earlier_s
+
+
+def _run_tasks(
+    engine: SerialEngine | DaskEngine,
+    tasks: list[CaseTask],
+    records: dict[str, dict[str, Any]],
+    ran: list[str],
+    counts: tuple[int, int],
+    say: Progress,
+) -> None:
+    """Run ``tasks`` on ``engine``, adding each record to ``records`` and its name to
+    ``ran`` as it finishes, with a progress line (``counts``: cases skipped, cases)."""
+    n_skipped, n_cases = counts
+    started = time.monotonic()
+    n_failed = 0
+    for i, (task, record, exc) in enumerate(engine.map_unordered(run_task, tasks), start=1):
+        if exc is not None:
+            record = _failed_record(task.case, task.fingerprint, exc)
+        records[task.case.name] = record
+        ran.append(task.case.name)
+        failed = record.get("status") == "failed"
+        n_failed += failed
+        remaining = len(tasks) - i
+        running = min(engine.workers, remaining)
+        what = f"failed: {record.get('error')}" if failed else record.get("status")
+        say(
+            f"batch: {i + n_skipped}/{n_cases} done ({n_skipped} skipped), {running} running, "
+            f"{n_failed} failed{_eta(started, i, remaining)} — {task.case.name}: {what}"
+        )
+
+
+STARTUP_FILE = ".flightid-startup.json"  # measured LocalCluster start-ups, by workers
+
+
+def _read_startups(out: Path) -> dict[int, float]:
+    """The LocalCluster start-ups (s) measured by earlier batches into ``out``, by the
+    number of workers ({} where none was, or the file is not what this writes)."""
+    try:
+        raw = json.loads((out / STARTUP_FILE).read_text(encoding="utf-8"))
+        return {int(n): float(s) for n, s in raw.items() if float(s) >= 0.0}
+    except (OSError, ValueError, TypeError, AttributeError):
+        return {}
+
+
+def _write_startup(out: Path, workers: int, startup_s: float) -> None:
+    """Keep the start-up of a LocalCluster of ``workers`` in ``out`` (the next batch's
+    choice of serial or Dask uses it)."""
+    startups = _read_startups(out)
+    startups[workers] = round(startup_s, 3)
+    text = json.dumps({str(n): s for n, s in sorted(startups.items())})
+    with contextlib.suppress(OSError):
+        (out / STARTUP_FILE).write_text(text + "\n", encoding="utf-8")
+
+
+def _task_estimate_s(earlier_s: list[float]) -> float | None:
+    """The expected wall time of one case (s): the median of the earlier runs' wall times
+    recorded in the batch folder, None where there are none (``DEFAULT_TASK_S``)."""
+    if not earlier_s:
+        return None
+    ordered = sorted(earlier_s)
+    middle = len(ordered) // 2
+    # median: the middle value, or the mean of the two middle values
+    return ordered[middle] if len(ordered) % 2 else 0.5 * (ordered[middle - 1] + ordered[middle])
+
+
 def run_batch(
     sources: Sequence[str | Path] | Sequence[BatchCase],
     out: str | Path,
@@ -132,7 +232,10 @@ def run_batch(
     Args:
         sources: case files and batch files (``flightid.batch.plan``), or planned cases.
         out: the batch folder (made if missing); cases go to ``out/cases/<name>/``.
-        workers: worker processes of a LocalCluster (1: serial; None: one per core).
+        workers: worker processes of a LocalCluster (1: serial; never more than cases to
+            run; None: one per core where that pays, else serial,
+            ``flightid.batch.engine.choose_workers``, with the earlier runs' median wall
+            time in this folder as the estimate of a case's time).
         scheduler: address of a running Dask scheduler (instead of ``workers``).
         engine: an engine to use (not closed here); overrides ``workers``/``scheduler``.
         data_dir: the data directory for every case (overrides the cases').
@@ -158,55 +261,37 @@ def run_batch(
         raise BatchError(f"--out {out}: is a file, expected a folder")
     out.mkdir(parents=True, exist_ok=True)
     data_dir = None if data_dir is None else str(Path(data_dir).expanduser().resolve())
-    records: dict[str, dict[str, Any]] = {}
-    tasks: list[CaseTask] = []
-    skipped: list[str] = []
     with _locked(out):
-        for case in cases:
-            fp = fingerprint(case, data_dir, accuracy)
-            folder = out / "cases" / case.name
-            stored = read_record(folder)
-            if (
-                stored is not None
-                and stored.get("fingerprint") == fp
-                and not (retry_failed and stored.get("status") == "failed")
-            ):
-                stored["conditions"] = dict(case.conditions)
-                records[case.name] = stored
-                skipped.append(case.name)
-                continue
-            tasks.append(CaseTask(case, fp, folder, data_dir, accuracy))
+        records, tasks, skipped, earlier_s = _sort_cases(
+            cases, out, data_dir, accuracy, retry_failed
+        )
         (out / "cases").mkdir(exist_ok=True)
         say(
             f"batch: {len(cases)} case(s), {len(skipped)} up to date (skipped), {len(tasks)} to run"
         )
         ran: list[str] = []
         description = ""
+        startup_s = 0.0
         try:
             if tasks:
                 own = engine is None
-                engine = engine or make_engine(workers, scheduler, len(tasks))
+                engine = engine or make_engine(
+                    workers,
+                    scheduler,
+                    len(tasks),
+                    task_s=_task_estimate_s(earlier_s),
+                    startup_s=_read_startups(out),
+                )
                 description = engine.description
-                say(f"batch: engine {description}")
-                started = time.monotonic()
-                n_failed = 0
+                started_in = ""
+                if own and isinstance(engine, DaskEngine):
+                    startup_s = engine.startup_s
+                    started_in = f", started in {startup_s:.1f} s"
+                    if engine.started_cluster:  # a LocalCluster's: for the next batch
+                        _write_startup(out, engine.workers, startup_s)
+                say(f"batch: engine {description}{started_in}")
                 try:
-                    outcomes = engine.map_unordered(run_task, tasks)
-                    for i, (task, record, exc) in enumerate(outcomes, start=1):
-                        if exc is not None:
-                            record = _failed_record(task.case, task.fingerprint, exc)
-                        records[task.case.name] = record
-                        ran.append(task.case.name)
-                        failed = record.get("status") == "failed"
-                        n_failed += failed
-                        remaining = len(tasks) - i
-                        running = min(engine.workers, remaining)
-                        what = f"failed: {record.get('error')}" if failed else record.get("status")
-                        say(
-                            f"batch: {i + len(skipped)}/{len(cases)} done ({len(skipped)} "
-                            f"skipped), {running} running, {n_failed} failed"
-                            f"{_eta(started, i, remaining)} — {task.case.name}: {what}"
-                        )
+                    _run_tasks(engine, tasks, records, ran, (len(skipped), len(cases)), say)
                 finally:
                     if own:
                         engine.close()
@@ -225,4 +310,6 @@ def run_batch(
             plots = carpet_plots(rows, plot_against, out)
         files += plots
         files.append(write_index(ordered, out, plots, description))
-    return BatchResult(out, tuple(ordered), tuple(ran), tuple(skipped), description, tuple(files))
+    return BatchResult(
+        out, tuple(ordered), tuple(ran), tuple(skipped), description, tuple(files), startup_s
+    )

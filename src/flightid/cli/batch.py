@@ -3,9 +3,11 @@
 
 Runs many cases (case files, and batch files: a case template with a table of flight
 conditions, ``flightid.batch.plan``) on Dask distributed — a LocalCluster with one worker
-process per core by default, ``--workers N`` of them, or a running scheduler
-(``--scheduler tcp://host:8786``) — or serially (``--workers 1``, or Dask not installed).
-Writes into DIR:
+process per core by default where that pays (else serially, with a note saying why;
+``flightid.batch.engine.choose_workers``), ``--workers N`` of them (never more than cases to
+run), or any running Dask cluster by its scheduler address (``--scheduler
+tcp://host:8786``; never started or closed here) — or serially (``--workers 1``, or Dask
+not installed). Writes into DIR:
 
 * ``estimates.csv`` and ``estimates.parquet``: one row per case and parameter (columns
   ``case``, the flight-condition columns, ``parameter``, ``unit``, ``value``, ``std`` (the
@@ -53,11 +55,16 @@ def register(subparsers) -> None:
         "--workers",
         type=int,
         default=None,
-        help="worker processes of a Dask LocalCluster (default: one per core); 1 runs the "
-        "cases serially in this process",
+        help="worker processes of a Dask LocalCluster, at most one per case to run (default: "
+        "one per core where the batch is long enough for that to pay, else serially); 1 runs "
+        "the cases serially in this process",
     )
     engine.add_argument(
-        "--scheduler", default=None, help="address of a running Dask scheduler (tcp://...)"
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="address of a running Dask scheduler (tcp://host:8786): any Dask cluster, e.g. "
+        "one of dask-jobqueue on an HPC batch system; used, never started or closed",
     )
     add_data_dir_argument(parser)
     parser.add_argument(
