@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -85,6 +85,10 @@ __all__ = [
 ]
 
 RELAXATIONS = ("fixed_point", "reference")
+#: how ``relaxation="fixed_point"`` spends its filter passes between R updates: "warm" (one
+#: Gauss–Newton step per R update, the end point confirmed once) or "full" (θ converged and
+#: confirmed under every R)
+CYCLES = ("warm", "full")
 
 
 # ---------------------------------------------------------------------- the estimator
@@ -185,6 +189,79 @@ def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, 
     return theta, confirmation, r_diag, "max_cycles", message
 
 
+def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, trace):
+    """The fixed point with one Gauss–Newton step per R update (the same returns as
+    ``_cycles``).
+
+    Each cycle starts from the previous one's θ (its F elements compensated for the new R)
+    and takes a single step under the current R, then sets R to the innovations'
+    covariance: a cycle stops early because R changes anyway. Once the step at the start
+    of a cycle is negligible (θ Gauss–Newton-optimal under R) and R moved by at most
+    ``r_rtol`` in the cycle before, the end point is confirmed with central differences as
+    in ``_cycles`` (the sensitivities the bounds need anyway), and R is checked once more.
+    """
+    theta = problem.theta_start
+    r_diag = np.array(r_diag, dtype=float)
+    change = float("inf")
+    one_step = replace(convergence, max_iterations=1)
+    confirmation = None
+    for _cycle in range(1, max_cycles + 1):
+        problem.gain_r = r_diag.copy()
+        next_stage(progress, trace.passes + problem.evaluations)
+        objective = Objective(problem, r_diag, "fixed", one_step, progress)
+        outcome = solver.minimize(objective, theta)
+        trace.iterations += outcome.iterations
+        trace.cycles += 1
+        theta = outcome.theta
+        final = outcome.converged and outcome.status == "converged" and change <= r_rtol
+        if final or outcome.status == "stalled":
+            objective.convergence = convergence
+            confirmation = confirm_convergence(
+                objective, outcome, "fixed", fallback=isinstance(solver, MNRES)
+            )
+            trace.iterations += confirmation.passes
+            outcome = confirmation.outcome
+            theta = outcome.theta
+            if not outcome.converged:
+                trace.record(objective, problem)
+                return theta, confirmation, r_diag, "stuck", outcome.message
+        trace.record(objective, problem)
+        print("cycle", _cycle, outcome.status, outcome.cost, problem.evaluations, change, problem.filter_point(problem.full_theta(theta)).kc)
+        if _on_constraint(problem, theta, r_diag):
+            return theta, confirmation, r_diag, "stuck", "a free process-noise element reached diag(KC) = 1"
+        r_new = problem.noise_covariance(outcome.outputs)
+        # largest relative change of an innovation variance: R has settled when ≤ r_rtol
+        change = float(np.max(np.abs(r_new - r_diag) / r_diag))
+        if confirmation is not None and change <= r_rtol:
+            message = (
+                "converged: θ Gauss–Newton-optimal under R, and R equal to the innovations' "
+                f"covariance within {change:.2g} (relative; tolerance {r_rtol:g})"
+            )
+            return theta, confirmation, r_diag, "converged", message
+        confirmation = None
+        theta = _compensated_start(problem, theta, r_diag, r_new)
+        r_diag = r_new
+    message = f"R did not settle within {max_cycles} cycles (last relative change {change:.3g})"
+    return theta, confirmation, r_diag, "max_cycles", message
+
+
+#: diag(KC)_i above which a state's F element is pinned to the constraint: "full" cycles
+#: pin the largest once a cycle cannot converge, "warm" ones every state that gets this close
+#: after a step (a pinned element is released at the end if lowering it lowers the cost)
+_PIN_KC = {"full": 1.0 - 1e-3, "warm": 0.99}
+
+
+def _on_constraint(problem: FilterErrorProblem, theta: np.ndarray, r_diag: np.ndarray) -> bool:
+    """Whether a state with a free F element has come within the warm cycles' pinning
+    distance of diag(KC)_i = 1."""
+    free = set(problem.free_index.tolist())
+    kc = problem.filter_point(problem.full_theta(theta), r_diag).kc
+    return any(
+        parameter in free and kc[state] > _PIN_KC["warm"]
+        for state, parameter in zip(problem.noise_states, problem.noise_parameters, strict=True)
+    )
+
+
 def _compensated_start(
     problem: FilterErrorProblem, theta: np.ndarray, r_old: np.ndarray, r_new: np.ndarray
 ) -> np.ndarray:
@@ -201,10 +278,11 @@ def _compensated_start(
     c2 = problem.filter_point(full, r_old).c ** 2
     theta = np.array(theta, dtype=float)
     free = list(problem.free_index)
-    moved = []
+    moved, moved_states = [], []
     for state, parameter in zip(problem.noise_states, problem.noise_parameters, strict=True):
         if parameter not in free:
             continue
+        moved_states.append(state)
         weights = c2[:, state] / r_old
         if np.sum(weights) <= 0:
             continue
@@ -215,8 +293,8 @@ def _compensated_start(
         try:
             kc = problem.filter_point(problem.full_theta(theta), r_new).kc
         except RiccatiError:
-            kc = np.full(1, np.inf)
-        if np.all(kc <= 1.0) or not moved:
+            kc = np.full(len(problem.model.states), np.inf)
+        if not moved or np.all(kc[moved_states] <= 1.0 + KC_TOLERANCE):
             break
         theta[moved] *= 0.5
     return theta
@@ -241,6 +319,7 @@ GRADIENTS = ("differences", "analytic")
 def _new_problem(model, data, process_noise, settings, **extra) -> FilterErrorProblem:
     """``FilterErrorProblem``, or ``LinearFilterErrorProblem`` for gradients = "analytic"."""
     settings = dict(settings)
+    settings.pop("cycles", None)
     if settings.pop("gradients", "differences") == "analytic":
         return LinearFilterErrorProblem(model, data, process_noise, **settings, **extra)
     return FilterErrorProblem(model, data, process_noise, **settings, **extra)
@@ -276,7 +355,8 @@ def _fixed_point(
     for _ in range(2 * len(states) + 3):
         problem = _problem(model, data, process_noise, pinned, values, settings)
         problem.gain_r = r_diag.copy()
-        theta, confirmation, r_diag, state, message = _cycles(
+        run_cycles = _warm_cycles if settings.get("cycles", "warm") == "warm" else _cycles
+        theta, confirmation, r_diag, state, message = run_cycles(
             problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, trace
         )
         trace.passes += problem.evaluations
@@ -284,11 +364,15 @@ def _fixed_point(
         values = full
         kc = problem.filter_point(full, r_diag).kc
         if state == "stuck":
+            threshold = _PIN_KC[settings.get("cycles", "warm")]
             candidates = [
                 s
                 for s in free_noise
-                if s not in pinned and kc[problem.model.states.index(s)] > 1.0 - 1e-3
+                if s not in pinned and kc[problem.model.states.index(s)] > threshold
             ]
+            if candidates and settings.get("cycles", "warm") == "warm":
+                pinned.extend(candidates)
+                continue
             if candidates:
                 pinned.append(max(candidates, key=lambda s: kc[problem.model.states.index(s)]))
                 continue
@@ -437,6 +521,7 @@ def estimate_filter_error(
     compiled: bool = True,
     progress: Callable[[int, int, float], None] | None = None,
     gradients: str = "differences",
+    cycles: str = "warm",
 ) -> Estimate:
     """Filter-error maximum-likelihood estimate (system parameters and F elements).
 
@@ -495,6 +580,9 @@ def estimate_filter_error(
     if gradients not in GRADIENTS:
         raise InputError(f"gradients: expected one of {list(GRADIENTS)}, got {gradients!r}")
     settings["gradients"] = gradients
+    if cycles not in CYCLES:
+        raise InputError(f"cycles: expected one of {list(CYCLES)}, got {cycles!r}")
+    settings["cycles"] = cycles
     problem = _new_problem(model, data, process_noise, settings)
     problem.check_enough_data()
     # R₀: one pass with K = 0 (a plain simulation) at the start values
