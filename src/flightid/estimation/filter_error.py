@@ -228,7 +228,13 @@ def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progr
                 return theta, confirmation, r_diag, "stuck", outcome.message
         trace.record(objective, problem)
         if change <= _PIN_AFTER_CHANGE and _on_constraint(problem, theta, r_diag):
-            return theta, confirmation, r_diag, "stuck", "a free process-noise element reached diag(KC) = 1"
+            return (
+                theta,
+                confirmation,
+                r_diag,
+                "stuck",
+                "a free process-noise element reached diag(KC) = 1",
+            )
         r_new = problem.noise_covariance(outcome.outputs)
         # largest relative change of an innovation variance: R has settled when ≤ r_rtol
         change = float(np.max(np.abs(r_new - r_diag) / r_diag))
