@@ -248,8 +248,11 @@ def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progr
         r_next, previous_delta = _extrapolated(r_diag, r_new, previous_delta, change)
         theta = _compensated_start(problem, theta, r_diag, r_next)
         r_diag = r_next
+    if confirmation is None:
+        # the sensitivities (and bounds) at the last point, which is reported as not converged
+        confirmation = confirm_convergence(objective, outcome, "fixed")
     message = f"R did not settle within {max_cycles} cycles (last relative change {change:.3g})"
-    return theta, confirmation, r_diag, "max_cycles", message
+    return confirmation.outcome.theta, confirmation, r_diag, "max_cycles", message
 
 
 #: the warm cycles extrapolate R only once every variance changes by less than this fraction
@@ -365,6 +368,17 @@ def _new_problem(model, data, process_noise, settings, **extra) -> FilterErrorPr
     return FilterErrorProblem(model, data, process_noise, **settings, **extra)
 
 
+def _joining(problem, free_noise, pinned, kc, warm: bool) -> list[str]:
+    """States to pin after a cycle stopped at the constraint: warm cycles pin every free
+    state within their distance of diag(KC)_i = 1, full cycles the largest above 1 − 1e-3."""
+    threshold = _PIN_KC["warm" if warm else "full"]
+    states = problem.model.states
+    candidates = [s for s in free_noise if s not in pinned and kc[states.index(s)] > threshold]
+    if warm or not candidates:
+        return candidates
+    return [max(candidates, key=lambda s: kc[states.index(s)])]
+
+
 def _fixed_point(
     model,
     data,
@@ -395,7 +409,10 @@ def _fixed_point(
     for _ in range(2 * len(states) + 3):
         problem = _problem(model, data, process_noise, pinned, values, settings)
         problem.gain_r = r_diag.copy()
-        run_cycles = _warm_cycles if settings.get("cycles", "warm") == "warm" else _cycles
+        # warm cycles take one MNR step per R update; MNRES rebuilds its surface in every
+        # cycle, so it converges each cycle (full cycles)
+        warm = settings.get("cycles", "warm") == "warm" and isinstance(solver, MNR)
+        run_cycles = _warm_cycles if warm else _cycles
         theta, confirmation, r_diag, state, message = run_cycles(
             problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, trace
         )
@@ -404,17 +421,9 @@ def _fixed_point(
         values = full
         kc = problem.filter_point(full, r_diag).kc
         if state == "stuck":
-            threshold = _PIN_KC[settings.get("cycles", "warm")]
-            candidates = [
-                s
-                for s in free_noise
-                if s not in pinned and kc[problem.model.states.index(s)] > threshold
-            ]
-            if candidates and settings.get("cycles", "warm") == "warm":
-                pinned.extend(candidates)
-                continue
-            if candidates:
-                pinned.append(max(candidates, key=lambda s: kc[problem.model.states.index(s)]))
+            joining = _joining(problem, free_noise, pinned, kc, warm)
+            if joining:
+                pinned.extend(joining)
                 continue
             break
         if state != "converged":
