@@ -37,8 +37,10 @@ Gauss–Newton step with the linearised constraint, as FVSysID's ``ml_fem2`` doe
 R and F are both estimated. The estimate the book defines is the fixed point where θ (system
 parameters and F) is Gauss–Newton-optimal under the weighting R and R equals the innovations'
 covariance, R = diag((1/N) Σ e_k e_kᵀ). ``relaxation="fixed_point"`` (default) reaches it
-directly: converge θ with R held (a well-posed ML problem: R fixed, gain and cost consistent),
-set R to the innovations' covariance, repeat until R moves by less than ``r_rtol``. No step
+directly: improve θ with R held (a well-posed ML problem: R fixed, gain and cost consistent),
+set R to the innovations' covariance, repeat until R moves by less than ``r_rtol``. With
+``cycles="warm"`` (default, MNR) each cycle takes one Gauss–Newton step and the end point is
+confirmed once (``_warm_cycles``); ``cycles="full"`` converges and confirms θ under every R. No step
 of it needs the book's heuristic F compensation, which only tries to keep K unchanged across
 an R update so that a single schedule of steps converges; both schedules stop at the same
 fixed point (tests/test_filter_error.py, docs/turbulence.md).
@@ -593,6 +595,10 @@ def estimate_filter_error(
         compiled: numba filter kernel.
         progress: called after every accepted pass with (pass, filter passes, cost), both
             numbers rising over all R cycles and active sets.
+        cycles: ``fixed_point``: ``"warm"`` (one Gauss–Newton step per R update, R
+            extrapolated once it settles geometrically, the end confirmed once; MNR only,
+            MNRES always runs full cycles) or ``"full"`` (θ converged and confirmed under
+            every R).
         gradients: ``"differences"`` (H by finite differences of filter passes) or
             ``"analytic"``: a model linear in states and inputs, filtered with the exact
             discretisation Φ = e^{AΔt}, H from the differentiated Riccati equation and
