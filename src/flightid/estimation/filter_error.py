@@ -191,6 +191,29 @@ def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, 
     return theta, confirmation, r_diag, "max_cycles", message
 
 
+REUSE_SENSITIVITIES = True
+
+
+@dataclass
+class _Recorded:
+    g: np.ndarray | None = None
+
+
+def _record_differences(problem):
+    """Keep the forward differences the solver takes on ``problem`` (their G), for the
+    next warm cycle."""
+    recorded = _Recorded()
+    differences = problem.differences
+
+    def recording(*args, **kwargs):
+        result = differences(*args, **kwargs)
+        recorded.g = result.g
+        return result
+
+    problem.differences = recording
+    return recorded
+
+
 def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, trace):
     """The fixed point with one Gauss–Newton step per R update (the same returns as
     ``_cycles``).
@@ -208,16 +231,27 @@ def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progr
     one_step = replace(convergence, max_iterations=1)
     confirmation = None
     previous_delta = None
+    recorded = _record_differences(problem)
     for _cycle in range(1, max_cycles + 1):
         problem.gain_r = r_diag.copy()
         next_stage(progress, trace.passes + problem.evaluations)
         objective = Objective(problem, r_diag, "fixed", one_step, progress)
-        outcome = solver.minimize(objective, theta)
+        state = None
+        if recorded.g is not None and REUSE_SENSITIVITIES:
+            # the last cycle's sensitivities for this cycle's step (one filter pass at the
+            # new R instead of n_f + 1); the cycle after takes fresh ones
+            cost, outputs = objective.evaluate_start(theta)
+            objective.record(theta, cost)
+            state = (theta, outputs, recorded.g, None)
+        recorded.g = None
+        outcome = solver.minimize(objective, theta, state=state)
         trace.iterations += outcome.iterations
         trace.cycles += 1
         theta = outcome.theta
         final = outcome.converged and outcome.status == "converged" and change <= r_rtol
-        if final or outcome.status == "stalled":
+        if outcome.status == "stalled" and state is not None:
+            recorded.g = None  # the stale sensitivities found no step: fresh ones next
+        elif final or outcome.status == "stalled":
             objective.convergence = convergence
             confirmation = confirm_convergence(
                 objective, outcome, "fixed", fallback=isinstance(solver, MNRES)
