@@ -67,7 +67,7 @@ def measure(name: str, data_dir: Path, quick: bool) -> list[str]:
     prepared = prepare_case(case, data_dir)
     runs = [("book schedule", {"relaxation": "reference"})]
     if not quick:
-        runs.append(("fixed point, full cycles (before)", {"cycles": "full"}))
+        runs.append(("fixed point, full cycles", {"cycles": "full"}))
     runs.append(("fixed point, warm cycles (default)", {"cycles": "warm"}))
     results = {label: _run(prepared, case, **options) for label, options in runs}
     book = results["book schedule"]

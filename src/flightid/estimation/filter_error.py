@@ -315,10 +315,12 @@ def _extrapolated(r_diag, r_new, previous_delta, change):
         return r_new, delta
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = delta / previous_delta
-    if not np.all((ratio > 0) & (ratio < _EXTRAPOLATE_RATIO)):
+    geometric = (ratio > 0) & (ratio < _EXTRAPOLATE_RATIO)
+    if not np.any(geometric):
         return r_new, delta
-    # ln R_next = ln R + δ_k / (1 − ρ)
-    return r_diag * np.exp(delta / (1.0 - ratio)), None
+    # ln R_next = ln R + δ_k / (1 − ρ) for the variances that shrink geometrically
+    factor = np.where(geometric, 1.0 / (1.0 - np.where(geometric, ratio, 0.0)), 1.0)
+    return r_diag * np.exp(delta * factor), None
 
 
 #: diag(KC)_i above which a state's F element is pinned to the constraint: "full" cycles
