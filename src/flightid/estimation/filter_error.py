@@ -191,9 +191,6 @@ def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, 
     return theta, confirmation, r_diag, "max_cycles", message
 
 
-REUSE_SENSITIVITIES = True
-
-
 @dataclass
 class _Recorded:
     g: np.ndarray | None = None
@@ -220,7 +217,9 @@ def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progr
 
     Each cycle starts from the previous one's θ (its F elements compensated for the new R)
     and takes a single step under the current R, then sets R to the innovations'
-    covariance: a cycle stops early because R changes anyway. Once the step at the start
+    covariance: a cycle stops early because R changes anyway. Every other cycle takes its
+    step on the sensitivities of the cycle before (H = ∂ỹ/∂θ depends on R only through the
+    gain): one filter pass at the new R instead of n_f + 1. Once the step at the start
     of a cycle is negligible (θ Gauss–Newton-optimal under R) and R moved by at most
     ``r_rtol`` in the cycle before, the end point is confirmed with central differences as
     in ``_cycles`` (the sensitivities the bounds need anyway), and R is checked once more.
@@ -237,7 +236,7 @@ def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progr
         next_stage(progress, trace.passes + problem.evaluations)
         objective = Objective(problem, r_diag, "fixed", one_step, progress)
         state = None
-        if recorded.g is not None and REUSE_SENSITIVITIES:
+        if recorded.g is not None:
             # the last cycle's sensitivities for this cycle's step (one filter pass at the
             # new R instead of n_f + 1); the cycle after takes fresh ones
             cost, outputs = objective.evaluate_start(theta)
@@ -301,9 +300,9 @@ def _extrapolated(r_diag, r_new, previous_delta, change):
     """The next R of the warm cycles and the log-change to remember.
 
     Late in the relaxation R approaches its fixed point geometrically: each cycle's change
-    δ_k = ln(R_new/R) is about ρ times the one before (ρ ≈ 0.7 on the HFB-320 case). Where
-    every variance does so (0 < ρ_i < 0.9, all changes below 5 %), the rest of the series is
-    summed at once (Aitken's extrapolation):
+    δ_k = ln(R_new/R) is about ρ times the one before (ρ ≈ 0.7 on the HFB-320 case). Once
+    all changes are below 5 %, every variance that does so (0 < ρ_i < 0.9) has the rest of
+    its series summed at once (Aitken's extrapolation; the others take R_new):
 
         ln R_next = ln R + δ_k / (1 − ρ),   ρ_i = δ_k,i / δ_k−1,i
 
