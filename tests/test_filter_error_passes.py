@@ -122,3 +122,12 @@ def test_r_extrapolation_sums_a_geometric_series():
 def test_unknown_cycles_is_refused():
     with pytest.raises(InputError, match="cycles"):
         estimate_filter_error(_model(), _simulate(n=50), NOISE, cycles="half")
+
+
+def test_warm_cycles_that_run_out_of_cycles_say_so(runs):
+    data, _, _ = runs
+    short = estimate_filter_error(_model(), data, NOISE, solver=MNR(), max_cycles=2)
+    assert not short.converged
+    assert "did not settle within 2 cycles" in short.message
+    # the bounds at the last point are still computed (the sensitivities are there)
+    assert np.all(np.isfinite(short.std_cr[short.free]))
