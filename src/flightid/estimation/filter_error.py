@@ -193,6 +193,8 @@ def _cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progress, 
 
 @dataclass
 class _Recorded:
+    """The sensitivities G (N, n_o, n_f) of the solver's last forward differences."""
+
     g: np.ndarray | None = None
 
 
@@ -290,8 +292,8 @@ def _warm_cycles(problem, solver, r_diag, convergence, r_rtol, max_cycles, progr
     return confirmation.outcome.theta, confirmation, r_diag, "max_cycles", message
 
 
-#: the warm cycles extrapolate R only once every variance changes by less than this fraction
-#: per cycle and each change is at most this fraction of the one before (geometric phase)
+#: the warm cycles extrapolate R once every variance changes by less than this fraction per
+#: cycle, and then each variance whose change is at most this fraction of the one before
 _EXTRAPOLATE_BELOW = 0.05
 _EXTRAPOLATE_RATIO = 0.9
 
