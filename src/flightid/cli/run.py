@@ -241,7 +241,6 @@ def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, run_case
     from flightid.cases.run import stderr_progress
-    from flightid.cases.stages import has_regression_stages
     from flightid.results import results_document
 
     case = load_case(args.case)
@@ -249,7 +248,7 @@ def run(args: argparse.Namespace) -> int:
     # nothing and a second run into the same folder stops here
     folder = open_result_folder(case, args, args.out)
     try:
-        if case.staged and has_regression_stages(case):
+        if case.staged and _has_regression_stages(case):
             return _run_stages(case, args, folder)
         if case.recursive or case.frequency_domain:
             return _run_own_estimator(case, args, folder)
@@ -283,6 +282,14 @@ def run(args: argparse.Namespace) -> int:
         if folder is not None:
             folder.release()
     return 0
+
+
+def _has_regression_stages(case) -> bool:
+    """Whether a staged case has regression stages (the regression package is imported only
+    for a case that has stages)."""
+    from flightid.cases.stages import has_regression_stages
+
+    return has_regression_stages(case)
 
 
 def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:
