@@ -247,11 +247,14 @@ def run(args: argparse.Namespace) -> int:
     # the result folder is checked (and locked) before any work, so that a bad --out costs
     # nothing and a second run into the same folder stops here
     folder = open_result_folder(case, args, args.out)
+    pool = None
     try:
         if case.staged and _has_regression_stages(case):
             return _run_stages(case, args, folder)
         if case.recursive or case.frequency_domain:
             return _run_own_estimator(case, args, folder)
+        # the figures' worker processes start now and import matplotlib during the estimation
+        pool = figure_pool(case, folder)
         engine = None
         if getattr(args, "workers", None) not in (None, 1) or getattr(args, "scheduler", None):
             from flightid.batch.engine import make_engine
@@ -276,12 +279,33 @@ def run(args: argparse.Namespace) -> int:
             lambda: results_document([result.to_dict()]),
             lambda: print_summary(result),
             folder,
-            lambda directory: write_files(result, directory),
+            lambda directory: write_files(result, directory, pool=pool),
         )
     finally:
+        if pool is not None:
+            pool.close()
         if folder is not None:
             folder.release()
     return 0
+
+
+def figure_pool(case, folder):
+    """Worker processes for the report's figures (``flightid.report.drawing.FigurePool``)
+    when the run writes figures and this process may use two cores; else None (the figures
+    are drawn in this process)."""
+    import os
+
+    if folder is None or not case.output.get("figures", True):
+        return None
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    if cores < 2:
+        return None
+    from flightid.report.drawing import FigurePool
+
+    return FigurePool.start(workers=2)
 
 
 def _has_regression_stages(case) -> bool:
