@@ -292,20 +292,28 @@ def run(args: argparse.Namespace) -> int:
 def figure_pool(case, folder):
     """Worker processes for the report's figures (``flightid.report.drawing.FigurePool``)
     when the run writes figures and this process may use two cores; else None (the figures
-    are drawn in this process)."""
+    are drawn in this process). ``FLIGHTID_FIGURE_WORKERS`` sets their number (0: none)."""
     import os
 
     if folder is None or not case.output.get("figures", True):
         return None
+    given = os.environ.get("FLIGHTID_FIGURE_WORKERS", "2").strip()
+    if not given.isdigit():
+        from flightid.errors import InputError
+
+        raise InputError(
+            f"FLIGHTID_FIGURE_WORKERS: expected a whole number of processes (0: draw the "
+            f"figures in this process), got {given!r}"
+        )
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         cores = os.cpu_count() or 1
-    if cores < 2:
+    if int(given) < 1 or cores < 2:
         return None
     from flightid.report.drawing import FigurePool
 
-    return FigurePool.start(workers=2)
+    return FigurePool.start(workers=int(given))
 
 
 def _has_regression_stages(case) -> bool:
