@@ -279,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
             lambda: results_document([result.to_dict()]),
             lambda: print_summary(result),
             folder,
-            lambda directory: write_files(result, directory, pool=pool),
+            lambda directory: write_files(result, directory),
         )
     finally:
         if pool is not None:
@@ -313,7 +313,10 @@ def figure_pool(case, folder):
         return None
     from flightid.report.drawing import FigurePool
 
-    return FigurePool.start(workers=int(given))
+    pool = FigurePool.start(workers=int(given))
+    if pool is not None:
+        pool.activate()  # the report's writer draws its figures there
+    return pool
 
 
 def _has_regression_stages(case) -> bool:

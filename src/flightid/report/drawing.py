@@ -23,6 +23,7 @@ import multiprocessing
 import signal
 from collections.abc import Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +34,10 @@ __all__ = ["MANEUVER_FIGURE_WIDTH_IN", "FigureJob", "FigurePool", "draw"]
 MANEUVER_FIGURE_WIDTH_IN = 11.0
 # the figure functions a job may name (flightid.report.figures)
 FIGURE_FUNCTIONS = ("maneuver_figure", "autocorrelation_figure", "cost_history_figure")
+
+
+# the pool ``draw`` uses when given none: the command line's, while its run writes its files
+_ACTIVE: list[FigurePool] = []
 
 
 @dataclass(frozen=True)
@@ -103,12 +108,18 @@ class FigurePool:
                 _set_signal(signal.SIGINT, previous)
         return cls(executor, workers)
 
+    def activate(self) -> None:
+        """Make this the pool ``draw`` uses when it is given none (until ``close``)."""
+        _ACTIVE[:] = [self]
+
     def submit(self, job: FigureJob) -> Future:
         return self._executor.submit(draw_job, job)
 
     def close(self) -> None:
         """End the workers: at once, dropping jobs not started (after the figures, or on an
         interrupt)."""
+        if _ACTIVE and _ACTIVE[0] is self:
+            _ACTIVE.clear()
         processes = list((getattr(self._executor, "_processes", None) or {}).values())
         self._executor.shutdown(wait=False, cancel_futures=True)
         for process in processes:
@@ -129,10 +140,16 @@ def _set_signal(signum: int, handler: Any) -> bool:
 
 
 def draw(jobs: Sequence[FigureJob], pool: FigurePool | None = None) -> list[bytes]:
-    """The PNG bytes of every job, in job order: in the pool's workers (largest job first),
-    or here without a pool. A worker that fails raises its error here."""
+    """The PNG bytes of every job, in job order: in the workers of ``pool``, else of the
+    active pool (``FigurePool.activate``), largest job first; else here. A worker that fails
+    raises its error here."""
+    pool = pool or (_ACTIVE[0] if _ACTIVE else None)
     if pool is None:
         return [draw_job(job) for job in jobs]
     order = sorted(range(len(jobs)), key=lambda k: -jobs[k].weight)
-    futures = {k: pool.submit(jobs[k]) for k in order}
-    return [futures[k].result() for k in range(len(jobs))]
+    try:
+        futures = {k: pool.submit(jobs[k]) for k in order}
+        return [futures[k].result() for k in range(len(jobs))]
+    except BrokenProcessPool:
+        # a worker died (killed, out of memory): the figures are drawn here instead
+        return [draw_job(job) for job in jobs]

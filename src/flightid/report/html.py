@@ -164,7 +164,8 @@ def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
 def render_figures(run, dpi: int = 96, pool=None) -> Figures:
     """Draw the report's figures (time histories with inputs per maneuver and per held-out
     maneuver, residual autocorrelation, cost history) as PNG bytes, each once: in the
-    worker processes of ``pool`` (``flightid.report.drawing.FigurePool``), else here."""
+    worker processes of ``pool``, else of the active ``flightid.report.drawing.FigurePool``,
+    else here."""
     from flightid.report.drawing import draw
 
     files, jobs = figure_jobs(run, dpi)
@@ -838,7 +839,7 @@ def _trust_section(run) -> str:
     return "\n".join(text)
 
 
-def write_files(run, directory: Path, pool=None) -> Path:
+def write_files(run, directory: Path) -> Path:
     """Write results.json, estimates.csv, figures and report.html (and, for a kinematic
     model, reconstructed_<maneuver>.csv: ``flightid.compat.reconstruct``) into ``directory``
     (which exists); returns the HTML path. ``write_report`` calls this on a temporary folder.
@@ -846,8 +847,8 @@ def write_files(run, directory: Path, pool=None) -> Path:
     results.json is strict JSON (``flightid.jsonout``: NaN / ±inf become null, listed
     under ``"nonfinite"``). The figures are written to ``figures/`` and embedded in
     report.html (base64 PNG), so the page stands alone. ``[output] figures = false`` skips the
-    figures (folder and page), ``report = false`` the HTML page. ``pool``: a
-    ``flightid.report.drawing.FigurePool`` that draws the figures (None: this process).
+    figures (folder and page), ``report = false`` the HTML page. The figures are drawn by
+    the active ``flightid.report.drawing.FigurePool`` if there is one, else here.
     """
     from flightid.report.histories import write_results_and_histories
 
@@ -859,7 +860,7 @@ def write_files(run, directory: Path, pool=None) -> Path:
     from flightid.compat.reconstruct import write_reconstruction
 
     write_reconstruction(run, directory)
-    figures = render_figures(run, pool=pool) if run.case.output.get("figures", True) else None
+    figures = render_figures(run) if run.case.output.get("figures", True) else None
     if figures is not None:
         (directory / "figures").mkdir(parents=True, exist_ok=True)
         for name, data in figures.all():
