@@ -14,6 +14,8 @@ needs only the whiteness test does not import the likelihood-region search.
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING, Any
 
 # public name -> module that defines it
@@ -98,6 +100,20 @@ if TYPE_CHECKING:  # static tools see the eager imports
     from flightid.accuracy.slices import CostSlice, cost_slice
     from flightid.accuracy.whiteness import Whiteness, estimate_whiteness, residual_whiteness
     from flightid.results import contour_level, ellipsoid_intervals, residual_variance_factor
+
+
+class _Package(types.ModuleType):
+    """This package: importing a submodule that defines an export of the same name
+    (``flightid.accuracy.assess``) binds the export, not the submodule, to the package's
+    name — as the eager imports did."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _LAZY_EXPORTS.get(name) == value.__name__:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str) -> Any:

@@ -24,6 +24,8 @@ methods a case may never use.
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING, Any
 
 # public name -> module that defines it
@@ -76,6 +78,20 @@ if TYPE_CHECKING:  # static tools see the eager imports
     from flightid.cases.spec import Case, CaseError, StageSpec, load_case, parse_case
     from flightid.cases.stages import StagesRun, run_stages
     from flightid.cases.usermodel import UserModelError, load_user_model
+
+
+class _Package(types.ModuleType):
+    """This package: importing a submodule that defines an export of the same name
+    (``flightid.cases.load_run``) binds the export, not the submodule, to the package's
+    name — as the eager imports did."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _LAZY_EXPORTS.get(name) == value.__name__:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str) -> Any:
