@@ -155,9 +155,7 @@ def test_maneuver_figure_draws_each_columns_peaks_with_fewer_points():
     measured[4321, 0] = 25.0
     measured[17, 1] = -30.0
     predicted = 0.5 * measured
-    figure = maneuver_figure(
-        time, inputs, ["de"], measured, predicted, ["a", "q"], {}, "t", width_px=1056
-    )
+    figure = maneuver_figure(time, inputs, ["de"], measured, predicted, ["a", "q"], {}, "t", dpi=96)
     lines = [line for ax in figure.axes for line in ax.get_lines() if len(line.get_xdata()) > 2]
     # inputs, then per output: measured, predicted, residual
     series = [inputs[:, 0]]

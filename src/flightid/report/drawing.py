@@ -27,11 +27,8 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["MANEUVER_FIGURE_WIDTH_IN", "FigureJob", "FigurePool", "draw"]
+__all__ = ["FigureJob", "FigurePool", "draw"]
 
-# the width of a maneuver's time-history figure (inches): inputs full width, outputs and
-# residuals side by side, 3 : 2
-MANEUVER_FIGURE_WIDTH_IN = 11.0
 # the figure functions a job may name (flightid.report.figures)
 FIGURE_FUNCTIONS = ("maneuver_figure", "autocorrelation_figure", "cost_history_figure")
 

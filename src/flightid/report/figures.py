@@ -21,10 +21,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from flightid.errors import InputError
-from flightid.report.drawing import MANEUVER_FIGURE_WIDTH_IN
 
 __all__ = ["plot_measured_vs_predicted", "plot_inputs", "plot_residuals", "plot_time_histories"]
 
+# the width of a maneuver's time-history figure (inches): inputs full width, outputs and
+# residuals side by side, 3 : 2
+MANEUVER_FIGURE_WIDTH_IN = 11.0
 _MEASURED_STYLE = {"linestyle": "none", "marker": "+", "markersize": 4, "color": "0.25"}
 _PREDICTED_STYLE = {"linestyle": "-", "linewidth": 1.2, "color": "tab:blue"}
 
@@ -323,7 +325,7 @@ def maneuver_figure(
     units: Mapping[str, str],
     title: str,
     input_steps: bool = False,
-    width_px: int | None = None,
+    dpi: float | None = None,
 ) -> Figure:
     """One maneuver: the inputs on top (full width), then per output the measured (+) and
     predicted (line) response on the left and the residual z − y on the right, against the
@@ -339,10 +341,10 @@ def maneuver_figure(
         units: the unit of each channel, as a mapping from channel name to unit.
         title: the figure's title.
         input_steps: draw the inputs as held steps (zero-order-hold interpolation).
-        width_px: the figure's width in pixels as it will be rendered (width in inches ×
-            dpi): each time history is then drawn through its min/max envelope per pixel
-            column of its panel (``envelope_indices``), no more points than the pixels
-            show, every peak kept. None: every sample is drawn.
+        dpi: the resolution the figure will be rendered at: each time history is then
+            drawn through its min/max envelope per pixel column of its panel
+            (``envelope_indices``), no more points than the pixels show, every peak kept.
+            None: every sample is drawn.
 
     Returns:
         The matplotlib figure (not yet saved).
@@ -357,6 +359,7 @@ def maneuver_figure(
     n_u = 0 if u is None else u.shape[1]
     n_o = len(output_names)
     figure = Figure(figsize=(MANEUVER_FIGURE_WIDTH_IN, 1.0 * n_u + 1.5 * n_o + 1.0))
+    width_px = None if dpi is None else MANEUVER_FIGURE_WIDTH_IN * dpi
     grid = figure.add_gridspec(
         n_u + n_o, 2, width_ratios=(3, 2), height_ratios=[1.0] * n_u + [1.5] * n_o
     )

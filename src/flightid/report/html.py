@@ -41,7 +41,6 @@ import numpy as np
 
 from flightid.numbers import format_at_sigma, format_sigma
 from flightid.report.diagnostics import COLOURED_RATIO_WARNING
-from flightid.report.drawing import MANEUVER_FIGURE_WIDTH_IN
 from flightid.report.page import STYLE as _STYLE
 from flightid.report.page import correlation_section, files_section
 from flightid.report.page import image as _img
@@ -104,14 +103,13 @@ def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
     names = list(est.output_names)
     units = channel_units(run)
     steps = getattr(est, "input_interpolation", "linear") == "zoh"
-    # the time-history figures are drawn through their envelope per pixel column
-    width_px = MANEUVER_FIGURE_WIDTH_IN * dpi
     files: list[str] = []
     jobs: list[FigureJob] = []
 
     def maneuver_job(time, inputs, input_names, measured, predicted, outputs, units_, title):
         arguments = (time, inputs, input_names, measured, predicted, outputs, units_, title)
-        options = {"input_steps": steps, "width_px": width_px}
+        # the time histories are drawn through their envelope per pixel column at this dpi
+        options = {"input_steps": steps, "dpi": dpi}
         # drawing time grows with the panels: inputs + 2 per output
         weight = len(input_names) + 2 * len(outputs)
         return FigureJob("maneuver_figure", arguments, options, dpi, weight)
