@@ -7,7 +7,9 @@ fresh processes, with a warm numba cache (a warm-up run of each command first), 
 over ``--rounds`` rounds:
 
 * ``python -c "import numpy, scipy, matplotlib.pyplot"`` — the bare import, the yardstick;
-* ``flightid run CASE --json``, ``flightid run CASE --out DIR`` and ``flightid validate CASE``.
+* ``flightid run CASE --json``, ``flightid run CASE --out DIR`` and ``flightid validate CASE``;
+* ``flightid run CASE --out DIR`` with ``FLIGHTID_FIGURE_WORKERS=0`` (the figures drawn in the
+  command's own process), against which the second table compares the figure processes.
 
 Per command it prints the process wall time (s), the estimation time (s: the run's
 ``wall_time_s``, from stdout with ``--json``, from DIR/results.json with ``--out``; 0 for
@@ -44,6 +46,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 CASES = ROOT / "examples" / "cases"
@@ -57,6 +61,9 @@ STANDARD_CASES = (
     "attas_fpr_biases",
 )
 MODES = ("--json", "--out", "validate")
+# --out with the figures drawn in the command's own process (FLIGHTID_FIGURE_WORKERS=0): the
+# turn that shows whether the figure worker processes pay
+HERE = "--out-here"
 BARE_IMPORT = "import numpy, scipy, matplotlib.pyplot"
 TARGET_RATIO = 2.0
 
@@ -186,6 +193,10 @@ def _command(case: Path, mode: str, out: Path, data_dir: str | None) -> list[str
     return _flightid(["run", str(case), "--out", str(out), "--overwrite", "--quiet", *extra])
 
 
+def _mode_env(mode: str, env: dict[str, str]) -> dict[str, str]:
+    return dict(env, FLIGHTID_FIGURE_WORKERS="0") if mode == HERE else env
+
+
 def _estimation_s(mode: str, stdout: str, out: Path) -> float:
     """The run's estimation time (s): ``wall_time_s`` of its results (0 for validate)."""
     if mode == "validate":
@@ -227,14 +238,22 @@ def overhead_table(names: list[str], rounds: int, env: dict[str, str], data_dir:
         for case in cases:
             for mode in MODES:
                 _timed(_command(case, mode, outs[case.stem], data_dir), run_env)
+        here: dict[str, list[tuple[float, float]]] = {case.stem: [] for case in cases}
         for _ in range(rounds):
             # taking turns: the bare import, then every command of every case
             bare = min(bare, _timed(bare_command, run_env)[0])
             for case in cases:
-                for mode in MODES:
+                last_out = float("nan")
+                for mode in (*MODES, HERE):
                     command = _command(case, mode, outs[case.stem], data_dir)
-                    wall, done = _timed(command, run_env)
+                    wall, done = _timed(command, _mode_env(mode, run_env))
                     estimation = _estimation_s(mode, done.stdout, outs[case.stem])
+                    if mode == HERE:
+                        # (figures drawn here, in worker processes) of this round
+                        here[case.stem].append((wall, last_out))
+                        continue
+                    if mode == "--out":
+                        last_out = wall
                     previous = best.get((case.stem, mode))
                     if previous is None or wall - estimation < previous[0] - previous[1]:
                         best[(case.stem, mode)] = (wall, estimation)
@@ -253,7 +272,26 @@ def overhead_table(names: list[str], rounds: int, env: dict[str, str], data_dir:
                 (case.stem, mode, wall, estimation, overhead, ratio, compiles[(case.stem, mode)])
             )
     _print_overhead(rows, bare, rounds)
+    worker_ratio = _print_workers(here)
+    print("<!-- /numbers -->")
+    print()
+    _print_verdicts(rows, worker_ratio)
     return rows
+
+
+def _print_workers(here: dict[str, list[tuple[float, float]]]) -> float:
+    """``run --out`` with the figures in two worker processes against drawn in the command's
+    own process: the median over the rounds of the wall-time ratio, per case."""
+    print()
+    print("| case | figures drawn here, wall (s) | in 2 processes, wall (s) | ÷ here |")
+    print("|---|---:|---:|---:|")
+    ratios = []
+    for name, pairs in here.items():
+        serial = float(np.median([a for a, _ in pairs]))
+        pooled = float(np.median([b for _, b in pairs]))
+        ratios.append(float(np.median([b / a for a, b in pairs])))
+        print(f"| {name} | {serial:.2f} | {pooled:.2f} | {ratios[-1]:.2f} |")
+    return float(np.median(ratios))
 
 
 def _print_overhead(rows, bare: float, rounds: int) -> None:
@@ -273,8 +311,9 @@ def _print_overhead(rows, bare: float, rounds: int) -> None:
             f"| {name} | {command} | {wall:.2f} | {estimation:.2f} | {overhead:.2f} "
             f"| {ratio:.2f} | {compiles} | {verdict} |"
         )
-    print("<!-- /numbers -->")
-    print()
+
+
+def _print_verdicts(rows, worker_ratio: float) -> None:
     for mode in MODES:
         ratios = [row[5] for row in rows if row[1] == mode]
         verdict = "PASS" if max(ratios) <= TARGET_RATIO else "FAIL"
@@ -285,6 +324,10 @@ def _print_overhead(rows, bare: float, rounds: int) -> None:
     compiled = sum(row[6] for row in rows)
     print(
         f"{'PASS' if compiled == 0 else 'FAIL'}: no numba compilation on a warm cache ({compiled})"
+    )
+    print(
+        f"{'PASS' if worker_ratio < 1.0 else 'FAIL'}: the figure processes pay (median "
+        f"wall-time ratio of run --out, processes ÷ here, {worker_ratio:.2f} < 1)"
     )
 
 
