@@ -272,3 +272,24 @@ def test_whiteness_p_value_is_the_chi_square_survival_function():
     result = residual_whiteness(residuals, ["a", "b"])
     expected = stats.chi2.sf(result.ljung_box, result.ljung_box_lags)
     assert np.allclose(result.p_value, expected, rtol=1e-14, atol=0)
+
+
+def test_each_figure_is_drawn_once_and_embedded_as_written(tmp_path, monkeypatch):
+    import base64
+
+    from flightid.cases import load_case, run_case
+    from flightid.report import drawing
+    from flightid.report.html import write_files
+
+    run = run_case(load_case(CASE))
+    drawn = []
+    original = drawing.draw_job
+    monkeypatch.setattr(
+        drawing, "draw_job", lambda job: drawn.append(job.function) or original(job)
+    )
+    write_files(run, tmp_path)
+    assert sorted(drawn) == ["autocorrelation_figure", "cost_history_figure", "maneuver_figure"]
+    page = (tmp_path / "report.html").read_text(encoding="utf-8")
+    for png in sorted((tmp_path / "figures").glob("*.png")):
+        # the page embeds the very bytes of the file (one drawing for both)
+        assert base64.b64encode(png.read_bytes()).decode("ascii") in page, png.name
