@@ -291,32 +291,51 @@ def run(args: argparse.Namespace) -> int:
 
 def figure_pool(case, folder):
     """Worker processes for the report's figures (``flightid.report.drawing.FigurePool``)
-    when the run writes figures and this process may use two cores; else None (the figures
-    are drawn in this process). ``FLIGHTID_FIGURE_WORKERS`` sets their number (0: none)."""
+    when the run writes figures; else None (the figures are drawn in this process).
+
+    Two workers when this process may use two cores and one of them is idle (the 1-minute
+    load average leaves at least 1.5 cores free): the figures are drawn two at a time. Else
+    one: it loads matplotlib while the estimation runs and draws the figures while this
+    process writes the other files, for no more work in all than drawing them here. One
+    core only: none. ``FLIGHTID_FIGURE_WORKERS`` sets the number (0: none)."""
     import os
 
     if folder is None or not case.output.get("figures", True):
         return None
-    given = os.environ.get("FLIGHTID_FIGURE_WORKERS", "2").strip()
-    if not given.isdigit():
+    given = os.environ.get("FLIGHTID_FIGURE_WORKERS", "").strip()
+    if given and not given.isdigit():
         from flightid.errors import InputError
 
         raise InputError(
             f"FLIGHTID_FIGURE_WORKERS: expected a whole number of processes (0: draw the "
             f"figures in this process), got {given!r}"
         )
+    workers = int(given) if given else _default_figure_workers()
+    if workers < 1:
+        return None
+    from flightid.report.drawing import FigurePool
+
+    pool = FigurePool.start(workers=workers)
+    if pool is not None:
+        pool.activate()  # the report's writer draws its figures there
+    return pool
+
+
+def _default_figure_workers() -> int:
+    """2 with an idle core besides this process's, 1 on a busy machine, 0 on one core."""
+    import os
+
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         cores = os.cpu_count() or 1
-    if int(given) < 1 or cores < 2:
-        return None
-    from flightid.report.drawing import FigurePool
-
-    pool = FigurePool.start(workers=int(given))
-    if pool is not None:
-        pool.activate()  # the report's writer draws its figures there
-    return pool
+    if cores < 2:
+        return 0
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return 1
+    return 2 if cores - load >= 1.5 else 1
 
 
 def _has_regression_stages(case) -> bool:
