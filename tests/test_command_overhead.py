@@ -293,3 +293,44 @@ def test_each_figure_is_drawn_once_and_embedded_as_written(tmp_path, monkeypatch
     for png in sorted((tmp_path / "figures").glob("*.png")):
         # the page embeds the very bytes of the file (one drawing for both)
         assert base64.b64encode(png.read_bytes()).decode("ascii") in page, png.name
+
+
+def test_ctrl_c_while_workers_draw_ends_in_one_line_and_leaves_no_process(tmp_path):
+    # the whole process group gets SIGINT (as from a terminal) once the figures are handed
+    # to the workers: they ignore it, the command answers with its one line and ends them
+    target = tmp_path / "run"
+    pids = tmp_path / "workers.txt"
+    script = (
+        "import os, signal, sys, time\n"
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+        "from flightid.report import drawing\n"
+        "real = drawing.FigurePool.submit\n"
+        "def submit(self, job):\n"
+        "    future = real(self, job)\n"
+        f"    open({str(pids)!r}, 'w').write(' '.join(map(str, self._executor._processes)))\n"
+        "    os.killpg(0, signal.SIGINT)\n"
+        "    time.sleep(30)\n"
+        "    return future\n"
+        "drawing.FigurePool.submit = submit\n"
+        "from flightid.cli.main import main\n"
+        f"sys.exit(main(['run', {str(CASE)!r}, '--out', {str(target)!r}, '--quiet']))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        env=_env(FLIGHTID_FIGURE_WORKERS="2"),
+        timeout=300,
+        start_new_session=True,
+    )
+    assert done.returncode == 130, done.stderr[-3000:]
+    lines = [line for line in done.stderr.splitlines() if "warning" not in line]
+    assert lines[-1] == "flightid: interrupted"
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr
+    assert not target.exists()
+    workers = [int(pid) for pid in pids.read_text().split()]
+    assert len(workers) == 2
+    for pid in workers:
+        # ended (and reaped): no such process
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
