@@ -1,16 +1,38 @@
-"""Start-up cost of the ``flightid`` command: imports, numba compilation, on-disk kernel cache.
+"""Start-up cost of the ``flightid`` command: the time outside the estimation, imports, numba
+compilation, on-disk kernel cache.
 
-For every shipped case (``examples/cases/*.toml``) and the paper examples, runs
-``flightid run CASE`` (``flightid paper EXAMPLE``) twice in fresh processes sharing one
-fresh ``NUMBA_CACHE_DIR``: the first run compiles and fills the cache, the second should
-load every kernel from it. Prints per run the process wall time (s), the time numba spent
-compiling (s; numba's ``numba:compile`` events, outermost only, so a kernel compiling its
-callees is counted once) and the number of compiled signatures (every dispatcher compile,
-nested ones included). Also prints the wall time of ``import flightid`` and ``flightid --help``.
+**Overhead table** (the default). For every standard case (``examples/cases/NAME.toml``: the
+five of docs/cases.md, "The standard cases", and a flight-path-reconstruction case) runs in
+fresh processes, with a warm numba cache (a warm-up run of each command first), taking turns
+over ``--rounds`` rounds:
 
-Usage:  OPENBLAS_NUM_THREADS=1 python bench/startup.py [--cases NAME ...]
+* ``python -c "import numpy, scipy, matplotlib.pyplot"`` — the bare import, the yardstick;
+* ``flightid run CASE --json``, ``flightid run CASE --out DIR`` and ``flightid validate CASE``;
+* ``flightid run CASE --out DIR`` with ``FLIGHTID_FIGURE_WORKERS`` = 0 (the figures drawn in
+  the command's own process), 1 and 2: the second table, whether the figure processes pay.
 
-Timings scatter with machine load; the compile counts do not.
+Per command it prints the process wall time (s), the estimation time (s: the run's
+``wall_time_s``, from stdout with ``--json``, from DIR/results.json with ``--out``; 0 for
+``validate``), the overhead = wall − estimation (s), the ratio overhead ÷ bare import, and the
+number of numba compilations in one more run (0 when the cache is warm); best over the rounds.
+Each command whose ratio is at most 2 prints ``PASS``, else ``FAIL``, and one line per mode
+sums it up. The table is printed between the ``<!-- numbers: ... -->`` markers of
+docs/benchmarks.md (docs/docs_numbers.py); wall times and ratios are not compared there.
+
+**Compile table** (``--compiles``). For every shipped case and the paper examples, runs
+``flightid run CASE`` (``flightid paper EXAMPLE``) twice in fresh processes sharing one fresh
+``NUMBA_CACHE_DIR``: the first run compiles and fills the cache, the second should load every
+kernel from it. Prints per run the process wall time (s), the time numba spent compiling (s;
+numba's ``numba:compile`` events, outermost only, so a kernel compiling its callees is counted
+once) and the number of compiled signatures (every dispatcher compile, nested ones included).
+Also prints the wall time of ``import flightid`` and ``flightid --help``.
+
+Usage:
+    OPENBLAS_NUM_THREADS=1 python bench/startup.py [--cases NAME ...] [--rounds N]
+    OPENBLAS_NUM_THREADS=1 python bench/startup.py --quick        # one case, one round
+    OPENBLAS_NUM_THREADS=1 python bench/startup.py --compiles [--cases NAME ...]
+
+Timings scatter with machine load (run it on a quiet machine); the compile counts do not.
 """
 
 from __future__ import annotations
@@ -24,9 +46,26 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
 CASES = ROOT / "examples" / "cases"
 PAPER_EXAMPLES = ("example1", "example2", "example3")
+STANDARD_CASES = (
+    "hfb320_longitudinal",
+    "attas_lateral",
+    "attas_lateral_two_maneuvers",
+    "attas_short_period",
+    "twin_otter_longitudinal",
+    "attas_fpr_biases",
+)
+MODES = ("--json", "--out", "validate")
+# --out with FLIGHTID_FIGURE_WORKERS = 0 (the figures drawn in the command's own process),
+# 1 and 2 worker processes: the turns that show whether the figure processes pay
+WORKER_MODES = {"--out-0": "0", "--out-1": "1", "--out-2": "2"}
+BARE_IMPORT = "import numpy, scipy, matplotlib.pyplot"
+TARGET_RATIO = 2.0
 
 # Runs the flightid command in this process with a numba compile listener; prints one
 # JSON line {"compile_s", "compiles", "rc"} on the last line of stdout.
@@ -88,12 +127,8 @@ def _wall(command: list[str], env: dict[str, str], repeats: int = 3) -> float:
     return best
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", nargs="*", help="case file stems (default: all, and paper)")
-    args = parser.parse_args()
-    env = dict(os.environ)
-    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+def compiles_table(names: list[str] | None, env: dict[str, str]) -> None:
+    """The compile table: every shipped case (and the paper examples) twice on a fresh cache."""
 
     print(f"import flightid        {_wall([sys.executable, '-c', 'import flightid'], env):.3f} s")
     print(
@@ -102,7 +137,6 @@ def main() -> None:
     )
 
     jobs: list[tuple[str, list[str]]] = []
-    names = args.cases
     for path in sorted(CASES.glob("*.toml")):
         if names is None or path.stem in names:
             jobs.append((path.stem, ["run", str(path)]))
@@ -141,6 +175,189 @@ def main() -> None:
                 flush=True,
             )
     print(f"largest second-run compile time: {worst:.3f} s")
+
+
+# ------------------------------------------------------------------------------ overhead
+
+
+def _flightid(argv: list[str]) -> list[str]:
+    return [sys.executable, "-m", "flightid.cli.main", *argv]
+
+
+def _command(case: Path, mode: str, out: Path, data_dir: str | None) -> list[str]:
+    extra = ["--data-dir", data_dir] if data_dir else []
+    if mode == "validate":
+        return _flightid(["validate", str(case), *extra])
+    if mode == "--json":
+        return _flightid(["run", str(case), "--json", "--quiet", *extra])
+    return _flightid(["run", str(case), "--out", str(out), "--overwrite", "--quiet", *extra])
+
+
+def _mode_env(mode: str, env: dict[str, str]) -> dict[str, str]:
+    workers = WORKER_MODES.get(mode)
+    return env if workers is None else dict(env, FLIGHTID_FIGURE_WORKERS=workers)
+
+
+def _estimation_s(mode: str, stdout: str, out: Path) -> float:
+    """The run's estimation time (s): ``wall_time_s`` of its results (0 for validate)."""
+    if mode == "validate":
+        return 0.0
+    text = stdout if mode == "--json" else (out / "results.json").read_text(encoding="utf-8")
+    results = json.loads(text)["results"]
+    return float(sum(entry.get("wall_time_s") or 0.0 for entry in results))
+
+
+def _timed(command: list[str], env: dict[str, str]) -> tuple[float, subprocess.CompletedProcess]:
+    start = time.perf_counter()
+    done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["?"])[-1]
+        raise SystemExit(f"{' '.join(command[3:5])}: exit {done.returncode}: {last}")
+    return wall, done
+
+
+def _compiles(command: list[str], env: dict[str, str]) -> int:
+    """numba compilations of one more run of ``command`` (a flightid command line)."""
+    return int(_run_child(command[3:], env)["compiles"])
+
+
+def overhead_table(names: list[str], rounds: int, env: dict[str, str], data_dir: str | None):
+    """Measure and print the overhead table (see the module docstring); returns the rows."""
+    cases = [CASES / f"{name}.toml" for name in names]
+    for case in cases:
+        if not case.is_file():
+            raise SystemExit(f"--cases: no case file {case}")
+    bare_command = [sys.executable, "-c", BARE_IMPORT]
+    best: dict[tuple[str, str], tuple[float, float]] = {}
+    bare = float("inf")
+    with tempfile.TemporaryDirectory(prefix="flightid-overhead-") as scratch:
+        run_env = dict(env, NUMBA_CACHE_DIR=str(Path(scratch) / "numba-cache"))
+        outs = {case.stem: Path(scratch) / "out" / case.stem for case in cases}
+        # warm-up: fills the numba cache and the file cache; not counted
+        _timed(bare_command, run_env)
+        for case in cases:
+            for mode in MODES:
+                _timed(_command(case, mode, outs[case.stem], data_dir), run_env)
+        # per case: {mode: walls over the rounds} of run --out (default and fixed workers)
+        outs_wall: dict[str, dict[str, list[float]]] = {case.stem: {} for case in cases}
+        for _ in range(rounds):
+            # taking turns: the bare import, then every command of every case
+            bare = min(bare, _timed(bare_command, run_env)[0])
+            for case in cases:
+                for mode in (*MODES, *WORKER_MODES):
+                    command = _command(case, mode, outs[case.stem], data_dir)
+                    wall, done = _timed(command, _mode_env(mode, run_env))
+                    estimation = _estimation_s(mode, done.stdout, outs[case.stem])
+                    if mode.startswith("--out"):
+                        outs_wall[case.stem].setdefault(mode, []).append(wall)
+                    if mode in WORKER_MODES:
+                        continue
+                    previous = best.get((case.stem, mode))
+                    if previous is None or wall - estimation < previous[0] - previous[1]:
+                        best[(case.stem, mode)] = (wall, estimation)
+        compiles = {
+            (case.stem, mode): _compiles(_command(case, mode, outs[case.stem], data_dir), run_env)
+            for case in cases
+            for mode in MODES
+        }
+    rows = []
+    for case in cases:
+        for mode in MODES:
+            wall, estimation = best[(case.stem, mode)]
+            overhead = wall - estimation
+            ratio = overhead / bare
+            rows.append(
+                (case.stem, mode, wall, estimation, overhead, ratio, compiles[(case.stem, mode)])
+            )
+    _print_overhead(rows, bare, rounds)
+    worker_ratio = _print_workers(outs_wall)
+    print("<!-- /numbers -->")
+    print()
+    _print_verdicts(rows, worker_ratio)
+    return rows
+
+
+def _print_workers(outs_wall: dict[str, dict[str, list[float]]]) -> float:
+    """``run --out`` with the figures drawn in the command's own process (0 workers), in 1
+    and 2 worker processes and with the default choice: median wall time over the rounds per
+    case, and the ratio of 2 workers to none; returns the median of that ratio over the
+    cases."""
+    print()
+    print(
+        "| case | figures here, wall (s) | 1 process, wall (s) | 2 processes, wall (s) "
+        "| default, wall (s) | 2 ÷ here |"
+    )
+    print("|---|---:|---:|---:|---:|---:|")
+    ratios = []
+    for name, walls in outs_wall.items():
+        median = {mode: float(np.median(values)) for mode, values in walls.items()}
+        ratios.append(median["--out-2"] / median["--out-0"])
+        print(
+            f"| {name} | {median['--out-0']:.2f} | {median['--out-1']:.2f} "
+            f"| {median['--out-2']:.2f} | {median['--out']:.2f} | {ratios[-1]:.2f} |"
+        )
+    return float(np.median(ratios))
+
+
+def _print_overhead(rows, bare: float, rounds: int) -> None:
+    print("<!-- guide: docs/benchmarks.md -->")
+    print("<!-- numbers: benchmarks-startup-overhead -->")
+    print(f'bare import (`python -c "{BARE_IMPORT}"`): {bare:.3f} s, best of {rounds}')
+    print()
+    print(
+        "| case | command | wall (s) | estimation (s) | overhead (s) | ÷ import "
+        "| compilations | overhead ≤ 2 × import |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|---|")
+    for name, mode, wall, estimation, overhead, ratio, compiles in rows:
+        command = "validate" if mode == "validate" else f"run {mode}"
+        verdict = "PASS" if ratio <= TARGET_RATIO else "FAIL"
+        print(
+            f"| {name} | {command} | {wall:.2f} | {estimation:.2f} | {overhead:.2f} "
+            f"| {ratio:.2f} | {compiles} | {verdict} |"
+        )
+
+
+def _print_verdicts(rows, worker_ratio: float) -> None:
+    for mode in MODES:
+        ratios = [row[5] for row in rows if row[1] == mode]
+        verdict = "PASS" if max(ratios) <= TARGET_RATIO else "FAIL"
+        print(
+            f"{verdict}: {mode.lstrip('-')}: overhead at most {TARGET_RATIO:g} × the bare import "
+            f"on every case (largest ratio {max(ratios):.2f})"
+        )
+    compiled = sum(row[6] for row in rows)
+    print(
+        f"{'PASS' if compiled == 0 else 'FAIL'}: no numba compilation on a warm cache ({compiled})"
+    )
+    print(
+        f"{'PASS' if worker_ratio < 1.0 else 'FAIL'}: the figure processes pay (median "
+        f"wall-time ratio of run --out, 2 processes ÷ here, {worker_ratio:.2f} < 1)"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="*", help="case file stems (default: the standard cases)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds taken in turns (default 3)")
+    parser.add_argument("--quick", action="store_true", help="one case, one round")
+    parser.add_argument("--data-dir", default=None, help="the cases' data directory")
+    parser.add_argument(
+        "--compiles", action="store_true", help="the compile table of every shipped case instead"
+    )
+    args = parser.parse_args()
+    env = dict(os.environ)
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SRC), env.get("PYTHONPATH")]))
+    if args.compiles:
+        compiles_table(args.cases, env)
+        return
+    names = list(args.cases or STANDARD_CASES)
+    rounds = args.rounds
+    if args.quick:
+        names, rounds = names[:1], 1
+    overhead_table(names, rounds, env, args.data_dir)
 
 
 if __name__ == "__main__":

@@ -14,14 +14,14 @@ projection by the same ratio to first order).
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
 __all__ = ["beale_factor"]
 
 
 def beale_factor(n_phi: float, n_data: int, n_free: int) -> float:
     """1 + N·n_o (n_p + 2) / ((N·n_o − n_p) n_p) · N_φ [5.28–5.29]; ≥ 1 for N_φ ≥ 0."""
-    if not np.isfinite(n_phi):
+    if not math.isfinite(n_phi):
         return float("nan")
     # factor = 1 + N n_o (n_p + 2) / ((N n_o − n_p) n_p) · N_φ             [5.29]
     return float(1.0 + n_data * (n_free + 2) / ((n_data - n_free) * n_free) * n_phi)

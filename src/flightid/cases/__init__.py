@@ -15,14 +15,40 @@ A result folder of ``flightid run --out`` read back (nothing estimated again):
 from flightid.cases import load_run
 run = load_run("out/hfb320")
 print(run.linearize().summary())
+
+The names are loaded on first use (PEP 562 module ``__getattr__``): ``from flightid.cases
+import load_case`` does not import the estimators, the regression stages or the accuracy
+methods a case may never use.
 """
 
-from flightid.cases.build import resolve_data_dir
-from flightid.cases.load_run import CaseChangedError, LoadedRun, RunFolderError, load_run
-from flightid.cases.run import CaseRun, Prediction, prepare_case, run_case
-from flightid.cases.spec import Case, CaseError, StageSpec, load_case, parse_case
-from flightid.cases.stages import StagesRun, run_stages
-from flightid.cases.usermodel import UserModelError, load_user_model
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING, Any
+
+# public name -> module that defines it
+_LAZY_EXPORTS: dict[str, str] = {
+    "Case": "flightid.cases.spec",
+    "CaseChangedError": "flightid.cases.load_run",
+    "CaseError": "flightid.cases.spec",
+    "CaseRun": "flightid.cases.run",
+    "LoadedRun": "flightid.cases.load_run",
+    "Prediction": "flightid.cases.run",
+    "RunFolderError": "flightid.cases.load_run",
+    "StageSpec": "flightid.cases.spec",
+    "StagesRun": "flightid.cases.stages",
+    "UserModelError": "flightid.cases.usermodel",
+    "load_case": "flightid.cases.spec",
+    "load_run": "flightid.cases.load_run",
+    "load_user_model": "flightid.cases.usermodel",
+    "parse_case": "flightid.cases.spec",
+    "prepare_case": "flightid.cases.run",
+    "resolve_data_dir": "flightid.cases.build",
+    "run_case": "flightid.cases.run",
+    "run_stages": "flightid.cases.stages",
+}
 
 __all__ = [
     "Case",
@@ -44,3 +70,39 @@ __all__ = [
     "run_case",
     "run_stages",
 ]
+
+if TYPE_CHECKING:  # static tools see the eager imports
+    from flightid.cases.build import resolve_data_dir
+    from flightid.cases.load_run import CaseChangedError, LoadedRun, RunFolderError, load_run
+    from flightid.cases.run import CaseRun, Prediction, prepare_case, run_case
+    from flightid.cases.spec import Case, CaseError, StageSpec, load_case, parse_case
+    from flightid.cases.stages import StagesRun, run_stages
+    from flightid.cases.usermodel import UserModelError, load_user_model
+
+
+class _Package(types.ModuleType):
+    """This package: importing a submodule that defines an export of the same name
+    (``flightid.cases.load_run``) binds the export, not the submodule, to the package's
+    name — as the eager imports did."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _LAZY_EXPORTS.get(name) == value.__name__:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str) -> Any:
+    """Import an export on first use and keep it in the package namespace."""
+    module_name = _LAZY_EXPORTS.get(name)
+    if module_name is None:
+        raise AttributeError(f"module 'flightid.cases' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module_name), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY_EXPORTS))

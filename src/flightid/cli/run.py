@@ -241,18 +241,20 @@ def run(args: argparse.Namespace) -> int:
     # imported here, not at the top: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases import load_case, run_case
     from flightid.cases.run import stderr_progress
-    from flightid.cases.stages import has_regression_stages
     from flightid.results import results_document
 
     case = load_case(args.case)
     # the result folder is checked (and locked) before any work, so that a bad --out costs
     # nothing and a second run into the same folder stops here
     folder = open_result_folder(case, args, args.out)
+    pool = None
     try:
-        if case.staged and has_regression_stages(case):
+        if case.staged and _has_regression_stages(case):
             return _run_stages(case, args, folder)
         if case.recursive or case.frequency_domain:
             return _run_own_estimator(case, args, folder)
+        # the figures' worker processes start now and import matplotlib during the estimation
+        pool = figure_pool(case, folder)
         engine = None
         if getattr(args, "workers", None) not in (None, 1) or getattr(args, "scheduler", None):
             from flightid.batch.engine import make_engine
@@ -280,9 +282,68 @@ def run(args: argparse.Namespace) -> int:
             lambda directory: write_files(result, directory),
         )
     finally:
+        if pool is not None:
+            pool.close()
         if folder is not None:
             folder.release()
     return 0
+
+
+def figure_pool(case, folder):
+    """Worker processes for the report's figures (``flightid.report.drawing.FigurePool``)
+    when the run writes figures; else None (the figures are drawn in this process).
+
+    Two workers when this process may use two cores and one of them is idle (the 1-minute
+    load average leaves at least 1.5 cores free): the figures are drawn two at a time. Else
+    one: it loads matplotlib while the estimation runs and draws the figures while this
+    process writes the other files, for no more work in all than drawing them here. One
+    core only: none. ``FLIGHTID_FIGURE_WORKERS`` sets the number (0: none)."""
+    import os
+
+    if folder is None or not case.output.get("figures", True):
+        return None
+    given = os.environ.get("FLIGHTID_FIGURE_WORKERS", "").strip()
+    if given and not given.isdigit():
+        from flightid.errors import InputError
+
+        raise InputError(
+            f"FLIGHTID_FIGURE_WORKERS: expected a whole number of processes (0: draw the "
+            f"figures in this process), got {given!r}"
+        )
+    workers = int(given) if given else _default_figure_workers()
+    if workers < 1:
+        return None
+    from flightid.report.drawing import FigurePool
+
+    pool = FigurePool.start(workers=workers)
+    if pool is not None:
+        pool.activate()  # the report's writer draws its figures there
+    return pool
+
+
+def _default_figure_workers() -> int:
+    """2 with an idle core besides this process's, 1 on a busy machine, 0 on one core."""
+    import os
+
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    if cores < 2:
+        return 0
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return 1
+    return 2 if cores - load >= 1.5 else 1
+
+
+def _has_regression_stages(case) -> bool:
+    """Whether a staged case has regression stages (the regression package is imported only
+    for a case that has stages)."""
+    from flightid.cases.stages import has_regression_stages
+
+    return has_regression_stages(case)
 
 
 def _run_own_estimator(case, args: argparse.Namespace, folder) -> int:

@@ -24,6 +24,9 @@ from flightid.errors import InputError
 
 __all__ = ["plot_measured_vs_predicted", "plot_inputs", "plot_residuals", "plot_time_histories"]
 
+# the width of a maneuver's time-history figure (inches): inputs full width, outputs and
+# residuals side by side, 3 : 2
+MANEUVER_FIGURE_WIDTH_IN = 11.0
 _MEASURED_STYLE = {"linestyle": "none", "marker": "+", "markersize": 4, "color": "0.25"}
 _PREDICTED_STYLE = {"linestyle": "-", "linewidth": 1.2, "color": "tab:blue"}
 
@@ -38,6 +41,45 @@ def _as_matrix(values, n: int, argument: str) -> np.ndarray:
             f"got shape {matrix.shape}"
         )
     return matrix
+
+
+def envelope_indices(values: np.ndarray, bins: int) -> np.ndarray:
+    """The sample indices that keep the look of a time history drawn ``bins`` pixels wide:
+    per pixel column (``bins`` equal runs of consecutive samples) the sample of the smallest
+    and of the largest value, in time order (min/max envelope decimation). Every pixel
+    column's extremes, and so every peak, are kept; the line through them covers the same
+    pixels as the line through all samples. All indices when there are at most two samples
+    per column. NaN samples are kept (they break the line as before).
+
+    Args:
+        values: the samples (N,) of one channel.
+        bins: the plot's width in pixels (≥ 1).
+
+    Returns:
+        Increasing indices into ``values`` (at most 2·bins plus the NaN samples).
+    """
+    values = np.asarray(values, dtype=float)
+    n = values.shape[0]
+    bins = max(int(bins), 1)
+    if n <= 2 * bins:
+        return np.arange(n)
+    # bin b holds the samples [edges[b], edges[b + 1])
+    edges = (np.arange(bins + 1) * n) // bins
+    finite = np.where(np.isfinite(values), values, np.nan)
+    lows = np.fmin.reduceat(np.where(np.isnan(finite), np.inf, finite), edges[:-1])
+    highs = np.fmax.reduceat(np.where(np.isnan(finite), -np.inf, finite), edges[:-1])
+    owner = np.repeat(np.arange(bins), np.diff(edges))
+    # the first sample of each bin equal to its minimum, and to its maximum
+    is_low = values == lows[owner]
+    is_high = values == highs[owner]
+    first_low = np.full(bins, -1)
+    first_high = np.full(bins, -1)
+    index = np.arange(n)
+    # reversed assignment leaves the first matching index of each bin
+    first_low[owner[is_low][::-1]] = index[is_low][::-1]
+    first_high[owner[is_high][::-1]] = index[is_high][::-1]
+    keep = np.concatenate([first_low, first_high, index[np.isnan(values)]])
+    return np.unique(keep[keep >= 0])
 
 
 def _segments(maneuver_index: np.ndarray | None, n: int) -> list[np.ndarray]:
@@ -265,6 +307,14 @@ def png_bytes(figure: Figure, dpi: int = 90) -> bytes:
     return buffer.getvalue()
 
 
+def _shown(values: np.ndarray, width_px: float | None) -> np.ndarray | slice:
+    """The samples of one time history to draw in a panel ``width_px`` pixels wide (all of
+    them when the width is not known)."""
+    if width_px is None:
+        return slice(None)
+    return envelope_indices(values, int(np.ceil(width_px)))
+
+
 def maneuver_figure(
     time: np.ndarray,
     inputs: np.ndarray | None,
@@ -275,6 +325,7 @@ def maneuver_figure(
     units: Mapping[str, str],
     title: str,
     input_steps: bool = False,
+    dpi: float | None = None,
 ) -> Figure:
     """One maneuver: the inputs on top (full width), then per output the measured (+) and
     predicted (line) response on the left and the residual z − y on the right, against the
@@ -290,6 +341,10 @@ def maneuver_figure(
         units: the unit of each channel, as a mapping from channel name to unit.
         title: the figure's title.
         input_steps: draw the inputs as held steps (zero-order-hold interpolation).
+        dpi: the resolution the figure will be rendered at: each time history is then
+            drawn through its min/max envelope per pixel column of its panel
+            (``envelope_indices``), no more points than the pixels show, every peak kept.
+            None: every sample is drawn.
 
     Returns:
         The matplotlib figure (not yet saved).
@@ -303,7 +358,8 @@ def maneuver_figure(
     u = None if inputs is None or not len(input_names) else _as_matrix(inputs, n, "inputs")
     n_u = 0 if u is None else u.shape[1]
     n_o = len(output_names)
-    figure = Figure(figsize=(11.0, 1.0 * n_u + 1.5 * n_o + 1.0))
+    figure = Figure(figsize=(MANEUVER_FIGURE_WIDTH_IN, 1.0 * n_u + 1.5 * n_o + 1.0))
+    width_px = None if dpi is None else MANEUVER_FIGURE_WIDTH_IN * dpi
     grid = figure.add_gridspec(
         n_u + n_o, 2, width_ratios=(3, 2), height_ratios=[1.0] * n_u + [1.5] * n_o
     )
@@ -311,9 +367,10 @@ def maneuver_figure(
     for i in range(n_u):
         ax = figure.add_subplot(grid[i, :], sharex=first)
         first = first or ax
+        shown = _shown(u[:, i], width_px)
         ax.plot(
-            time,
-            u[:, i],
+            time[shown],
+            u[shown, i],
             color="k",
             linewidth=1.1,
             drawstyle="steps-post" if input_steps else "default",
@@ -326,11 +383,17 @@ def maneuver_figure(
         label = axis_label(name, units.get(name))
         ax = figure.add_subplot(grid[n_u + j, 0], sharex=first)
         first = first or ax
-        ax.plot(time, z[:, j], label="measured z", **_MEASURED_STYLE)
-        ax.plot(time, y[:, j], label="predicted y", **_PREDICTED_STYLE)
+        # the output panels take 3/5 of the width, the residual panels 2/5
+        output_px = None if width_px is None else 0.6 * width_px
+        shown = _shown(z[:, j], output_px)
+        ax.plot(time[shown], z[shown, j], label="measured z", **_MEASURED_STYLE)
+        shown = _shown(y[:, j], output_px)
+        ax.plot(time[shown], y[shown, j], label="predicted y", **_PREDICTED_STYLE)
         ax.set_ylabel(label, fontsize=8)
         res = figure.add_subplot(grid[n_u + j, 1], sharex=first)
-        res.plot(time, z[:, j] - y[:, j], color="tab:red", linewidth=0.8)
+        residual = z[:, j] - y[:, j]
+        shown = _shown(residual, None if width_px is None else 0.4 * width_px)
+        res.plot(time[shown], residual[shown], color="tab:red", linewidth=0.8)
         res.axhline(0.0, color="k", linewidth=0.5)
         res.set_ylabel(axis_label("z − y", units.get(name)), fontsize=8)
         if j == 0:

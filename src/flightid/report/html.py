@@ -51,9 +51,10 @@ __all__ = ["write_report", "write_files", "interval_half_widths"]
 
 def interval_half_widths(std: np.ndarray, confidence: float, bound_factor: float) -> np.ndarray:
     """k·z·σ: half widths of the individual intervals (normal quantile z at (1+c)/2)."""
-    from scipy.stats import norm
+    from scipy.special import ndtri
 
-    z = float(norm.ppf(0.5 * (1.0 + confidence)))
+    # z = Φ⁻¹((1 + c)/2), the standard normal quantile (what scipy.stats.norm.ppf evaluates)
+    z = float(ndtri(0.5 * (1.0 + confidence)))
     return bound_factor * z * np.asarray(std, dtype=float)
 
 
@@ -92,60 +93,88 @@ class Figures:
         return [*self.fits, *self.prediction, *extra]
 
 
-def render_figures(run, dpi: int = 96) -> Figures:
-    """Draw the report's figures (time histories with inputs per maneuver and per held-out
-    maneuver, residual autocorrelation, cost history) as PNG bytes."""
-    from flightid.report.figures import (
-        autocorrelation_figure,
-        cost_history_figure,
-        maneuver_figure,
-        png_bytes,
-    )
+def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
+    """The report's figures as jobs (``flightid.report.drawing``) and their file names:
+    per maneuver and per held-out maneuver its time histories with the inputs, then the
+    residual autocorrelation and the cost history."""
+    from flightid.report.drawing import FigureJob
 
     est = run.estimate
     names = list(est.output_names)
     units = channel_units(run)
-    figures = Figures()
     steps = getattr(est, "input_interpolation", "linear") == "zoh"
+    files: list[str] = []
+    jobs: list[FigureJob] = []
+
+    def maneuver_job(time, inputs, input_names, measured, predicted, outputs, units_, title):
+        arguments = (time, inputs, input_names, measured, predicted, outputs, units_, title)
+        # the time histories are drawn through their envelope per pixel column at this dpi
+        options = {"input_steps": steps, "dpi": dpi}
+        # drawing time grows with the panels: inputs + 2 per output
+        weight = len(input_names) + 2 * len(outputs)
+        return FigureJob("maneuver_figure", arguments, options, dpi, weight)
+
     for k, maneuver in enumerate(run.maneuvers):
         rows = est.maneuver_index == k
-        figure = maneuver_figure(
-            est.time[rows],
-            maneuver.inputs if maneuver.input_names else None,
-            list(maneuver.input_names),
-            est.measured[rows],
-            est.predicted[rows],
-            names,
-            units,
-            f"maneuver {maneuver.name} (estimation)",
-            input_steps=steps,
+        files.append(f"fit_{k + 1}_{_safe(maneuver.name)}.png")
+        jobs.append(
+            maneuver_job(
+                est.time[rows],
+                maneuver.inputs if maneuver.input_names else None,
+                list(maneuver.input_names),
+                est.measured[rows],
+                est.predicted[rows],
+                names,
+                units,
+                f"maneuver {maneuver.name} (estimation)",
+            )
         )
-        figures.fits.append((f"fit_{k + 1}_{_safe(maneuver.name)}.png", png_bytes(figure, dpi)))
     for p in run.predictions:
-        figure = maneuver_figure(
-            p.time,
-            getattr(p, "inputs", None),
-            list(getattr(p, "input_names", ())),
-            p.measured,
-            p.predicted,
-            list(p.output_names),
-            {**units, **getattr(p, "units", {})},
-            f"maneuver {p.name} (held out: prediction check)",
-            input_steps=steps,
+        files.append(f"prediction_{_safe(p.name)}.png")
+        jobs.append(
+            maneuver_job(
+                p.time,
+                getattr(p, "inputs", None),
+                list(getattr(p, "input_names", ())),
+                p.measured,
+                p.predicted,
+                list(p.output_names),
+                {**units, **getattr(p, "units", {})},
+                f"maneuver {p.name} (held out: prediction check)",
+            )
         )
-        figures.prediction.append((f"prediction_{_safe(p.name)}.png", png_bytes(figure, dpi)))
     coloured = _coloured(run)
     rho, band = _autocorrelation(run, coloured.lag)
-    figure = autocorrelation_figure(rho, band, run.maneuvers[0].dt, names, coloured.lag)
-    figures.autocorrelation = ("autocorrelation.png", png_bytes(figure, dpi))
-    figure = cost_history_figure(
+    files.append("autocorrelation.png")
+    arguments = (rho, band, run.maneuvers[0].dt, names, coloured.lag)
+    jobs.append(FigureJob("autocorrelation_figure", arguments, {}, dpi, len(names)))
+    files.append("convergence.png")
+    arguments = (
         est.cost_history,
-        getattr(est, "noise_update_passes", ()),
+        tuple(getattr(est, "noise_update_passes", ())),
         f"convergence ({est.solver}, noise {est.noise_policy})",
-        log_det_r=getattr(est, "log_det_r_history", ()),
     )
-    figures.convergence = ("convergence.png", png_bytes(figure, dpi))
-    return figures
+    options = {"log_det_r": getattr(est, "log_det_r_history", ())}
+    jobs.append(FigureJob("cost_history_figure", arguments, options, dpi, 2.0))
+    return files, jobs
+
+
+def render_figures(run, dpi: int = 96, pool=None) -> Figures:
+    """Draw the report's figures (time histories with inputs per maneuver and per held-out
+    maneuver, residual autocorrelation, cost history) as PNG bytes, each once: in the
+    worker processes of ``pool``, else of the active ``flightid.report.drawing.FigurePool``,
+    else here."""
+    from flightid.report.drawing import draw
+
+    files, jobs = figure_jobs(run, dpi)
+    drawn = list(zip(files, draw(jobs, pool), strict=True))
+    n_fits, n_predictions = len(run.maneuvers), len(run.predictions)
+    return Figures(
+        fits=drawn[:n_fits],
+        prediction=drawn[n_fits : n_fits + n_predictions],
+        autocorrelation=drawn[-2],
+        convergence=drawn[-1],
+    )
 
 
 def _autocorrelation(run, lag_used: int) -> tuple[np.ndarray, float]:
@@ -820,7 +849,8 @@ def write_files(run, directory: Path) -> Path:
     results.json is strict JSON (``flightid.jsonout``: NaN / ±inf become null, listed
     under ``"nonfinite"``). The figures are written to ``figures/`` and embedded in
     report.html (base64 PNG), so the page stands alone. ``[output] figures = false`` skips the
-    figures (folder and page), ``report = false`` the HTML page.
+    figures (folder and page), ``report = false`` the HTML page. The figures are drawn by
+    the active ``flightid.report.drawing.FigurePool`` if there is one, else here.
     """
     from flightid.report.histories import write_results_and_histories
 

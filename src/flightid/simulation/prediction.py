@@ -26,7 +26,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.stats import norm
 
 from flightid.data.flightdata import FlightData
 from flightid.errors import FlightIdWarning, InputError, SimulationError
@@ -155,6 +154,8 @@ class Prediction:
             raise PredictionError("band: this prediction has no output σ; predict with bands=True")
         if not 0.0 < level < 1.0:
             raise PredictionError(f"level: expected a number in (0, 1), got {level!r}")
+        from scipy.stats import norm
+
         # half width z_{(1+c)/2}·σ_y
         half = norm.ppf(0.5 + 0.5 * level) * self.predicted_std
         return self.predicted - half, self.predicted + half
