@@ -424,3 +424,56 @@ def test_a_kernel_compiled_for_the_models_sizes_matches_the_general_one_and_chec
         kernel(thetas, np.zeros((2, 3)), t, u, RK4, 0, 2, np.empty((2, t.size, 2)), flag)
     with pytest.raises(ValueError, match="n_outputs"):
         kernel(thetas, x0s, t, u, RK4, 0, 3, np.empty((2, t.size, 3)), flag)
+
+
+# ----------------------------------------------------------------------------- serial or parallel
+
+
+def test_the_variant_timer_runs_the_faster_variant_and_probes_the_other():
+    """Parallel first, then serial once; then the faster one, the other every 8th batch;
+    a change of speed (load) moves the choice."""
+    from flightid.simulation.kernels import VariantTimer
+
+    timer = VariantTimer()
+    assert timer.choose() is True
+    timer.record(True, 4e-9)  # parallel: 4 ns per sample (a loaded machine)
+    assert timer.choose() is False
+    timer.record(False, 2e-9)
+    choices = []
+    for _ in range(16):
+        choices.append(timer.choose())
+    # calls 3 … 18: serial, except the probes at calls 8 and 16
+    assert [i + 3 for i, c in enumerate(choices) if c] == [8, 16]
+    for _ in range(10):  # the load is gone: parallel measures 1 ns per sample
+        timer.record(True, 1e-9)
+    assert timer.choose() is True
+
+
+def test_a_batch_runs_serially_where_the_parallel_variant_measured_slower():
+    """BatchKernel follows its timer (results identical either way)."""
+    from flightid.simulation.kernels import VariantTimer
+
+    model = _user_model(ROOT / "examples" / "logs" / "roll_mode.py")
+    data = _inputs(model.inputs, n=201)
+    simulator = Simulator(model, data)
+    kernel = simulator._kernel
+    kernel.min_parallel_samples = 0
+    thetas = np.array([[-2.0, 15.0], [-3.0, 12.0], [-1.0, 9.0]])
+    try:
+        kernel.timer = VariantTimer()
+        kernel.timer.record(True, 1.0)  # parallel: very slow
+        kernel.timer.record(False, 1e-9)
+        runs = kernel.parallel_runs
+        serial = simulator.run(thetas).outputs
+        assert kernel.parallel_runs == runs
+        assert kernel.timer.seconds_per_sample[False] > 1e-9  # the serial batch was timed
+        kernel.timer = VariantTimer()  # parallel first
+        parallel = simulator.run(thetas).outputs
+        import numba
+
+        if numba.get_num_threads() > 1:
+            assert kernel.parallel_runs == runs + 1
+        assert np.array_equal(serial, parallel)
+    finally:
+        kernel.min_parallel_samples = 20_000
+        kernel.timer = VariantTimer()

@@ -51,6 +51,7 @@ by a digest of the model functions (``flightid.model.kernel_cache``).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -64,6 +65,7 @@ __all__ = [
     "step_buffers",
     "record_sample",
     "BatchKernel",
+    "VariantTimer",
     "PARALLEL_MIN_SAMPLES",
     "no_state_derivative",
     "EULER",
@@ -294,6 +296,12 @@ class BatchKernel:
     The parallel variant is used for batches of at least ``min_parallel_samples`` samples
     in all (``PARALLEL_MIN_SAMPLES``) and compiled on the first batch that uses it; if numba
     cannot compile it, the serial one runs instead (a ``CompileWarning`` says so).
+
+    Which variant runs such a batch is decided by their measured speed (``VariantTimer``):
+    the threads of the parallel variant wait for each other at the end of the batch, so on
+    cores shared with other busy processes (one thread descheduled) it can take longer than
+    the serial variant; the batch then runs serially until a probe finds the parallel
+    variant faster again.
     """
 
     def __init__(self, source: Callable) -> None:
@@ -306,6 +314,7 @@ class BatchKernel:
         self.parallel_ok = True
         self.parallel_runs = 0
         self.min_parallel_samples = PARALLEL_MIN_SAMPLES
+        self.timer = VariantTimer()
 
     @property
     def stats(self):
@@ -313,8 +322,8 @@ class BatchKernel:
         return self.serial.stats
 
     def use_parallel(self, n_batch: int, n_samples: int) -> bool:
-        """True if a batch of ``n_batch`` trajectories of ``n_samples`` samples runs on the
-        numba threads."""
+        """True if a batch of ``n_batch`` trajectories of ``n_samples`` samples may run on
+        the numba threads (whether it does: ``VariantTimer.choose``)."""
         import numba
 
         return (
@@ -326,14 +335,58 @@ class BatchKernel:
 
     def __call__(self, thetas, *arguments):
         # arguments: x0s, t, u, ...
-        if self.use_parallel(thetas.shape[0], arguments[1].shape[0]):
+        work = thetas.shape[0] * arguments[1].shape[0]
+        if not self.use_parallel(thetas.shape[0], arguments[1].shape[0]):
+            return self.serial(thetas, *arguments)
+        parallel = self.timer.choose()
+        start = time.perf_counter()
+        if parallel:
             self.parallel_ok, result = run_parallel_variant(
                 self.parallel, (thetas, *arguments), "batch kernel", "running batches serially"
             )
-            if self.parallel_ok:
-                self.parallel_runs += 1
-                return result
-        return self.serial(thetas, *arguments)
+            if not self.parallel_ok:
+                return self.serial(thetas, *arguments)
+            self.parallel_runs += 1
+        else:
+            result = self.serial(thetas, *arguments)
+        # the first parallel run compiles (or loads) the variant: not a measure of its speed
+        if not (parallel and self.parallel_runs == 1):
+            self.timer.record(parallel, (time.perf_counter() - start) / work)
+        return result
+
+
+class VariantTimer:
+    """Chooses between a kernel's serial and parallel variant by their measured time per
+    sample (equal results either way: only the speed differs).
+
+    Each variant's time per sample is a running mean, m ← m + ``WEIGHT``·(s − m), of its
+    recent batches. The parallel variant runs first; then the serial one is measured once;
+    after that the faster runs, and every ``PROBE_EVERY``-th batch runs the other one, so a
+    change of the machine's load (other processes starting or ending) is followed.
+    """
+
+    WEIGHT = 0.3
+    PROBE_EVERY = 8
+
+    def __init__(self) -> None:
+        self.seconds_per_sample = {True: None, False: None}  # parallel → running mean
+        self.calls = 0
+
+    def choose(self) -> bool:
+        """True: run the parallel variant."""
+        self.calls += 1
+        parallel, serial = self.seconds_per_sample[True], self.seconds_per_sample[False]
+        if parallel is None or serial is None:
+            return parallel is None
+        faster = parallel <= serial
+        return (not faster) if self.calls % self.PROBE_EVERY == 0 else faster
+
+    def record(self, parallel: bool, seconds_per_sample: float) -> None:
+        """Add a measured time per sample (s) of the variant."""
+        mean = self.seconds_per_sample[parallel]
+        self.seconds_per_sample[parallel] = (
+            seconds_per_sample if mean is None else mean + self.WEIGHT * (seconds_per_sample - mean)
+        )
 
 
 def run_parallel_variant(
