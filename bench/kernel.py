@@ -255,13 +255,15 @@ def user_module_table(setup: Setup, repeats: int) -> float:
         repeats,
     )
     print()
+    print("<!-- numbers: kernel-user-module -->")
     print("| user model module (bench/navion_user_model.py) | µs per trajectory | "
-          "ratio to hand-written |")  # fmt: skip
+          "÷ hand-written |")  # fmt: skip
     print("|---|---:|---:|")
     print(f"| hand-written serial numba | {t_hand * 1e6:.0f} | 1.00 |")
     print(f"| flightid, generated out forms | {t_gen * 1e6:.0f} | {t_gen / t_hand:.2f} |")
     print(f"| flightid, call-then-copy adapter | {t_adapted * 1e6:.0f} | "
           f"{t_adapted / t_hand:.2f} |")  # fmt: skip
+    print("<!-- /numbers -->")
     ratio = t_gen / t_hand
     verdict = "PASS" if ratio <= USER_TARGET else "FAIL"
     print(f"\n{verdict}: user-module kernel / hand-written kernel = {ratio:.2f} "
@@ -342,6 +344,7 @@ def main() -> None:
     if args.quick:
         args.repeats = min(args.repeats, 10)
     started = time.perf_counter()
+    print("<!-- guide: docs/benchmarks.md -->")
     setup = Setup(args.steps)
     error = check(setup)
     n = setup.t.shape[0]

@@ -30,7 +30,8 @@ trim + U(−1, 1)·``HARD40_STATE_TYPICAL``/2) = 40 free parameters.
 (``bench/navion_user_model.py``), MNR and MNRES against scipy lm and a plain Gauss–Newton on
 the hand-written simulator of ``bench/kernel.py`` (``bench/user_module_peers.py``); prints
 MNR wall / plain GN wall (target ≤ 1.3) and MNRES against scipy lm. ``--load N`` runs N
-busy-loop processes beside the measurement (any variant).
+busy-loop processes beside the measurement (any variant; ``--variant user`` takes several
+counts, ``--load 0 5``, one table each).
 
 ``--scaling`` adds the table over N (1e3, 1e4, 1e5 samples, same 20 s manoeuvre; ``--sizes``)
 and the number of free parameters (5, 10, 20: the first n of the 22, the rest fixed at the
@@ -869,9 +870,11 @@ def main() -> None:
     parser.add_argument(
         "--load",
         type=int,
-        default=0,
+        nargs="+",
+        default=[0],
         metavar="N",
-        help="run N busy-loop processes beside the measurement (behaviour under load)",
+        help="run N busy-loop processes beside the measurement (behaviour under load); "
+        "--variant user takes several counts (one table each, e.g. --load 0 5)",
     )
     parser.add_argument(
         "--variant",
@@ -945,16 +948,19 @@ def main() -> None:
     if args.variant == "user":
         from user_module_peers import user_module_table
 
+        print("<!-- guide: docs/benchmarks.md -->")
         print(
             f"6-DOF Navion benchmark as a user module: {n_steps} RK4 steps, 8 outputs, 22 free "
             f"parameters, {n_seeds} seeds, budget {budget} simulations"
         )
-        user_module_table(recorder, range(n_seeds), budget, n_steps, args.load)
+        for load in args.load:
+            print()
+            user_module_table(recorder, range(n_seeds), budget, n_steps, load)
         _elapsed(started)
         return
     from user_module_peers import busy_load
 
-    with busy_load(args.load):
+    with busy_load(max(args.load)):
         _tables(args, recorder, n_seeds, n_steps, budget, started)
 
 

@@ -193,11 +193,16 @@ def user_module_table(recorder, seeds, budget: int, n_steps: int, load: int = 0)
                 print(f"| {seed} | {name} | {r['sims']} | {r['cost'] - j_star:.3g} | "
                       f"{r['wall']:.3f} | {r['share']:.2f} |")  # fmt: skip
     print()
-    print("| method | median sims | median wall, s |")
-    print("|---|---:|---:|")
+    print(f"<!-- numbers: peers-user-module-load-{load} -->")
+    print(f"| method ({len(per_method['MNR'])} seeds, {load} busy processes) | median sims | "
+          "median wall, s | ÷ plain GN |")  # fmt: skip
+    print("|---|---:|---:|---:|")
+    gn_wall = statistics.median(r["wall"] for r in per_method["plain GN, hand kernel"])
     for name, rows in per_method.items():
-        print(f"| {name} | {statistics.median(r['sims'] for r in rows):g} | "
-              f"{statistics.median(r['wall'] for r in rows):.3f} |")  # fmt: skip
+        wall = statistics.median(r["wall"] for r in rows)
+        print(f"| {name} | {statistics.median(r['sims'] for r in rows):g} | {wall:.3f} | "
+              f"{wall / gn_wall:.2f} |")  # fmt: skip
+    print("<!-- /numbers -->")
 
     def ratios(a, b, key):
         return [x[key] / y[key] for x, y in zip(per_method[a], per_method[b], strict=True)]
