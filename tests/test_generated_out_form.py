@@ -477,3 +477,46 @@ def test_a_batch_runs_serially_where_the_parallel_variant_measured_slower():
     finally:
         kernel.min_parallel_samples = 20_000
         kernel.timer = VariantTimer()
+
+
+def _blow_up(t, x, u, theta):
+    # ẋ = θ x²: x(t) = 1/(1 − t) for x(0) = 1, θ = 1 (infinite at t = 1)
+    return np.array([theta[0] * x[0] * x[0]])
+
+
+def _constant_output(t, x, u, theta):
+    return np.array([1.0])
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_state_that_overflows_stops_the_trajectory_even_where_the_output_stays_finite(
+    compiled,
+):
+    """The state kernel's finiteness test covers the state, not only the outputs: the
+    trajectory stops at the first sample whose state is non-finite (an independent RK4
+    loop gives that sample), its outputs are NaN from there on."""
+    model = StateSpaceModel(
+        ("x",), ("u",), ("y",), _blow_up, _constant_output, Parameters({"a": 1.0}), x0=(1.0,)
+    )
+    t = np.arange(0.0, 2.0, 0.01)
+    # the reference: RK4 of ẋ = x² from 1, first non-finite state
+    x, first = 1.0, None
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(t.size):
+            if not np.isfinite(x):
+                first = k
+                break
+            dt = 0.01
+            k1 = np.float64(x) ** 2
+            k2 = (x + 0.5 * dt * k1) ** 2
+            k3 = (x + 0.5 * dt * k2) ** 2
+            k4 = (x + dt * k3) ** 2
+            x = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    assert first is not None
+    simulator = Simulator(model, FlightData(t, {"u": np.zeros_like(t)}), compiled=compiled)
+    with np.errstate(over="ignore", invalid="ignore"):
+        batch = simulator.run(np.array([[1.0]]))
+    assert batch.diverged[0]
+    assert f"(sample {first})" in batch.messages[0]
+    y = batch.outputs[0, :, 0]
+    assert np.all(y[:first] == 1.0) and np.all(np.isnan(y[first:]))

@@ -174,6 +174,13 @@ def _identity(function: Callable) -> Callable:
     return function
 
 
+def _fill_nan(y_block, k, n_outputs):
+    """``y_block[k:, :n_outputs] = NaN`` (a trajectory stopped at sample k)."""
+    for kk in range(k, y_block.shape[0]):
+        for j in range(n_outputs):
+            y_block[kk, j] = np.nan
+
+
 def _check_sizes(x0s, n_outputs, y_out, fixed_states, fixed_outputs):
     """Raise ``ValueError`` where a kernel built for ``fixed_states`` states and
     ``fixed_outputs`` outputs (−1: any) is called with other sizes."""
@@ -199,7 +206,7 @@ def _kernel_source(
     freezes closure values): the loops over the states then have a known length, which the
     compiler unrolls (measured 8 % of a 9-state RK4 step); a call with other sizes raises
     ``ValueError``. −1: the sizes are read from the arguments."""
-    record = jit(record_sample)
+    fill_nan = jit(_fill_nan)
     check_sizes = jit(_check_sizes)
 
     def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
@@ -222,9 +229,19 @@ def _kernel_source(
             x_stage = np.empty(n)
             u_mid = np.empty(n_inputs)
             diverged_at[b] = -1
+            y_block = y_out[b]
             for k in range(n_samples):
                 h_out(t[k], x, u[k], theta, y)
-                if not record(y, x, y_out[b], k, n_y):
+                # record y_k; all of it and the state finite (& does not branch per value)
+                finite = True
+                for j in range(n_y):
+                    y_block[k, j] = y[j]
+                    finite = finite & math.isfinite(y[j])
+                for i in range(n):
+                    finite = finite & math.isfinite(x[i])
+                if not finite:
+                    # non-finite: the trajectory stops here, its outputs from k on are NaN
+                    fill_nan(y_block, k, n_y)
                     diverged_at[b] = k
                     break
                 if k == n_samples - 1:
