@@ -37,7 +37,8 @@ Model functions are called in their out form ``f(t, x, u, θ, out)`` (``flightid
 the stages k1…k4, the stage state and the half-step input live in arrays allocated once per
 trajectory, so integrating allocates nothing per step. Batches run their trajectories in a
 ``prange``: in parallel (``BatchKernel``) for batches of at least ``PARALLEL_MIN_SAMPLES``
-samples in all, each trajectory with its own arrays, bit-identical to the serial run.
+samples in all where the parallel variant has measured faster than the serial one
+(``VariantTimer``), each trajectory with its own arrays, bit-identical to the serial run.
 
 A model without states (``StateSpaceModel(states=(), f=None, ...)``) is not integrated: its
 kernel (``stateless=True``) evaluates y_k = h(t_k, [], u_k, θ) at every sample, with x an
