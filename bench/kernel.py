@@ -1,6 +1,6 @@
 """Simulation kernels: flightid's against a hand-written serial numba kernel of the same model.
 
-    python -P bench/kernel.py [--steps 1000] [--repeats 100] [--batch 21]
+    python -P bench/kernel.py [--steps 1000] [--repeats 100] [--batch 21] [--quick]
 
 The model is the one of ``bench/peers.py`` (base variant): the Navion 6-DOF model of
 ``flightid.aircraft.six_dof_model`` with Nelson's 22 derivatives, 8 outputs, 1000 RK4 steps
@@ -21,7 +21,12 @@ and the hand-written kernel take turns within a round; the batch is timed apart)
    (``hand_simulate_batch``: the hand kernel in a ``prange``, outputs asserted identical),
    timed in turns with flightid's batch: where the machine gives a process's threads less
    than two CPUs, both batches are slow alike.
-3. sensitivity equations: ``Simulator.run_with_sensitivities`` (the kernel of
+3. the same model written as a user model module (``bench/navion_user_model.py``: ``f`` and
+   ``h`` return new arrays, as documented): ``Simulator.run`` on one θ against the
+   hand-written kernel (target ≤ 1.1, printed as a PASS/FAIL line), beside the same module
+   run through the call-then-copy adapter (``flightid.model.forms.copy_out_form``, the path
+   of functions whose out form cannot be generated) for reference.
+4. sensitivity equations: ``Simulator.run_with_sensitivities`` (the kernel of
    ``MNR(sensitivities="equations")``) for the 22 free parameters against ``Simulator.run`` on
    the 23-trajectory forward-difference batch (θ and θ + δ_j e_j) — the two ways to get the
    outputs and G.
@@ -195,6 +200,77 @@ def hand_simulate_batch(thetas, x0, t, u, c, y):
         hand_simulate(thetas[b], x0, t, u, c, y[b])
 
 
+USER_MODULE = Path(__file__).resolve().with_name("navion_user_model.py")
+# the user-module kernel's target: µs per trajectory ≤ 1.1 × the hand-written kernel's
+USER_TARGET = 1.1
+
+
+def user_module_simulators(setup: Setup) -> tuple[Simulator, Simulator]:
+    """Simulators of ``USER_MODULE`` on the benchmark data at the benchmark's parameter
+    values and initial state: as flightid builds it (generated out forms) and through the
+    call-then-copy adapter (a copy of f and h marked with ``copy_out_form``)."""
+    import types
+
+    from flightid.cases.usermodel import load_user_model
+    from flightid.model import Parameters, StateSpaceModel
+    from flightid.model.forms import copy_out_form, with_out_form
+
+    user = load_user_model(USER_MODULE)
+    values = dict(zip(setup.model.parameters.names, setup.theta, strict=True))
+    parameters = Parameters({name: float(values[name]) for name in user.parameters})
+
+    def model(f, h):
+        return StateSpaceModel(user.states, user.inputs, user.outputs, f, h, parameters,
+                               x0=tuple(setup.x0), name="navion_user_module")  # fmt: skip
+
+    def adapted(fn):
+        # a copy of the user's function (the module's own is left as it is), with the adapter
+        copy = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__)
+        return with_out_form(copy, copy_out_form(copy))
+
+    return (
+        Simulator(model(user.f, user.h), setup.data),
+        Simulator(model(adapted(user.f), adapted(user.h)), setup.data),
+    )
+
+
+def user_module_table(setup: Setup, repeats: int) -> float:
+    """Table 3 (module docstring); returns the ratio user module / hand-written."""
+    generated, adapted = user_module_simulators(setup)
+    theta = setup.theta[setup.order]  # the module's order is HAND_PARAMETERS
+    y_hand = setup.hand(setup.theta).copy()
+    scale = np.maximum(np.max(np.abs(y_hand), axis=0), 1e-3)
+    for simulator in (generated, adapted):
+        y = simulator.run(theta[None, :]).outputs[0]
+        error = float(np.max(np.abs(y - y_hand) / scale))
+        assert error <= 1e-10, (
+            f"the user module disagrees with the hand-written kernel: {error:.3g}"
+        )
+    t_gen, t_hand, t_adapted = best_times(
+        [
+            lambda: generated.run(theta[None, :]),
+            lambda: setup.hand(setup.theta),
+            lambda: adapted.run(theta[None, :]),
+        ],
+        repeats,
+    )
+    print()
+    print("<!-- numbers: kernel-user-module -->")
+    print("| user model module (bench/navion_user_model.py) | µs per trajectory | "
+          "÷ hand-written |")  # fmt: skip
+    print("|---|---:|---:|")
+    print(f"| hand-written serial numba | {t_hand * 1e6:.0f} | 1.00 |")
+    print(f"| flightid, generated out forms | {t_gen * 1e6:.0f} | {t_gen / t_hand:.2f} |")
+    print(f"| flightid, call-then-copy adapter | {t_adapted * 1e6:.0f} | "
+          f"{t_adapted / t_hand:.2f} |")  # fmt: skip
+    print("<!-- /numbers -->")
+    ratio = t_gen / t_hand
+    verdict = "PASS" if ratio <= USER_TARGET else "FAIL"
+    print(f"\n{verdict}: user-module kernel / hand-written kernel = {ratio:.2f} "
+          f"(target ≤ {USER_TARGET})")  # fmt: skip
+    return ratio
+
+
 class Setup:
     """The benchmark model and data, flightid's simulator, and the hand kernel's arguments."""
 
@@ -263,8 +339,12 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000, help="RK4 steps (samples − 1)")
     parser.add_argument("--repeats", type=int, default=100, help="rounds of timings (min taken)")
     parser.add_argument("--batch", type=int, default=21, help="trajectories in the batch")
+    parser.add_argument("--quick", action="store_true", help="10 rounds (well under a minute)")
     args = parser.parse_args()
+    if args.quick:
+        args.repeats = min(args.repeats, 10)
     started = time.perf_counter()
+    print("<!-- guide: docs/benchmarks.md -->")
     setup = Setup(args.steps)
     error = check(setup)
     n = setup.t.shape[0]
@@ -308,6 +388,8 @@ def main() -> None:
     print(f"| hand-written parallel batch (prange) | {t_hand_batch * 1e3:.2f} | "
           f"{args.batch * t_lib / t_hand_batch:.2f} |")  # fmt: skip
     print(f"\nflightid batch / hand-written parallel batch: {t_batch / t_hand_batch:.2f}")
+
+    user_module_table(setup, args.repeats)
 
     free = np.arange(theta.size, dtype=np.int64)
     steps = 1e-6 * np.maximum(np.abs(theta), 0.05)

@@ -1,8 +1,8 @@
 """Peers on a 6-DOF benchmark: flightid MNR and MNRES against scipy, lmfit and DFO-LS.
 
     python -P bench/peers.py --all          # everything below, about 15 min on 2 quiet cores
-    python -P bench/peers.py [--seeds 8] [--quick] [--variant base|hard40] [--scaling]
-                             [--memory] [--cases [CASE ...]]
+    python -P bench/peers.py [--seeds 8] [--quick] [--variant base|hard40|user] [--scaling]
+                             [--memory] [--cases [CASE ...]] [--load N]
 
 The benchmark: the Navion 6-DOF model built by ``flightid.aircraft.six_dof_model``
 (9 states u, v, w, p, q, r, l_xz, l_yz, l_zz; Nelson's longitudinal and lateral derivatives,
@@ -25,6 +25,13 @@ A peer whose package is missing is skipped with a printed reason (``pip install 
 the 22 derivatives + CY_da (true 0) + output biases b_y of the 8 outputs (true values
 ``HARD40_BIAS_TRUTH``, start 0) + the initial values of the 9 states (true: the trim; start:
 trim + U(−1, 1)·``HARD40_STATE_TYPICAL``/2) = 40 free parameters.
+
+``--variant user``: the base benchmark with the model written as a user model module
+(``bench/navion_user_model.py``), MNR and MNRES against scipy lm and a plain Gauss–Newton on
+the hand-written simulator of ``bench/kernel.py`` (``bench/user_module_peers.py``); prints
+MNR wall / plain GN wall (target ≤ 1.3) and MNRES against scipy lm. ``--load N`` runs N
+busy-loop processes beside the measurement (any variant; ``--variant user`` takes several
+counts, ``--load 0 5``, one table each).
 
 ``--scaling`` adds the table over N (1e3, 1e4, 1e5 samples, same 20 s manoeuvre; ``--sizes``)
 and the number of free parameters (5, 10, 20: the first n of the 22, the rest fixed at the
@@ -54,7 +61,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import statistics  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
@@ -859,11 +868,21 @@ def main() -> None:
     )
     parser.add_argument("--scaling", action="store_true", help="also the N × parameters table")
     parser.add_argument(
+        "--load",
+        type=int,
+        nargs="+",
+        default=[0],
+        metavar="N",
+        help="run N busy-loop processes beside the measurement (behaviour under load); "
+        "--variant user takes several counts (one table each, e.g. --load 0 5)",
+    )
+    parser.add_argument(
         "--variant",
-        choices=VARIANTS,
+        choices=(*VARIANTS, "user"),
         default="base",
-        help="seeds table: base (22 derivatives) or hard40 (40: derivatives, output biases, "
-        "initial states)",
+        help="seeds table: base (22 derivatives), hard40 (40: derivatives, output biases, "
+        "initial states) or user (base, the model as a user module, against a plain "
+        "Gauss–Newton on a hand-written simulator)",
     )
     parser.add_argument("--budget", type=int, default=5000, help="simulations per method and run")
     parser.add_argument(
@@ -925,6 +944,28 @@ def main() -> None:
     if args.quick:
         n_seeds, n_steps, budget = min(n_seeds, 3), 300, min(budget, 1500)
     started = time.perf_counter()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # bench/ (python -P)
+    if args.variant == "user":
+        from user_module_peers import user_module_table
+
+        print("<!-- guide: docs/benchmarks.md -->")
+        print(
+            f"6-DOF Navion benchmark as a user module: {n_steps} RK4 steps, 8 outputs, 22 free "
+            f"parameters, {n_seeds} seeds, budget {budget} simulations"
+        )
+        for load in args.load:
+            print()
+            user_module_table(recorder, range(n_seeds), budget, n_steps, load)
+        _elapsed(started)
+        return
+    from user_module_peers import busy_load
+
+    with busy_load(max(args.load)):
+        _tables(args, recorder, n_seeds, n_steps, budget, started)
+
+
+def _tables(args, recorder, n_seeds: int, n_steps: int, budget: int, started: float) -> None:
+    """The seeds, scaling, memory and cases tables ``args`` ask for."""
     variants = VARIANTS if args.all else (args.variant,)
     for variant in variants if n_seeds > 0 else ():
         n_free = 40 if variant == "hard40" else 22

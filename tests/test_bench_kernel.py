@@ -54,3 +54,20 @@ def test_check_detects_a_wrong_kernel(kernel_module, setup, monkeypatch):
     monkeypatch.setattr(setup, "order", order)
     with pytest.raises(AssertionError, match="disagrees"):
         kernel_module.check(setup, tolerance=1e-10)
+
+
+def test_the_user_module_matches_the_hand_kernel(kernel_module, setup):
+    """bench/navion_user_model.py (the same equations as a user model module) runs through
+    its generated out forms and the call-then-copy adapter alike, and both agree with the
+    hand-written kernel (the ratio bench/kernel.py prints compares the same trajectory)."""
+    from flightid.model.outform_source import GENERATED_MARK
+
+    generated, adapted = kernel_module.user_module_simulators(setup)
+    assert getattr(generated.model.f_out, GENERATED_MARK, None) is generated.model.f
+    assert getattr(adapted.model.f_out, GENERATED_MARK, None) is None
+    theta = setup.theta[setup.order]
+    y_hand = setup.hand(setup.theta)
+    scale = np.maximum(np.max(np.abs(y_hand), axis=0), 1e-3)
+    for simulator in (generated, adapted):
+        y = simulator.run(theta[None, :]).outputs[0]
+        assert np.max(np.abs(y - y_hand) / scale) <= 1e-10

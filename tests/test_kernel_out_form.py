@@ -20,7 +20,7 @@ from flightid.errors import InputError
 from flightid.model import StateSpaceModel
 from flightid.model.forms import as_out_form, kernel_function
 from flightid.simulation import Simulator
-from flightid.simulation.kernels import make_kernel
+from flightid.simulation.kernels import VariantTimer, make_kernel
 from flightid.simulation.sensitivity import make_sensitivity_kernel
 
 
@@ -180,6 +180,7 @@ def test_parallel_batch_is_bit_identical_to_serial(stabilized):
     simulator = Simulator(model, data)
     kernel = simulator._feedback_kernel if stabilized else simulator._kernel
     kernel.min_parallel_samples = 0  # a small batch, run in parallel all the same
+    kernel.timer = VariantTimer()  # no timings yet: the parallel variant runs first
     parallel = simulator.run(thetas)
     kernel.parallel_ok = False
     serial = simulator.run(thetas)
@@ -456,6 +457,7 @@ def test_a_parallel_variant_numba_cannot_compile_falls_back_to_serial_with_a_war
     serial = simulator.run(thetas).outputs
     kernel = simulator._kernel
     kernel.min_parallel_samples = 0
+    kernel.timer = VariantTimer()  # no timings yet: the parallel variant runs first
     kernel.parallel, kept = numba_rejects, kernel.parallel
     try:
         with pytest.warns(RuntimeWarning, match="running batches serially"):

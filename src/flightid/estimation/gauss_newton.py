@@ -224,14 +224,17 @@ def step_from_factor(
 
 def information_matrix(g: np.ndarray, r_diag: np.ndarray) -> np.ndarray:
     """M = Σ_i G_iᵀ R⁻¹ G_i (n_f × n_f) [4.6], summed over blocks of samples (no weighted
-    copy of G)."""
+    copy of G). On one BLAS thread, as ``triangular_factor``: the blocks' products are small,
+    and a threaded product waited for a busy core on a loaded machine (220 ms instead of
+    0.3 ms for a 1001 × 8 × 22 G on 2 shared cores)."""
     n_samples, n_outputs, n_free = g.shape
     weight = 1.0 / np.sqrt(np.asarray(r_diag, dtype=float))
     m = np.zeros((n_free, n_free))
-    for start, stop in _sample_blocks(n_samples, n_outputs):
-        # A_block = R^(−½) G_i for the block's samples, rows (i, k)
-        a = (g[start:stop] * weight[None, :, None]).reshape(-1, n_free)
-        m += a.T @ a
+    with one_blas_thread():
+        for start, stop in _sample_blocks(n_samples, n_outputs):
+            # A_block = R^(−½) G_i for the block's samples, rows (i, k)
+            a = (g[start:stop] * weight[None, :, None]).reshape(-1, n_free)
+            m += a.T @ a
     return m
 
 

@@ -11,8 +11,11 @@ linearisation, filter gains) calls the return form. ``StateSpaceModel`` therefor
 both: ``model.f`` / ``model.h`` (return form) and ``model.f_out`` / ``model.h_out`` (out form),
 whichever the user wrote:
 
-* a return-form function is adapted to the out form by ``as_out_form``: call, then copy into
-  ``out`` — it still allocates the array it returns, so it is the slower path;
+* a return-form function is turned into the out form by ``as_out_form``: rewritten from its
+  source where it has the documented shape (``return np.array([...])``, or one
+  ``np.empty(n)`` filled and returned: ``flightid.model.outform_source``), which allocates
+  nothing; otherwise adapted (``copy_out_form``: call, then copy into ``out`` — it still
+  allocates the array it returns, so it is the slower path);
 * an out-form function is adapted to the return form by ``as_return_form``: allocate, call;
   the adapter carries the original as its ``out_form`` attribute, which is how a model (and
   any copy of it, ``dataclasses.replace``) finds the allocation-free form again;
@@ -40,6 +43,7 @@ from flightid.errors import InputError
 __all__ = [
     "FUNCTION_FORMS",
     "as_out_form",
+    "copy_out_form",
     "as_return_form",
     "with_out_form",
     "function_form",
@@ -53,14 +57,32 @@ _FORM_BY_ARITY = {4: "return", 5: "out"}
 
 
 def as_out_form(f: Callable) -> Callable:
-    """The out form of the return-form ``f``: ``out[i] = f(t, x, u, theta)[i]``."""
+    """The out form of the return-form ``f``: ``out[i] = f(t, x, u, theta)[i]``.
+
+    Generated from ``f``'s source where it is of the documented shape (it ends in
+    ``return np.array([...])`` or fills and returns one ``np.empty(n)``:
+    ``flightid.model.outform_source``): the same expressions write into ``out`` and nothing
+    is allocated. Otherwise the adapter ``copy_out_form(f)``. The generated form carries
+    that adapter as ``python_form``: the interpreted kernels run it, as before."""
+    from flightid.model.outform_source import generated_out_form
+
+    generated = generated_out_form(f)
+    if generated is None:
+        return copy_out_form(f)
+    generated.python_form = copy_out_form(f)
+    return generated
+
+
+def copy_out_form(f: Callable) -> Callable:
+    """The adapter from the return form ``f`` to the out form: call, then copy into
+    ``out`` (allocates the array ``f`` returns on every call)."""
 
     def f_out(t, x, u, theta, out):
         value = f(t, x, u, theta)
         for i in range(out.shape[0]):
             out[i] = value[i]
 
-    f_out.adapts = (as_out_form, f)
+    f_out.adapts = (copy_out_form, f)
     return f_out
 
 
@@ -147,6 +169,10 @@ def out_form_of(fn: Callable) -> Callable:
 def kernel_function(fn: Callable, compiled: bool) -> Callable:
     """``fn`` ready to be called by a kernel: numba-compiled (``compiled``) or the Python
     original, with every adapter rebuilt around the prepared inner function."""
+    python_form = getattr(fn, "python_form", None)
+    if python_form is not None and not compiled:
+        # a generated out form: the interpreted kernel runs the user's own function
+        return kernel_function(python_form, False)
     adapts = getattr(fn, "adapts", None)
     if adapts is not None:
         make, inner = adapts

@@ -37,7 +37,8 @@ Model functions are called in their out form ``f(t, x, u, θ, out)`` (``flightid
 the stages k1…k4, the stage state and the half-step input live in arrays allocated once per
 trajectory, so integrating allocates nothing per step. Batches run their trajectories in a
 ``prange``: in parallel (``BatchKernel``) for batches of at least ``PARALLEL_MIN_SAMPLES``
-samples in all, each trajectory with its own arrays, bit-identical to the serial run.
+samples in all where the parallel variant has measured faster than the serial one
+(``VariantTimer``), each trajectory with its own arrays, bit-identical to the serial run.
 
 A model without states (``StateSpaceModel(states=(), f=None, ...)``) is not integrated: its
 kernel (``stateless=True``) evaluates y_k = h(t_k, [], u_k, θ) at every sample, with x an
@@ -51,6 +52,7 @@ by a digest of the model functions (``flightid.model.kernel_cache``).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -64,6 +66,7 @@ __all__ = [
     "step_buffers",
     "record_sample",
     "BatchKernel",
+    "VariantTimer",
     "PARALLEL_MIN_SAMPLES",
     "no_state_derivative",
     "EULER",
@@ -172,22 +175,52 @@ def _identity(function: Callable) -> Callable:
     return function
 
 
-def _kernel_source(f_out: Callable, h_out: Callable, jit: Callable = _identity) -> Callable:
+def _fill_nan(y_block, k, n_outputs):
+    """``y_block[k:, :n_outputs] = NaN`` (a trajectory stopped at sample k)."""
+    for kk in range(k, y_block.shape[0]):
+        for j in range(n_outputs):
+            y_block[kk, j] = np.nan
+
+
+def _check_sizes(x0s, n_outputs, y_out, fixed_states, fixed_outputs):
+    """Raise ``ValueError`` where a kernel built for ``fixed_states`` states and
+    ``fixed_outputs`` outputs (−1: any) is called with other sizes."""
+    if fixed_states >= 0 and x0s.shape[1] != fixed_states:
+        raise ValueError("kernel: the initial states have another size than the model's states")
+    if fixed_outputs >= 0 and (n_outputs != fixed_outputs or y_out.shape[2] != fixed_outputs):
+        raise ValueError("kernel: n_outputs differs from the number of the model's outputs")
+
+
+def _kernel_source(
+    f_out: Callable,
+    h_out: Callable,
+    jit: Callable = _identity,
+    n_states: int = -1,
+    n_outputs_fixed: int = -1,
+) -> Callable:
     """The integration loop over a batch, closed over the out-form model functions (helpers
     passed through ``jit``: numba.njit or the identity). The batch loop is a ``prange``: run
     in parallel when compiled with ``parallel=True``; every trajectory has its own buffers,
-    so the results do not depend on how the batch is split."""
-    record = jit(record_sample)
+    so the results do not depend on how the batch is split.
+
+    ``n_states`` and ``n_outputs_fixed`` (≥ 0) fix the sizes in the compiled code (numba
+    freezes closure values): the loops over the states then have a known length, which the
+    compiler unrolls (measured 8 % of a 9-state RK4 step); a call with other sizes raises
+    ``ValueError``. −1: the sizes are read from the arguments."""
+    fill_nan = jit(_fill_nan)
+    check_sizes = jit(_check_sizes)
 
     def kernel(thetas, x0s, t, u, method, interpolation, n_outputs, y_out, diverged_at):
+        check_sizes(x0s, n_outputs, y_out, n_states, n_outputs_fixed)
         n_batch = thetas.shape[0]
         n_samples = t.shape[0]
         n_inputs = u.shape[1]
+        n_y = n_outputs_fixed if n_outputs_fixed >= 0 else n_outputs
         for b in prange(n_batch):
             theta = thetas[b]
             x = x0s[b].copy()
-            n = x.shape[0]
-            y = np.empty(n_outputs)
+            n = n_states if n_states >= 0 else x.shape[0]
+            y = np.empty(n_y)
             # the stages of make_step, written out here: a call of the step per sample
             # costs as much as a cheap model's f (measured); same arithmetic
             k1 = np.empty(n)
@@ -197,9 +230,19 @@ def _kernel_source(f_out: Callable, h_out: Callable, jit: Callable = _identity) 
             x_stage = np.empty(n)
             u_mid = np.empty(n_inputs)
             diverged_at[b] = -1
+            y_block = y_out[b]
             for k in range(n_samples):
                 h_out(t[k], x, u[k], theta, y)
-                if not record(y, x, y_out[b], k, n_outputs):
+                # record y_k; all of it and the state finite (& does not branch per value)
+                finite = True
+                for j in range(n_y):
+                    y_block[k, j] = y[j]
+                    finite = finite & math.isfinite(y[j])
+                for i in range(n):
+                    finite = finite & math.isfinite(x[i])
+                if not finite:
+                    # non-finite: the trajectory stops here, its outputs from k on are NaN
+                    fill_nan(y_block, k, n_y)
                     diverged_at[b] = k
                     break
                 if k == n_samples - 1:
@@ -271,6 +314,12 @@ class BatchKernel:
     The parallel variant is used for batches of at least ``min_parallel_samples`` samples
     in all (``PARALLEL_MIN_SAMPLES``) and compiled on the first batch that uses it; if numba
     cannot compile it, the serial one runs instead (a ``CompileWarning`` says so).
+
+    Which variant runs such a batch is decided by their measured speed (``VariantTimer``):
+    the threads of the parallel variant wait for each other at the end of the batch, so on
+    cores shared with other busy processes (one thread descheduled) it can take longer than
+    the serial variant; the batch then runs serially until a probe finds the parallel
+    variant faster again.
     """
 
     def __init__(self, source: Callable) -> None:
@@ -283,6 +332,7 @@ class BatchKernel:
         self.parallel_ok = True
         self.parallel_runs = 0
         self.min_parallel_samples = PARALLEL_MIN_SAMPLES
+        self.timer = VariantTimer()
 
     @property
     def stats(self):
@@ -290,8 +340,8 @@ class BatchKernel:
         return self.serial.stats
 
     def use_parallel(self, n_batch: int, n_samples: int) -> bool:
-        """True if a batch of ``n_batch`` trajectories of ``n_samples`` samples runs on the
-        numba threads."""
+        """True if a batch of ``n_batch`` trajectories of ``n_samples`` samples may run on
+        the numba threads (whether it does: ``VariantTimer.choose``)."""
         import numba
 
         return (
@@ -303,14 +353,58 @@ class BatchKernel:
 
     def __call__(self, thetas, *arguments):
         # arguments: x0s, t, u, ...
-        if self.use_parallel(thetas.shape[0], arguments[1].shape[0]):
+        work = thetas.shape[0] * arguments[1].shape[0]
+        if not self.use_parallel(thetas.shape[0], arguments[1].shape[0]):
+            return self.serial(thetas, *arguments)
+        parallel = self.timer.choose()
+        start = time.perf_counter()
+        if parallel:
             self.parallel_ok, result = run_parallel_variant(
                 self.parallel, (thetas, *arguments), "batch kernel", "running batches serially"
             )
-            if self.parallel_ok:
-                self.parallel_runs += 1
-                return result
-        return self.serial(thetas, *arguments)
+            if not self.parallel_ok:
+                return self.serial(thetas, *arguments)
+            self.parallel_runs += 1
+        else:
+            result = self.serial(thetas, *arguments)
+        # the first parallel run compiles (or loads) the variant: not a measure of its speed
+        if not (parallel and self.parallel_runs == 1):
+            self.timer.record(parallel, (time.perf_counter() - start) / work)
+        return result
+
+
+class VariantTimer:
+    """Chooses between a kernel's serial and parallel variant by their measured time per
+    sample (equal results either way: only the speed differs).
+
+    Each variant's time per sample is a running mean, m ← m + ``WEIGHT``·(s − m), of its
+    recent batches. The parallel variant runs first; then the serial one is measured once;
+    after that the faster runs, and every ``PROBE_EVERY``-th batch runs the other one, so a
+    change of the machine's load (other processes starting or ending) is followed.
+    """
+
+    WEIGHT = 0.3
+    PROBE_EVERY = 8
+
+    def __init__(self) -> None:
+        self.seconds_per_sample = {True: None, False: None}  # parallel → running mean
+        self.calls = 0
+
+    def choose(self) -> bool:
+        """True: run the parallel variant."""
+        self.calls += 1
+        parallel, serial = self.seconds_per_sample[True], self.seconds_per_sample[False]
+        if parallel is None or serial is None:
+            return parallel is None
+        faster = parallel <= serial
+        return (not faster) if self.calls % self.PROBE_EVERY == 0 else faster
+
+    def record(self, parallel: bool, seconds_per_sample: float) -> None:
+        """Add a measured time per sample (s) of the variant."""
+        mean = self.seconds_per_sample[parallel]
+        self.seconds_per_sample[parallel] = (
+            seconds_per_sample if mean is None else mean + self.WEIGHT * (seconds_per_sample - mean)
+        )
 
 
 def run_parallel_variant(
@@ -339,7 +433,11 @@ def run_parallel_variant(
 
 
 def make_kernel(
-    f_out: Callable, h_out: Callable, compiled: bool = True, stateless: bool = False
+    f_out: Callable,
+    h_out: Callable,
+    compiled: bool = True,
+    stateless: bool = False,
+    sizes: tuple[int, int] | None = None,
 ) -> tuple[Callable, bool]:
     """Build the batch kernel for the out-form ``f_out`` and ``h_out`` (``model.f_out``,
     ``model.h_out``; ``stateless``: the model has no states, the kernel evaluates h alone at
@@ -349,7 +447,8 @@ def make_kernel(
     numba can compile ``f``, ``h`` and the loop (checked lazily by the first call: see
     ``Simulator``), its machine code is cached on disk (``flightid.model.kernel_cache``), and
     batches of several trajectories run in parallel (``BatchKernel``); with
-    ``compiled=False`` it is the same loop in plain Python.
+    ``compiled=False`` it is the same loop in plain Python. ``sizes`` = (n_states,
+    n_outputs) fixes them in the compiled state kernel (``_kernel_source``): faster loops.
     """
     from flightid.model.forms import kernel_function, out_form_of
 
@@ -366,4 +465,6 @@ def make_kernel(
     if stateless:
         return BatchKernel(_output_kernel_source(jit_h, numba.njit)), True
     jit_f = kernel_function(f_out, True)
-    return BatchKernel(_kernel_source(jit_f, jit_h, numba.njit)), True
+    n_states, n_outputs = sizes if sizes is not None else (-1, -1)
+    source = _kernel_source(jit_f, jit_h, numba.njit, int(n_states), int(n_outputs))
+    return BatchKernel(source), True

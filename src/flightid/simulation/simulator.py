@@ -211,6 +211,14 @@ class Simulator:
         # θ_f = θ[map]: the θ that f and h receive in each maneuver (None: θ itself)
         self._theta_maps = bound.theta_maps
         self._bound = bound
+        # per call of ``run``: what does not depend on θ, read once here (a frozen model)
+        self._n_samples = int(sum(t.shape[0] for t in self._times))
+        self._x0_free = [
+            (np.flatnonzero(index >= 0), index[index >= 0]) for _, index in self._x0_maps
+        ]
+        self._method_code = _METHODS[self.method]
+        self._has_output_delays = bool(model.output_delay_maps())
+        self._has_input_delays = bool(model.input_delay_maps())
         self._kernel, self.compiled = self._get_kernel(compiled)
         self._setup_feedback()
         self.evaluations = 0
@@ -252,11 +260,16 @@ class Simulator:
     def _get_kernel(self, compiled: bool):
         def build():
             kernel, is_compiled = make_kernel(
-                self.model.f_out, self.model.h_out, compiled, stateless=not self.model.has_states
+                self.model.f_out,
+                self.model.h_out,
+                compiled,
+                stateless=not self.model.has_states,
+                sizes=(len(self.model.states), len(self.model.outputs)),
             )
             return self._try_compile(kernel) if is_compiled else (kernel, is_compiled)
 
-        return self._memo(("state", compiled, self.model.has_states), build)
+        sizes = (len(self.model.states), len(self.model.outputs))
+        return self._memo(("state", compiled, self.model.has_states, sizes), build)
 
     def _try_compile(self, kernel):
         """Run the compiled kernel once on the first samples; fall back to Python on failure."""
@@ -303,7 +316,7 @@ class Simulator:
     @property
     def n_samples(self) -> int:
         """Total number of samples over all maneuvers."""
-        return int(sum(t.shape[0] for t in self._times))
+        return self._n_samples
 
     def run(self, thetas: np.ndarray) -> SimulationBatch:
         """Outputs for a batch of full parameter vectors ``thetas`` (B, n_params).
@@ -325,36 +338,26 @@ class Simulator:
         # one maneuver: the kernel writes straight into ``outputs`` (no block and no copy of
         # the B·N·n_o outputs: a batch of 21 × 1001 × 8 spent ~1 ms copying)
         single = len(self._times) == 1
-        for i, (t, u, (constants, index), theta_map) in enumerate(
-            zip(self._times, self._inputs, self._x0_maps, self._theta_maps, strict=True)
-        ):
-            x0s = np.repeat(constants[None, :], n_batch, axis=0)
-            mask = index >= 0
-            x0s[:, mask] = thetas[:, index[mask]]
-            x0s = np.ascontiguousarray(x0s)
+        for i, (t, u, (constants, _), (slots, columns), theta_map) in enumerate(
+            zip(
+                self._times, self._inputs, self._x0_maps, self._x0_free, self._theta_maps,
+                strict=True,
+            )
+        ):  # fmt: skip
+            # x0 = the constants, with the initial-state parameters of θ in their slots
+            x0s = np.empty((n_batch, constants.shape[0]))
+            x0s[:] = constants
+            if slots.size:
+                x0s[:, slots] = thetas[:, columns]
             # θ_f = θ[map]: per-maneuver parameters substituted into the θ of f and h
             f_thetas = thetas if theta_map is None else np.ascontiguousarray(thetas[:, theta_map])
             block = outputs if single else np.empty((n_batch, t.shape[0], n_out))
             flag = np.empty(n_batch, dtype=np.int64)
-            # rows that share their input delays share one delayed input matrix
-            for rows, u_rows in self._input_groups(t, u, thetas):
-                whole = rows.size == n_batch
-                sub_block = block if whole else np.empty((rows.size, t.shape[0], n_out))
-                sub_flag = flag if whole else np.empty(rows.size, dtype=np.int64)
-                self._kernel(
-                    f_thetas if whole else np.ascontiguousarray(f_thetas[rows]),
-                    x0s if whole else np.ascontiguousarray(x0s[rows]),
-                    t,
-                    u_rows,
-                    _METHODS[self.method],
-                    self._interpolation,
-                    n_out,
-                    sub_block,
-                    sub_flag,
-                )
-                if not whole:
-                    block[rows] = sub_block
-                    flag[rows] = sub_flag
+            if not self._has_input_delays:
+                self._kernel(f_thetas, x0s, t, u, self._method_code, self._interpolation,
+                             n_out, block, flag)  # fmt: skip
+            else:
+                self._run_delayed_groups(t, u, thetas, f_thetas, x0s, block, flag)
             if not single:
                 outputs[:, start : start + t.shape[0]] = block
             for b in np.flatnonzero(flag >= 0) if flag.max() >= 0 else ():
@@ -366,9 +369,33 @@ class Simulator:
                     )
             start += t.shape[0]
         # output time delays act on the simulated outputs, per row and per maneuver
-        apply_output_delays(self.model, self._times, thetas, outputs)
+        if self._has_output_delays:
+            apply_output_delays(self.model, self._times, thetas, outputs)
         self.evaluations += n_batch
         return SimulationBatch(outputs, diverged, tuple(messages))
+
+    def _run_delayed_groups(self, t, u, thetas, f_thetas, x0s, block, flag) -> None:
+        """The kernel over the batch rows grouped by their input delays: rows that share
+        their delays share one delayed input matrix (``_input_groups``)."""
+        n_batch, n_out = thetas.shape[0], block.shape[2]
+        for rows, u_rows in self._input_groups(t, u, thetas):
+            whole = rows.size == n_batch
+            sub_block = block if whole else np.empty((rows.size, t.shape[0], n_out))
+            sub_flag = flag if whole else np.empty(rows.size, dtype=np.int64)
+            self._kernel(
+                f_thetas if whole else np.ascontiguousarray(f_thetas[rows]),
+                x0s if whole else np.ascontiguousarray(x0s[rows]),
+                t,
+                u_rows,
+                self._method_code,
+                self._interpolation,
+                n_out,
+                sub_block,
+                sub_flag,
+            )
+            if not whole:
+                block[rows] = sub_block
+                flag[rows] = sub_flag
 
     def _run_feedback(self, thetas: np.ndarray) -> SimulationBatch:
         """``run`` with the state correction and/or shooting intervals (module docstring).
