@@ -43,6 +43,7 @@ progress line.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import os
 import time
@@ -384,18 +385,27 @@ class DaskEngine:
         """True where this engine started its cluster (a LocalCluster)."""
         return self._cluster is not None
 
-    def _on_every_worker(self, fn: Callable[..., Any], *args: Any) -> None:
-        """``fn(*args)`` once on each worker, waited for."""
+    def _on_every_worker(self, fn: Callable[..., Any], *args: Any, pinned: bool = True) -> None:
+        """``fn(*args)`` once on each worker, waited for. ``pinned=False`` lets the scheduler
+        move the task of a worker that died (its replacement, or another worker, runs it)
+        instead of waiting for a worker that is gone; a task that kills every worker it runs
+        on ends as ``KilledWorker``, which is waited for like a result."""
         from distributed import wait
 
         addresses = list(self.client.scheduler_info().get("workers", {}))
         futures = [
-            self.client.submit(fn, *args, pure=False, workers=[address], allow_other_workers=False)
+            self.client.submit(
+                fn, *args, pure=False, workers=[address], allow_other_workers=not pinned
+            )
             for address in addresses
         ]
         wait(futures)
+        lost = any(future.status == "error" for future in futures)
         for future in futures:
             future.release()
+        if lost:  # a worker died under it: wait for its nanny's new worker before the cases
+            with contextlib.suppress(TimeoutError, OSError):
+                self.client.wait_for_workers(len(addresses), timeout=60)
 
     def _warm_up(self, addresses: list[str]) -> None:
         """One ``warm_up`` task on each worker (its imports), waited for."""
@@ -410,7 +420,8 @@ class DaskEngine:
         if not todo:
             return 0.0
         started = time.perf_counter()
-        self._on_every_worker(warm_items, fn, list(todo.values()))
+        # not pinned: a case whose model kills its worker must not hold the batch up here
+        self._on_every_worker(warm_items, fn, list(todo.values()), pinned=False)
         self._warmed.update(todo)
         elapsed_s = time.perf_counter() - started
         self.startup_s += elapsed_s
