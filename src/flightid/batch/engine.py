@@ -11,8 +11,10 @@ on either; only the order of completion differs.
   and numba code alike, so threads would not run in parallel; numba's own thread pool for
   the parallel batch kernels gets ``cores // N`` threads per worker, ``worker_environment``)
   or on a running scheduler (``--scheduler tcp://host:8786``: any Dask cluster, e.g. one
-  of dask-jobqueue on an HPC batch system, is used and never started or closed here). Each
-  case is one task (``pure=False``: every submission runs). A worker that dies (killed, out
+  of dask-jobqueue on an HPC batch system, is used and never started or closed here). Short
+  cases go in chunks, several cases per Dask task (``plan_chunks``, ``run_chunk``: each task
+  about ``CHUNK_TARGET_S`` of work, each case keeping its own outcome), long ones one per
+  task (``pure=False``: every submission runs). A worker that dies (killed, out
   of memory) is replaced by its nanny, and the scheduler runs its tasks again elsewhere (up
   to ``distributed.scheduler.allowed-failures`` times, 3 by default): a task's result folder
   is written atomically, so a task killed half-way leaves nothing behind and its rerun
@@ -21,7 +23,10 @@ on either; only the order of completion differs.
 **Warm workers.** ``DaskEngine`` starts its workers warm: one warm-up task per worker
 (``warm_up``) imports the case, estimation and report code and numba before the first case
 arrives, so no case pays the imports; its time is part of the measured start-up
-(``DaskEngine.startup_s``: cluster start + warm-up). Compiled kernels come from flightid's
+(``DaskEngine.startup_s``: cluster start + warm-up). ``warm_models`` then has every worker
+run the first case of each of the batch's distinct models once (``run_batch`` calls it with
+``flightid.batch.task.warm_case``), so that the model's kernels are loaded before the first
+case; its time is added to ``startup_s``. Compiled kernels come from flightid's
 disk cache (``flightid.model.kernel_cache``, in numba's cache folder), which the worker
 processes share with this one: ``NUMBA_CACHE_DIR`` and ``FLIGHTID_KERNEL_CACHE`` of this
 process are passed on to the LocalCluster's workers.
