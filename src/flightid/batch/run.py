@@ -31,7 +31,7 @@ from typing import Any
 from flightid.batch.engine import DaskEngine, make_engine
 from flightid.batch.fingerprint import fingerprint
 from flightid.batch.plan import BatchCase, BatchError, plan_cases
-from flightid.batch.task import CaseTask, read_record, run_task
+from flightid.batch.task import CaseTask, model_tasks, read_record, run_task, warm_case
 from flightid.parallel import SerialEngine
 
 try:  # POSIX
@@ -56,8 +56,10 @@ class BatchResult:
         engine: which engine ran the tasks ("" when nothing ran).
         files: estimates.csv, estimates.parquet (when written), plots, index.html.
         startup_s: the start-up of the Dask engine this call made (s; connecting or
-            starting the cluster and warming its workers); 0 for the serial engine and for
-            an engine handed in.
+            starting the cluster, warming its workers and loading the batch's models on
+            them); for an engine handed in, the loading of the models (``warm_s``); 0 for
+            the serial engine.
+        warm_s: of that, the time the workers took to load the batch's models (s).
     """
 
     out: Path
@@ -67,6 +69,7 @@ class BatchResult:
     engine: str = ""
     files: tuple[Path, ...] = field(default_factory=tuple)
     startup_s: float = 0.0
+    warm_s: float = 0.0
 
     @property
     def failed(self) -> tuple[str, ...]:
@@ -158,13 +161,19 @@ def _run_tasks(
     ran: list[str],
     counts: tuple[int, int],
     say: Progress,
+    task_s: float | None = None,
 ) -> None:
     """Run ``tasks`` on ``engine``, adding each record to ``records`` and its name to
-    ``ran`` as it finishes, with a progress line (``counts``: cases skipped, cases)."""
+    ``ran`` as it finishes, with a progress line (``counts``: cases skipped, cases);
+    ``task_s``: the expected time of a case (s), which sizes a Dask engine's chunks."""
     n_skipped, n_cases = counts
     started = time.monotonic()
     n_failed = 0
-    for i, (task, record, exc) in enumerate(engine.map_unordered(run_task, tasks), start=1):
+    if isinstance(engine, DaskEngine):
+        finished = engine.map_unordered(run_task, tasks, task_s=task_s)
+    else:
+        finished = engine.map_unordered(run_task, tasks)
+    for i, (task, record, exc) in enumerate(finished, start=1):
         if exc is not None:
             record = _failed_record(task.case, task.fingerprint, exc)
         records[task.case.name] = record
@@ -271,27 +280,27 @@ def run_batch(
         )
         ran: list[str] = []
         description = ""
-        startup_s = 0.0
+        startup_s = warm_s = 0.0
         try:
             if tasks:
                 own = engine is None
+                task_s = _task_estimate_s(earlier_s)
                 engine = engine or make_engine(
-                    workers,
-                    scheduler,
-                    len(tasks),
-                    task_s=_task_estimate_s(earlier_s),
-                    startup_s=_read_startups(out),
+                    workers, scheduler, len(tasks), task_s=task_s, startup_s=_read_startups(out)
                 )
                 description = engine.description
                 started_in = ""
-                if own and isinstance(engine, DaskEngine):
-                    startup_s = engine.startup_s
-                    started_in = f", started in {startup_s:.1f} s"
-                    if engine.started_cluster:  # a LocalCluster's: for the next batch
+                if isinstance(engine, DaskEngine):
+                    # every worker loads the kernels of the batch's models: start-up
+                    warm_s = engine.warm_models(warm_case, model_tasks(tasks))
+                    startup_s = engine.startup_s if own else warm_s
+                    started_in = f", started in {startup_s:.1f} s ({warm_s:.1f} s loading models)"
+                    if own and engine.started_cluster:  # a LocalCluster's: for the next batch
                         _write_startup(out, engine.workers, startup_s)
                 say(f"batch: engine {description}{started_in}")
                 try:
-                    _run_tasks(engine, tasks, records, ran, (len(skipped), len(cases)), say)
+                    counts = (len(skipped), len(cases))
+                    _run_tasks(engine, tasks, records, ran, counts, say, task_s)
                 finally:
                     if own:
                         engine.close()
@@ -311,5 +320,12 @@ def run_batch(
         files += plots
         files.append(write_index(ordered, out, plots, description))
     return BatchResult(
-        out, tuple(ordered), tuple(ran), tuple(skipped), description, tuple(files), startup_s
+        out,
+        tuple(ordered),
+        tuple(ran),
+        tuple(skipped),
+        description,
+        tuple(files),
+        startup_s,
+        warm_s,
     )

@@ -36,10 +36,20 @@ from typing import Any
 
 from flightid.batch.plan import BatchCase
 
-__all__ = ["RECORD_FILE", "CaseTask", "read_record", "run_task"]
+__all__ = [
+    "RECORD_FILE",
+    "WARM_MODELS_MAX",
+    "CaseTask",
+    "model_tasks",
+    "read_record",
+    "run_task",
+    "warm_case",
+]
 
 RECORD_FILE = "batch.json"
 RECORD_VERSION = 2
+# the most distinct models of a batch whose kernels every worker loads before the first case
+WARM_MODELS_MAX = 4
 
 
 @dataclass(frozen=True)
@@ -206,3 +216,44 @@ def run_task(task: CaseTask) -> dict[str, Any]:
     # the time spent writing the report (not in batch.json: it is known only afterwards)
     record["write_s"] = time.perf_counter() - written
     return record
+
+
+def _model_key(task: CaseTask) -> str | None:
+    """What makes the compiled kernels of a case: its ``[model]`` table and its
+    ``[estimation]`` table (method, input interpolation, ...); None for a case whose text is
+    not TOML (it fails when it runs)."""
+    try:
+        raw = tomllib.loads(task.case.text)
+    except tomllib.TOMLDecodeError:
+        return None
+    model = raw.get("model")
+    if isinstance(model, dict) and isinstance(model.get("module"), str):
+        # a relative module path is relative to the case file
+        model = {**model, "module": str((task.case.path.parent / model["module"]).resolve())}
+    parts = {"model": model, "estimation": raw.get("estimation"), "stages": raw.get("stages")}
+    return json.dumps(parts, sort_keys=True, default=str)
+
+
+def model_tasks(tasks: list[CaseTask], limit: int = WARM_MODELS_MAX) -> dict[str, CaseTask]:
+    """The first task of each distinct model of ``tasks`` (by the key of its ``[model]`` and
+    ``[estimation]`` tables), ``limit`` of them at most, in plan order."""
+    chosen: dict[str, CaseTask] = {}
+    for task in tasks:
+        key = _model_key(task)
+        if key is not None and key not in chosen:
+            chosen[key] = task
+            if len(chosen) >= limit:
+                break
+    return chosen
+
+
+def warm_case(task: CaseTask) -> None:
+    """Run a case once exactly as its task runs it (``run_task``), into a temporary folder
+    that is then deleted, so that the process loads (from the disk cache) or compiles every
+    kernel of its model, its accuracy assessment and the report writer's code; nothing of
+    it is kept. Raises what ``run_task`` raises."""
+    import dataclasses
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="flightid-warm-") as folder:
+        run_task(dataclasses.replace(task, folder=Path(folder) / task.case.name))
