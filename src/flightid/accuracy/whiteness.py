@@ -44,6 +44,7 @@ from flightid.errors import InputError, describe
 
 __all__ = [
     "Whiteness",
+    "chi_square_survival",
     "WhitenessError",
     "default_lags",
     "estimate_whiteness",
