@@ -549,44 +549,47 @@ def _biases(
     return bx, by, extra, per_maneuver_any
 
 
-def _compiled(fn, n_x: int, n_u: int, n_p: int):
-    """``fn`` compiled by numba, or numba's error where it cannot compile it.
-
-    The compiled function is the one of ``compiled_function``: one per process for the same
-    function (a case built twice compiles once) and kept in the on-disk kernel cache. It is
-    compiled by one call on zeros; an error the compiled code raises there (a division by a
-    parameter that is zero here) is not a compilation failure (``try_compiled``).
-    """
-    from flightid.model.compilation import try_compiled
+def _dispatcher(fn):
+    """The numba dispatcher of the model function ``fn`` (``compiled_function``: one per
+    process for the same function, kept in the on-disk kernel cache), or numba's error where
+    it refuses the function outright. Nothing is compiled or loaded here: the kernel that
+    calls it compiles it (or loads it from the cache) when the estimation builds it, and a
+    function numba cannot compile then runs in Python with the simulator's ``CompileWarning``
+    (``flightid.simulation.Simulator``)."""
     from flightid.model.kernel_cache import compiled_function
 
     try:
-        jitted = compiled_function(fn)
+        return compiled_function(fn)
     except Exception as exc:  # numba's errors have many classes
         return exc
-    failure = try_compiled(jitted, 0.0, np.zeros(n_x), np.zeros(n_u), np.zeros(n_p))
-    return jitted if failure is None else failure
 
 
 def _biased_functions(f, h, n_x, n_y, n_u, bx, by, per_maneuver, compiled):
-    """f, h with the state and output biases added (numba-compilable closures), in return
-    form carrying their out forms (``flightid.model.forms``; built on the base model's out
-    forms, so that a base without allocation stays without)."""
-    from flightid.model.forms import as_out_form, kernel_function
+    """f, h with the state and output biases added, in return form carrying their out forms
+    (``flightid.model.forms``; built on the base model's out forms, so that a base without
+    allocation stays without).
 
-    f_out = kernel_function(getattr(f, "out_form", None) or as_out_form(f), compiled)
-    h_out = kernel_function(getattr(h, "out_form", None) or as_out_form(h), compiled)
-    if compiled:
-        import numba
+    The return forms call the Python f and h (``check_model`` and the other Python callers:
+    nothing is compiled before the estimation). With ``compiled`` = (f_jit, h_jit), the
+    numba dispatchers of f and h (or f and h themselves where they carry their own out form),
+    the out forms are numba-compilable closures around the compiled out forms, each carrying
+    the Python one as ``python_form``: the interpreted kernel of the fall-back runs that."""
+    from flightid.model.forms import as_out_form, kernel_function, with_out_form
 
-        f = f if hasattr(f, "py_func") else numba.njit(cache=False)(f)
-        h = h if hasattr(h, "py_func") else numba.njit(cache=False)(h)
+    def out_form(fn, jit):
+        return kernel_function(getattr(fn, "out_form", None) or as_out_form(fn), jit)
 
     # ẋ_j = f_j + b_x,j ;  y_j = h_j + b_y,j
-    return (
-        _with_biases(f, f_out, n_x, n_u, bx, per_maneuver),
-        _with_biases(h, h_out, n_y, n_u, by, per_maneuver),
-    )
+    f_py = _with_biases(f, out_form(f, False), n_x, n_u, bx, per_maneuver)
+    h_py = _with_biases(h, out_form(h, False), n_y, n_u, by, per_maneuver)
+    if not compiled:
+        return f_py, h_py
+    f_jit, h_jit = compiled
+    f_out = _with_biases(f_jit, out_form(f_jit, True), n_x, n_u, bx, per_maneuver).out_form
+    h_out = _with_biases(h_jit, out_form(h_jit, True), n_y, n_u, by, per_maneuver).out_form
+    f_out.python_form = f_py.out_form
+    h_out.python_form = h_py.out_form
+    return with_out_form(f_py, f_out), with_out_form(h_py, h_out)
 
 
 def _with_biases(fn, fn_out, n, n_u, b, per_maneuver):
@@ -645,33 +648,26 @@ def _model_and_delay_parameters(
 
 
 def _biased_model_functions(case: Case, base: StateSpaceModel, bx, by, per_maneuver: bool):
-    """The base model's f and h with the biases added: wrappers around the compiled f and h
-    (their own out forms where they carry one) when the case compiles and compiling works,
-    else around the Python functions (then carrying the compile failure for the simulator's
-    fall-back message)."""
-    n_u = len(base.inputs)
+    """The base model's f and h with the biases added (``_biased_functions``): out forms
+    around the compiled f and h (their own out forms where they carry one) when the case
+    compiles, else around the Python functions (then carrying numba's error, where numba
+    refused a function outright, for the simulator's fall-back message)."""
     jitted = (
-        [_compiled(fn, len(base.states), n_u, len(base.parameters)) for fn in (base.f, base.h)]
-        if case.estimation.get("compiled", True)
-        else [None]
-    )
-    compiled = not any(fn is None or isinstance(fn, BaseException) for fn in jitted)
-    failure = next((fn for fn in jitted if isinstance(fn, BaseException)), None)
-    # the wrappers call the compiled f and h (their own out forms where they carry one)
-    f_base, h_base = (
         [
-            fn if getattr(fn, "out_form", None) is not None else fn_jit
-            for fn, fn_jit in zip((base.f, base.h), jitted, strict=True)
+            fn if getattr(fn, "out_form", None) is not None else _dispatcher(fn)
+            for fn in (base.f, base.h)
         ]
-        if compiled
-        else (base.f, base.h)
+        if case.estimation.get("compiled", True)
+        else []
     )
+    failure = next((fn for fn in jitted if isinstance(fn, BaseException)), None)
+    compiled = tuple(jitted) if jitted and failure is None else None
     f, h = _biased_functions(
-        f_base,
-        h_base,
+        base.f,
+        base.h,
         len(base.states),
         len(base.outputs),
-        n_u,
+        len(base.inputs),
         bx,
         by,
         per_maneuver,

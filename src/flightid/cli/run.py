@@ -271,15 +271,13 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if engine is not None:
                 engine.close()
-        from flightid.report.html import write_files
-
         print_sigma_note(result.estimate)
         answer_then_files(
             args,
             lambda: results_document([result.to_dict()]),
             lambda: print_summary(result),
             folder,
-            lambda directory: write_files(result, directory),
+            lambda directory: _write_report(result, directory),
         )
     finally:
         if pool is not None:
@@ -287,6 +285,14 @@ def run(args: argparse.Namespace) -> int:
         if folder is not None:
             folder.release()
     return 0
+
+
+def _write_report(result, directory):
+    """The result folder's files (``flightid.report.html.write_files``): imported only
+    when a folder is written, so that ``--json`` alone does not load the report."""
+    from flightid.report.html import write_files
+
+    return write_files(result, directory)
 
 
 def figure_pool(case, folder):

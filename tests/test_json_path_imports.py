@@ -1,0 +1,60 @@
+"""``flightid run CASE --json`` loads only what its answer needs: not the HTML report (the
+result folder's files) and not scipy.special (the whiteness p-value is a closed form).
+Structural, not timed: the modules in ``sys.modules`` after the command, in a fresh
+interpreter (the test process has them loaded)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+WALK = ROOT / "examples" / "csv_walkthrough" / "my_case.toml"
+DATA = Path(os.environ.get("FLIGHTID_DATA", ROOT / "../shared/data"))
+
+_CHILD = r"""
+import contextlib, io, json, sys
+from flightid.cli.main import main
+stdout = io.StringIO()
+with contextlib.redirect_stdout(stdout):
+    rc = main(["run", *sys.argv[1:], "--json", "--quiet"])
+document = json.loads(stdout.getvalue())
+entry = document["results"][0]
+print(json.dumps({"rc": rc, "modules": sorted(sys.modules),
+                  "whiteness": "whiteness" in json.dumps(entry)}))
+"""
+
+
+def _run_json(*arguments: str) -> set[str]:
+    """The modules loaded by ``flightid run ARGUMENTS --json`` in a fresh interpreter."""
+    done = subprocess.run(
+        [sys.executable, "-c", _CHILD, *arguments],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=ROOT,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    found = json.loads(done.stdout.strip().splitlines()[-1])
+    assert found["rc"] == 0
+    # the answer still carries the residual-whiteness test
+    assert found["whiteness"]
+    return set(found["modules"])
+
+
+def test_run_json_does_not_load_the_report():
+    modules = _run_json(str(WALK), "--accuracy", "cr")
+    assert "flightid.report.html" not in modules
+
+
+@pytest.mark.skipif(not (DATA / "fvsysid").is_dir(), reason=f"real flight data not found at {DATA}")
+def test_run_json_of_a_standard_case_does_not_load_scipy_special():
+    case = ROOT / "examples" / "cases" / "attas_lateral.toml"
+    modules = _run_json(str(case), "--data-dir", str(DATA))
+    assert "flightid.report.html" not in modules
+    assert "scipy.special" not in modules
