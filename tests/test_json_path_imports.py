@@ -1,5 +1,5 @@
 """``flightid run CASE --json`` loads only what its answer needs: not the HTML report (the
-result folder's files) and not scipy.special (the whiteness p-value is a closed form).
+result folder's files).
 Structural, not timed: the modules in ``sys.modules`` after the command, in a fresh
 interpreter (the test process has them loaded)."""
 
@@ -10,8 +10,6 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-
-import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "examples" / "csv_walkthrough" / "my_case.toml"
@@ -50,11 +48,3 @@ def _run_json(*arguments: str) -> set[str]:
 def test_run_json_does_not_load_the_report():
     modules = _run_json(str(WALK), "--accuracy", "cr")
     assert "flightid.report.html" not in modules
-
-
-@pytest.mark.skipif(not (DATA / "fvsysid").is_dir(), reason=f"real flight data not found at {DATA}")
-def test_run_json_of_a_standard_case_does_not_load_scipy_special():
-    case = ROOT / "examples" / "cases" / "attas_lateral.toml"
-    modules = _run_json(str(case), "--data-dir", str(DATA))
-    assert "flightid.report.html" not in modules
-    assert "scipy.special" not in modules

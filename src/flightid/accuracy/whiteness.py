@@ -33,51 +33,22 @@ figure); m defaults to min(20, L) (Box & Jenkins' customary 20 lags; fewer on sh
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import chdtrc
 
 from flightid.accuracy.coloured import residual_autocovariance
 from flightid.errors import InputError, describe
 
 __all__ = [
     "Whiteness",
-    "chi_square_survival",
     "WhitenessError",
     "default_lags",
     "estimate_whiteness",
     "residual_whiteness",
 ]
-
-
-def chi_square_survival(m: int, q: np.ndarray) -> np.ndarray:
-    """P(χ²_m > q) for a whole number m ≥ 1 of degrees of freedom (the upper regularised
-    incomplete gamma function Q(m/2, q/2)), in closed form, so that a run's results need not
-    load scipy.special. With x = q/2:
-
-        m even:  Q = e^(−x) Σ_{j=0}^{m/2−1} x^j / j!
-        m odd:   Q = erfc(√x) + e^(−x) Σ_{j=1}^{(m−1)/2} x^(j−1/2) / Γ(j + 1/2)
-
-    each term computed as exp(a ln x − x − ln Γ(a + 1)) (no overflow for large x)."""
-    x = 0.5 * np.asarray(q, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        log_x = np.log(x)
-        if m % 2 == 0:
-            # j = 0: e^(−x)
-            total = np.exp(-x)
-            powers = [float(j) for j in range(1, m // 2)]
-        else:
-            total = np.array([math.erfc(math.sqrt(v)) if v >= 0 else math.nan for v in x.flat])
-            total = total.reshape(x.shape)
-            powers = [j - 0.5 for j in range(1, (m - 1) // 2 + 1)]
-        for a in powers:
-            # x^a e^(−x) / Γ(a + 1)
-            total = total + np.exp(a * log_x - x - math.lgamma(a + 1.0))
-    # Q(m/2, ∞) = 0; a negative or NaN q has no probability
-    total = np.where(np.isposinf(x), 0.0, total)
-    return np.where(x >= 0, np.clip(total, 0.0, 1.0), np.nan)
 
 
 class WhitenessError(InputError):
@@ -248,7 +219,7 @@ def residual_whiteness(
     # Q_o = N (N + 2) Σ_{k=1..m} ρ_o(k)² / (N − M k)
     q = n * (n + 2) * np.sum(rho[1 : m + 1] ** 2 / pairs[:, None], axis=0)
     # p = P(χ²_m > Q): the χ² survival function (what scipy.stats.chi2.sf evaluates)
-    p_value = chi_square_survival(int(m), q)
+    p_value = chdtrc(m, q)
     return Whiteness(
         names=names,
         rho=rho,
