@@ -6,14 +6,12 @@ interpreter (the test process has them loaded)."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "examples" / "csv_walkthrough" / "my_case.toml"
-DATA = Path(os.environ.get("FLIGHTID_DATA", ROOT / "../shared/data"))
 
 _CHILD = r"""
 import contextlib, io, json, sys
