@@ -695,9 +695,10 @@ def cost_history_figure(
     panel_height_in, width_in = 2.0, 6.5
     count = 2 if with_log_det else 1
     figure = Figure(figsize=(width_in, 1.0))
-    axes = [figure.add_axes((0, 0, 1, 1))]
+    # top down: ln det R̂ (where shown), the cost
+    axes = [figure.add_axes((0, 0, 1, 1)) for _ in range(count)]
     if with_log_det:
-        axes.insert(0, figure.add_axes((0, 0, 1, 1), sharex=axes[0]))
+        axes[0].sharex(axes[1])
     passes = np.arange(costs.size)
     if with_log_det:
         finite = np.isfinite(log_det_r)
