@@ -157,9 +157,12 @@ def test_autocorrelation_figure_shows_every_output_without_overlaps(n_outputs):
     assert len(figure.axes) == n_outputs
     for ax, name in zip(figure.axes, OUTPUTS, strict=False):
         assert ax.get_title().startswith(f"{name}: ")
-        # the lags, the band, the zero line and the correction lag
-        assert len(ax.collections) == 1 and len(ax.patches) == 1
-        assert len(ax.get_lines()) == 2
+        # the lags inside and outside the band, the zero line and the correction lag; the band
+        lines = ax.get_lines()
+        assert len(lines) == 4 and len(ax.patches) == 1
+        stems = sum(np.count_nonzero(np.isfinite(line.get_ydata())) for line in lines[:2])
+        assert stems == 2 * 120
+        assert lines[3].get_label() == "correction lag L = 90"
     # the lag axis labelled under the lowest panel of each column
     columns = min(n_outputs, 3)
     labelled = [ax.get_xlabel() == "lag [s]" for ax in figure.axes]
