@@ -204,3 +204,23 @@ def test_drawing_a_maneuver_figure_creates_few_tick_objects(monkeypatch):
     image = PIL.Image.open(io.BytesIO(png))
     width, height = figure.get_size_inches()
     assert abs(image.size[0] - width * 96) < 1 and abs(image.size[1] - height * 96) < 1
+
+
+def test_figures_drawn_here_leave_the_heap_out_of_collections_then_hand_it_back(monkeypatch):
+    import gc
+
+    from flightid.report import drawing
+
+    seen = []
+
+    def job_seen(job):
+        seen.append(gc.get_freeze_count())
+        return b"png"
+
+    monkeypatch.setattr(drawing, "draw_job", job_seen)
+    job = drawing.FigureJob("cost_history_figure", ([3.0, 2.0],), {}, 40.0, 1.0)
+    assert gc.get_freeze_count() == 0
+    assert drawing.draw([job, job]) == [b"png", b"png"]
+    # frozen while drawing, everything handed back to the collector afterwards
+    assert len(seen) == 2 and min(seen) > 0
+    assert gc.get_freeze_count() == 0

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from flightid.errors import InputError
 
@@ -431,12 +432,22 @@ def _fix_text_positions(figure: Figure) -> None:
 _GRID_STYLE = {"colors": "#b0b0b0", "linewidth": 0.4, "alpha": 0.5}
 
 
+class _ViewTicks(MaxNLocator):
+    """``MaxNLocator``'s ticks inside the view interval only: matplotlib makes a tick object
+    (two lines, a grid line, two texts) for every location a locator returns, and
+    ``MaxNLocator`` returns one beyond each end of the view as well."""
+
+    def __call__(self) -> np.ndarray:
+        low, high = sorted(self.axis.get_view_interval())
+        locations = np.asarray(super().__call__())
+        slack = 1e-9 * (high - low)
+        return locations[(locations >= low - slack) & (locations <= high + slack)]
+
+
 def _style_panel(ax, y_bins: int = 4) -> None:
     """Few y ticks, small tick labels, a light grid along y (per panel, before its ticks
     exist)."""
-    from matplotlib.ticker import MaxNLocator
-
-    ax.yaxis.set_major_locator(MaxNLocator(nbins=y_bins, steps=[1, 2, 2.5, 5, 10]))
+    ax.yaxis.set_major_locator(_ViewTicks(nbins=y_bins, steps=[1, 2, 2.5, 5, 10]))
     ax.tick_params(labelsize=_TICK_PT)
     ax.grid(True, axis="y", linewidth=0.4, alpha=0.5)
 
@@ -449,8 +460,6 @@ def _place(ax, figure: Figure, left_in: float, bottom_in: float, width_in: float
 
 def _time_ticks(low: float, high: float) -> np.ndarray:
     """About six round tick values within [low, high]."""
-    from matplotlib.ticker import MaxNLocator
-
     ticks = MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10]).tick_values(low, high)
     slack = 1e-9 * (high - low)
     return ticks[(ticks >= low - slack) & (ticks <= high + slack)]
