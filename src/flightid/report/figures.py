@@ -458,14 +458,16 @@ def _place(ax, figure: Figure, left_in: float, bottom_in: float, width_in: float
     ax.set_position([left_in / width, bottom_in / height, width_in / width, height_in / height])
 
 
-def _time_ticks(low: float, high: float) -> np.ndarray:
-    """About six round tick values within [low, high]."""
-    ticks = MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10]).tick_values(low, high)
+def _time_ticks(low: float, high: float, integer: bool = False) -> np.ndarray:
+    """About six round tick values within [low, high] (whole numbers with ``integer``)."""
+    steps = [1, 2, 5, 10] if integer else [1, 2, 2.5, 5, 10]
+    locator = MaxNLocator(nbins=8 if integer else 7, steps=steps, integer=integer)
+    ticks = locator.tick_values(low, high)
     slack = 1e-9 * (high - low)
     return ticks[(ticks >= low - slack) & (ticks <= high + slack)]
 
 
-def _common_x_axis(panels, low: float, high: float, labelled) -> None:
+def _common_x_axis(panels, low: float, high: float, labelled, integer: bool = False) -> None:
     """The panels' common x axis [low, high] with the same ticks in each: tick marks and
     labels on the ``labelled`` panels; a vertical grid line at each tick in every panel,
     drawn as one line collection (an inner panel then needs no tick objects, which cost
@@ -474,7 +476,7 @@ def _common_x_axis(panels, low: float, high: float, labelled) -> None:
 
     if not high > low:
         high = low + 1.0
-    ticks = _time_ticks(low, high)
+    ticks = _time_ticks(low, high, integer)
     for ax in panels:
         ax.set_xlim(low, high)
         if ax in labelled:
@@ -707,8 +709,6 @@ def cost_history_figure(
     ln det R̂ does not depend on the R that weights J, so it runs on across R updates and
     shows convergence where the cost, recomputed under each new R, jumps.
     """
-    from matplotlib.ticker import MaxNLocator
-
     costs = np.asarray(costs, dtype=float)
     log_det_r = np.asarray(log_det_r, dtype=float)
     with_log_det = log_det_r.size == costs.size and bool(np.any(np.isfinite(log_det_r)))
@@ -717,8 +717,6 @@ def cost_history_figure(
     figure = Figure(figsize=(width_in, 1.0))
     # top down: ln det R̂ (where shown), the cost
     axes = [figure.add_axes((0, 0, 1, 1)) for _ in range(count)]
-    if with_log_det:
-        axes[0].sharex(axes[1])
     passes = np.arange(costs.size)
     if with_log_det:
         finite = np.isfinite(log_det_r)
@@ -743,10 +741,13 @@ def cost_history_figure(
                 linewidth=1.0,
                 label="R re-estimated" if k == 0 else None,
             )
-        axis.tick_params(which="both", labelsize=_TICK_PT, labelbottom=axis is ax)
-        axis.grid(True, which="both", linewidth=0.3)
-    # whole passes on the pass axis
-    ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True))
+        axis.tick_params(which="both", labelsize=_TICK_PT)
+        axis.grid(True, axis="y", which="both", linewidth=0.3)
+    if with_log_det:
+        axes[0].yaxis.set_major_locator(_ViewTicks(nbins=6, steps=[1, 2, 2.5, 5, 10]))
+    # whole passes on the pass axis, labelled under the cost panel
+    # (an R re-estimation after the last pass, at size − 0.5, inside the view)
+    _common_x_axis(axes, -0.7, costs.size - 0.3, [ax], integer=True)
     if len(noise_update_passes):
         axes[0].legend(fontsize=7, frameon=False)
     ax.set_xlabel("pass [–]", fontsize=_LABEL_PT)
