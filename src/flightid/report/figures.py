@@ -539,7 +539,7 @@ def maneuver_figure(
     figure_height = _SUPTITLE_IN + sum(gaps) + sum(heights) + _BOTTOM_IN
     figure = Figure(figsize=(MANEUVER_FIGURE_WIDTH_IN, figure_height))
     width_px = None if dpi is None else MANEUVER_FIGURE_WIDTH_IN * dpi
-    input_panels, output_panels, residual_panels = [], [], []
+    input_panels = []
     for i in range(n_u):
         ax = figure.add_axes((0, 0, 1, 1))
         shown = _shown(u[:, i], width_px)
@@ -556,8 +556,35 @@ def maneuver_figure(
             ax.set_title("inputs", fontsize=9, loc="left")
         input_panels.append(ax)
     # the output panels take 3/5 of the width, the residual panels 2/5
-    output_px = None if width_px is None else 0.6 * width_px
-    residual_px = None if width_px is None else 0.4 * width_px
+    output_panels, residual_panels = _output_rows(
+        figure,
+        time,
+        z,
+        y,
+        output_names,
+        units,
+        None if width_px is None else (0.6 * width_px, 0.4 * width_px),
+        t0,
+    )
+    bottom_row = {output_panels[-1], residual_panels[-1]} if n_o else set(figure.axes[-1:])
+    for ax in figure.axes:
+        _style_panel(ax, y_bins=3 if ax in input_panels else 4)
+    # the time tick labels only under the bottom row
+    span = (float(time[0]), float(time[-1])) if n else (0.0, 1.0)
+    _common_x_axis(figure.axes, *span, bottom_row)
+    _place_maneuver_panels(figure, input_panels, output_panels, residual_panels, heights, gaps)
+    _fix_text_positions(figure)
+    figure.suptitle(title, fontsize=10, y=1.0 - 0.06 / figure_height, va="top")
+    return figure
+
+
+def _output_rows(figure, time, z, y, output_names, units, widths_px, t0: float):
+    """Per output a panel of the measured (+) and predicted (line) response and one of the
+    residual z − y; the panels' widths in pixels (output, residual) choose the samples
+    drawn (None: all). Returns the output panels and the residual panels."""
+    output_panels, residual_panels = [], []
+    output_px, residual_px = widths_px or (None, None)
+    last = len(output_names) - 1
     for j, name in enumerate(output_names):
         ax = figure.add_axes((0, 0, 1, 1))
         shown = _shown(z[:, j], output_px)
@@ -575,21 +602,12 @@ def maneuver_figure(
             ax.set_title("outputs: measured vs predicted", fontsize=9, loc="left")
             res.set_title("residuals", fontsize=9, loc="left")
             ax.legend(fontsize=7, loc="upper right", frameon=False, ncol=2)
-        if j == n_o - 1:
+        if j == last:
             ax.set_xlabel(f"t − t₀ [s]   (t₀ = {t0:g} s)", fontsize=_LABEL_PT)
             res.set_xlabel("t − t₀ [s]", fontsize=_LABEL_PT)
         output_panels.append(ax)
         residual_panels.append(res)
-    bottom_row = {output_panels[-1], residual_panels[-1]} if n_o else {figure.axes[-1]}
-    for ax in figure.axes:
-        _style_panel(ax, y_bins=3 if ax in input_panels else 4)
-    # the time tick labels only under the bottom row
-    span = (float(time[0]), float(time[-1])) if n else (0.0, 1.0)
-    _common_x_axis(figure.axes, *span, bottom_row)
-    _place_maneuver_panels(figure, input_panels, output_panels, residual_panels, heights, gaps)
-    _fix_text_positions(figure)
-    figure.suptitle(title, fontsize=10, y=1.0 - 0.06 / figure_height, va="top")
-    return figure
+    return output_panels, residual_panels
 
 
 def _place_maneuver_panels(figure, input_panels, output_panels, residual_panels, heights, gaps):
@@ -600,8 +618,8 @@ def _place_maneuver_panels(figure, input_panels, output_panels, residual_panels,
     left = _left_in(input_panels + output_panels)
     residual_left = _left_in(residual_panels)
     usable = width - left - _RIGHT_IN
-    # the output column and the residual column (with its margin) share the width 3 : 2
-    output_width = 0.6 * (usable + residual_left) - residual_left * 0.0
+    # the output column takes 3/5 of the width right of the margin, the residual column
+    # the rest after its own margin
     output_width = max(0.6 * usable, 1.0)
     residual_width = max(usable - output_width - residual_left, 0.5)
     top = height - _SUPTITLE_IN
