@@ -19,6 +19,7 @@ clean-up); ``close()`` ends them, also on an interrupt.
 from __future__ import annotations
 
 import contextlib
+import gc
 import multiprocessing
 import signal
 from collections.abc import Sequence
@@ -62,12 +63,33 @@ def draw_job(job: FigureJob) -> bytes:
     return figures.png_bytes(figure, job.dpi)
 
 
+@contextlib.contextmanager
+def _heap_frozen():
+    """The objects that exist now left out of the garbage collector's passes while the
+    figures are drawn (``gc.freeze``): a figure makes tens of thousands of objects, which
+    set off full collections that would walk the whole heap of numpy, scipy, numba and
+    matplotlib each time (0.08 s of a report's 0.5 s of figures, measured). Nothing is
+    lost: the frozen objects are handed back to the collector afterwards. Left alone where
+    the caller froze the heap itself."""
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
 def _worker_start() -> None:
     """A worker's set-up: signals as the module docstring says, matplotlib imported now
-    (while the parent estimates)."""
+    (while the parent estimates), and the heap as it then is frozen (``_heap_frozen``: the
+    worker only draws)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     import flightid.report.figures  # noqa: F401
+
+    gc.freeze()
 
 
 def _ready() -> bool:
@@ -142,7 +164,8 @@ def draw(jobs: Sequence[FigureJob], pool: FigurePool | None = None) -> list[byte
     raises its error here."""
     pool = pool or (_ACTIVE[0] if _ACTIVE else None)
     if pool is None:
-        return [draw_job(job) for job in jobs]
+        with _heap_frozen():
+            return [draw_job(job) for job in jobs]
     order = sorted(range(len(jobs)), key=lambda k: -jobs[k].weight)
     try:
         futures = {k: pool.submit(jobs[k]) for k in order}

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from flightid.errors import InputError
 
@@ -104,13 +105,19 @@ def _draw_png(figure: Figure, target, dpi: float) -> None:
     figure.set_dpi(dpi)
     try:
         canvas.draw()
+        pixels = np.asarray(canvas.buffer_rgba())
+        # an opaque figure is written without its alpha channel, at zlib level 3: the same
+        # pixels, a smaller file, 45 % less encoding time than RGBA at level 6 (measured)
+        if bool(np.all(pixels[:, :, 3] == 255)):
+            pixels = pixels[:, :, :3]
         matplotlib.image.imsave(
             target,
-            canvas.buffer_rgba(),
+            pixels,
             format="png",
             origin="upper",
             dpi=dpi,
             metadata={"Software": "flightid (matplotlib Agg)"},
+            pil_kwargs={"compress_level": 3},
         )
     finally:
         figure.set_dpi(original)
@@ -315,6 +322,173 @@ def _shown(values: np.ndarray, width_px: float | None) -> np.ndarray | slice:
     return envelope_indices(values, int(np.ceil(width_px)))
 
 
+# The report's figures are laid out by arithmetic in inches rather than by ``tight_layout``:
+# that measures every tick label and text of every panel by drawing the figure's text once
+# more, as much CPU time as the draw itself. Text heights follow from the font sizes, the
+# width of a panel's y tick labels from their strings (the tick values and the formatter
+# that will label them); the panels share their time axis, with tick labels under the
+# bottom row only, and carry few ticks (``MaxNLocator``).
+
+_TICK_PT = 7.0  # tick labels
+_LABEL_PT = 8.0  # axis labels
+_PT_IN = 1.0 / 72.0
+# one line of text of size s: s · 1.25 (ascent + descent of DejaVu Sans) points high
+_LINE = 1.25
+# the tick mark and its pad to the label (matplotlib: 3.5 pt + 3.5 pt), and the axis label's
+# pad (4 pt)
+_TICK_SPACE_IN = 7.0 * _PT_IN
+_LABEL_PAD_IN = 4.0 * _PT_IN
+# left of a panel: the y label's line, its pad, the tick marks, plus the tick labels' width
+_LEFT_FIXED_IN = 0.06 + _LINE * _LABEL_PT * _PT_IN + _LABEL_PAD_IN + _TICK_SPACE_IN
+# below the bottom row: tick marks, a tick label line, the pad, an x label line, a margin
+_BOTTOM_IN = 0.06 + _TICK_SPACE_IN + _LINE * (_TICK_PT + _LABEL_PT) * _PT_IN + _LABEL_PAD_IN
+# above a panel: the y axis' offset text (×10ⁿ, +c) of a tick label's height and pads
+_GAP_IN = 0.1 + _LINE * _TICK_PT * _PT_IN
+# above a panel with a title: the title's line (9 pt) above the offset text
+_TITLED_GAP_IN = _GAP_IN + 0.08 + _LINE * 9.0 * _PT_IN
+# above the panels: the figure title's line (10 pt) and a margin
+_SUPTITLE_IN = 0.1 + _LINE * 10.0 * _PT_IN
+_RIGHT_IN = 0.2
+
+
+def _text_width_in(text: str, size_pt: float) -> float:
+    """An upper bound of the width (inches) of a tick label in DejaVu Sans: advance widths
+    0.636 em for digits, 0.318 em for ``.`` and ``,``, at most 0.84 em for any other glyph;
+    mathtext markup (``$\\mathdefault{10^{3}}$``) counted by its shown characters,
+    superscripts at 0.7 em."""
+    em = 0.0
+    superscript = False
+    for part in text.replace("\\mathdefault", "").replace("\\times", "×").split("^"):
+        for char in part:
+            if char in "${}\\":
+                continue
+            width = 0.64 if char.isdigit() else 0.32 if char in ".," else 0.84
+            em += 0.7 * width if superscript else width
+        superscript = True
+    return em * size_pt * _PT_IN
+
+
+def _tick_labels(axis) -> tuple[list[str], str]:
+    """The tick labels an axis will show (major, and minor where it labels them) and its
+    offset text (``×10⁻³``, ``+1.1e4``; empty when none)."""
+    from matplotlib.ticker import NullFormatter, NullLocator
+
+    low, high = sorted(axis.get_view_interval())
+    slack = 1e-9 * (high - low)
+    labels: list[str] = []
+    offset = ""
+    for ticker in (axis.major, axis.minor):
+        if isinstance(ticker.locator, NullLocator) or isinstance(ticker.formatter, NullFormatter):
+            continue
+        locations = [v for v in ticker.locator() if low - slack <= v <= high + slack]
+        labels += [label for label in ticker.formatter.format_ticks(locations) if label]
+        if ticker is axis.major:
+            offset = ticker.formatter.get_offset() if locations else ""
+    return labels, offset
+
+
+def _y_tick_width_in(ax) -> float:
+    """The width (inches) of the widest y tick label the panel will show."""
+    labels, _ = _tick_labels(ax.yaxis)
+    return max((_text_width_in(label, _TICK_PT) for label in labels), default=0.0)
+
+
+def _left_in(panels) -> float:
+    """The margin (inches) left of a column of panels: its y labels and tick labels."""
+    return _LEFT_FIXED_IN + max((_y_tick_width_in(ax) for ax in panels), default=0.0)
+
+
+def _fix_text_positions(figure: Figure) -> None:
+    """Place every panel's axis labels and titles where matplotlib would, from the tick
+    label widths (``_text_width_in``) rather than from measured text: the y label beside
+    the widest tick label, the x label under the tick labels, a title above the y offset
+    text where there is one. Matplotlib then does not measure every tick label of the
+    panel, and of every panel sharing its axes, when it draws."""
+    width, height = figure.get_size_inches()
+    for ax in figure.axes:
+        box = ax.get_position()
+        panel_width_in, panel_height_in = box.width * width, box.height * height
+        labels, offset = _tick_labels(ax.yaxis)
+        if ax.get_ylabel():
+            tick_width_in = max((_text_width_in(t, _TICK_PT) for t in labels), default=0.0)
+            # the label's right edge (its baseline side, rotated): pad + labels + ticks
+            x_in = _TICK_SPACE_IN + tick_width_in + _LABEL_PAD_IN
+            ax.yaxis.set_label_coords(-x_in / panel_width_in, 0.5)
+        if ax.get_xlabel():
+            # the label's top: below the tick marks, a tick label line and the pad
+            y_in = _TICK_SPACE_IN + _LINE * _TICK_PT * _PT_IN + _LABEL_PAD_IN
+            ax.xaxis.set_label_coords(0.5, -y_in / panel_height_in)
+        # a title 6 pt above the panel, or above the y offset text (7 pt high, 3 pt pad)
+        pad_pt = 6.0 + (_LINE * _TICK_PT + 3.0 if offset else 0.0)
+        for loc in ("left", "center", "right"):
+            text = ax.get_title(loc)
+            if text:
+                size = {"left": ax._left_title, "center": ax.title, "right": ax._right_title}
+                fontsize = size[loc].get_fontsize()
+                ax.set_title(text, loc=loc, y=1.0, pad=pad_pt, fontsize=fontsize)
+
+
+# the grid lines (matplotlib's grid colour)
+_GRID_STYLE = {"colors": "#b0b0b0", "linewidth": 0.4, "alpha": 0.5}
+
+
+class _ViewTicks(MaxNLocator):
+    """``MaxNLocator``'s ticks inside the view interval only: matplotlib makes a tick object
+    (two lines, a grid line, two texts) for every location a locator returns, and
+    ``MaxNLocator`` returns one beyond each end of the view as well."""
+
+    def __call__(self) -> np.ndarray:
+        low, high = sorted(self.axis.get_view_interval())
+        locations = np.asarray(super().__call__())
+        slack = 1e-9 * (high - low)
+        return locations[(locations >= low - slack) & (locations <= high + slack)]
+
+
+def _style_panel(ax, y_bins: int = 4) -> None:
+    """Few y ticks, small tick labels, a light grid along y (per panel, before its ticks
+    exist)."""
+    ax.yaxis.set_major_locator(_ViewTicks(nbins=y_bins, steps=[1, 2, 2.5, 5, 10]))
+    ax.tick_params(labelsize=_TICK_PT)
+    ax.grid(True, axis="y", linewidth=0.4, alpha=0.5)
+
+
+def _place(ax, figure: Figure, left_in: float, bottom_in: float, width_in: float, height_in):
+    """Put a panel at a rectangle given in inches from the figure's lower left corner."""
+    width, height = figure.get_size_inches()
+    ax.set_position([left_in / width, bottom_in / height, width_in / width, height_in / height])
+
+
+def _time_ticks(low: float, high: float, integer: bool = False) -> np.ndarray:
+    """About six round tick values within [low, high] (whole numbers with ``integer``)."""
+    steps = [1, 2, 5, 10] if integer else [1, 2, 2.5, 5, 10]
+    locator = MaxNLocator(nbins=8 if integer else 7, steps=steps, integer=integer)
+    ticks = locator.tick_values(low, high)
+    slack = 1e-9 * (high - low)
+    return ticks[(ticks >= low - slack) & (ticks <= high + slack)]
+
+
+def _common_x_axis(panels, low: float, high: float, labelled, integer: bool = False) -> None:
+    """The panels' common x axis [low, high] with the same ticks in each: tick marks and
+    labels on the ``labelled`` panels; a vertical grid line at each tick in every panel,
+    drawn as one line collection (an inner panel then needs no tick objects, which cost
+    most of a figure's drawing time)."""
+    from matplotlib.ticker import FixedLocator, NullLocator
+
+    if not high > low:
+        high = low + 1.0
+    ticks = _time_ticks(low, high, integer)
+    for ax in panels:
+        ax.set_xlim(low, high)
+        if ax in labelled:
+            ax.xaxis.set_major_locator(FixedLocator(ticks))
+            ax.grid(True, axis="x", linewidth=0.4, alpha=0.5)
+        else:
+            ax.xaxis.set_major_locator(NullLocator())
+            ax.vlines(
+                ticks, 0.0, 1.0, transform=ax.get_xaxis_transform(), zorder=1.5, **_GRID_STYLE
+            )
+
+
 def maneuver_figure(
     time: np.ndarray,
     inputs: np.ndarray | None,
@@ -358,15 +532,16 @@ def maneuver_figure(
     u = None if inputs is None or not len(input_names) else _as_matrix(inputs, n, "inputs")
     n_u = 0 if u is None else u.shape[1]
     n_o = len(output_names)
-    figure = Figure(figsize=(MANEUVER_FIGURE_WIDTH_IN, 1.0 * n_u + 1.5 * n_o + 1.0))
+    # panel heights (inches): an input 0.8, an output 1.15; the gaps above each row
+    input_in, output_in = 0.8, 1.15
+    gaps = [_TITLED_GAP_IN if k in (0, n_u) else _GAP_IN for k in range(n_u + n_o)]
+    heights = [input_in] * n_u + [output_in] * n_o
+    figure_height = _SUPTITLE_IN + sum(gaps) + sum(heights) + _BOTTOM_IN
+    figure = Figure(figsize=(MANEUVER_FIGURE_WIDTH_IN, figure_height))
     width_px = None if dpi is None else MANEUVER_FIGURE_WIDTH_IN * dpi
-    grid = figure.add_gridspec(
-        n_u + n_o, 2, width_ratios=(3, 2), height_ratios=[1.0] * n_u + [1.5] * n_o
-    )
-    first = None
+    input_panels = []
     for i in range(n_u):
-        ax = figure.add_subplot(grid[i, :], sharex=first)
-        first = first or ax
+        ax = figure.add_axes((0, 0, 1, 1))
         shown = _shown(u[:, i], width_px)
         ax.plot(
             time[shown],
@@ -375,42 +550,103 @@ def maneuver_figure(
             linewidth=1.1,
             drawstyle="steps-post" if input_steps else "default",
         )
-        ax.set_ylabel(axis_label(input_names[i], units.get(input_names[i])), fontsize=8)
+        ax.set_ylabel(axis_label(input_names[i], units.get(input_names[i])), fontsize=_LABEL_PT)
         ax.set_facecolor("#f6f6ee")
         if i == 0:
             ax.set_title("inputs", fontsize=9, loc="left")
+        input_panels.append(ax)
+    # the output panels take 3/5 of the width, the residual panels 2/5
+    output_panels, residual_panels = _output_rows(
+        figure,
+        time,
+        z,
+        y,
+        output_names,
+        units,
+        None if width_px is None else (0.6 * width_px, 0.4 * width_px),
+        t0,
+    )
+    bottom_row = {output_panels[-1], residual_panels[-1]} if n_o else set(figure.axes[-1:])
+    for ax in figure.axes:
+        _style_panel(ax, y_bins=3 if ax in input_panels else 4)
+    # the time tick labels only under the bottom row
+    span = (float(time[0]), float(time[-1])) if n else (0.0, 1.0)
+    _common_x_axis(figure.axes, *span, bottom_row)
+    _place_maneuver_panels(figure, input_panels, output_panels, residual_panels, heights, gaps)
+    _fix_text_positions(figure)
+    figure.suptitle(title, fontsize=10, y=1.0 - 0.06 / figure_height, va="top")
+    return figure
+
+
+def _output_rows(figure, time, z, y, output_names, units, widths_px, t0: float):
+    """Per output a panel of the measured (+) and predicted (line) response and one of the
+    residual z − y; the panels' widths in pixels (output, residual) choose the samples
+    drawn (None: all). Returns the output panels and the residual panels."""
+    output_panels, residual_panels = [], []
+    output_px, residual_px = widths_px or (None, None)
+    last = len(output_names) - 1
     for j, name in enumerate(output_names):
-        label = axis_label(name, units.get(name))
-        ax = figure.add_subplot(grid[n_u + j, 0], sharex=first)
-        first = first or ax
-        # the output panels take 3/5 of the width, the residual panels 2/5
-        output_px = None if width_px is None else 0.6 * width_px
+        ax = figure.add_axes((0, 0, 1, 1))
         shown = _shown(z[:, j], output_px)
         ax.plot(time[shown], z[shown, j], label="measured z", **_MEASURED_STYLE)
         shown = _shown(y[:, j], output_px)
         ax.plot(time[shown], y[shown, j], label="predicted y", **_PREDICTED_STYLE)
-        ax.set_ylabel(label, fontsize=8)
-        res = figure.add_subplot(grid[n_u + j, 1], sharex=first)
+        ax.set_ylabel(axis_label(name, units.get(name)), fontsize=_LABEL_PT)
+        res = figure.add_axes((0, 0, 1, 1))
         residual = z[:, j] - y[:, j]
-        shown = _shown(residual, None if width_px is None else 0.4 * width_px)
+        shown = _shown(residual, residual_px)
         res.plot(time[shown], residual[shown], color="tab:red", linewidth=0.8)
         res.axhline(0.0, color="k", linewidth=0.5)
-        res.set_ylabel(axis_label("z − y", units.get(name)), fontsize=8)
+        res.set_ylabel(axis_label("z − y", units.get(name)), fontsize=_LABEL_PT)
         if j == 0:
             ax.set_title("outputs: measured vs predicted", fontsize=9, loc="left")
             res.set_title("residuals", fontsize=9, loc="left")
             ax.legend(fontsize=7, loc="upper right", frameon=False, ncol=2)
-        if j == n_o - 1:
-            ax.set_xlabel(f"t − t₀ [s]   (t₀ = {t0:g} s)", fontsize=8)
-            res.set_xlabel("t − t₀ [s]", fontsize=8)
-    for ax in figure.axes:
-        # time tick labels only under the bottom row
-        ax.tick_params(labelsize=7, labelbottom=ax.get_subplotspec().is_last_row())
-        ax.grid(True, linewidth=0.4, alpha=0.5)
-        ax.margins(x=0)
-    figure.suptitle(title, fontsize=10)
-    figure.tight_layout()
-    return figure
+        if j == last:
+            ax.set_xlabel(f"t − t₀ [s]   (t₀ = {t0:g} s)", fontsize=_LABEL_PT)
+            res.set_xlabel("t − t₀ [s]", fontsize=_LABEL_PT)
+        output_panels.append(ax)
+        residual_panels.append(res)
+    return output_panels, residual_panels
+
+
+def _place_maneuver_panels(figure, input_panels, output_panels, residual_panels, heights, gaps):
+    """The rows top down (``heights``, ``gaps`` above each, inches); the left column's
+    margin fits the widest y tick labels of the inputs and outputs, the residual column's
+    its own."""
+    width, height = figure.get_size_inches()
+    left = _left_in(input_panels + output_panels)
+    residual_left = _left_in(residual_panels)
+    usable = width - left - _RIGHT_IN
+    # the output column takes 3/5 of the width right of the margin, the residual column
+    # the rest after its own margin
+    output_width = max(0.6 * usable, 1.0)
+    residual_width = max(usable - output_width - residual_left, 0.5)
+    top = height - _SUPTITLE_IN
+    rows = [[ax] for ax in input_panels] + [
+        [a, b] for a, b in zip(output_panels, residual_panels, strict=True)
+    ]
+    for row, row_height, gap in zip(rows, heights, gaps, strict=True):
+        top -= gap + row_height
+        if len(row) == 1:
+            _place(row[0], figure, left, top, usable, row_height)
+        else:
+            _place(row[0], figure, left, top, output_width, row_height)
+            _place(
+                row[1], figure, left + output_width + residual_left, top, residual_width, row_height
+            )
+
+
+def _stems(ax, x: np.ndarray, heights: np.ndarray, color: str) -> None:
+    """Vertical lines from 0 to each height, as one line broken by NaN (a line collection
+    makes one path object per stem: 0.1 s for a figure of 7 × 376 lags)."""
+    # x, x, NaN and 0, height, NaN per stem
+    xs = np.repeat(np.asarray(x, dtype=float), 3)
+    ys = np.zeros_like(xs)
+    xs[2::3] = np.nan
+    ys[1::3] = heights
+    ys[2::3] = np.nan
+    ax.plot(xs, ys, color=color, linewidth=1.2, solid_capstyle="butt")
 
 
 def autocorrelation_figure(
@@ -422,13 +658,16 @@ def autocorrelation_figure(
     lags_s = np.arange(rho.shape[0]) * dt
     columns = min(len(names), 3)
     rows = -(-len(names) // columns)
-    figure = Figure(figsize=(3.7 * columns, 2.3 * rows + 0.5))
-    axes = figure.subplots(rows, columns, squeeze=False)
+    panel_width_in, panel_height_in = 3.0, 1.6
+    panels = []
+    figure = Figure(figsize=(1.0, 1.0))
     for j, name in enumerate(names):
-        ax = axes[j // columns, j % columns]
+        ax = figure.add_axes((0, 0, 1, 1))
         outside = np.abs(rho[:, j]) > band
         outside[0] = False
-        ax.vlines(lags_s, 0.0, rho[:, j], color=np.where(outside, "tab:red", "tab:blue"), lw=1.2)
+        # a stem per lag: inside the band blue, outside red
+        _stems(ax, lags_s[~outside], rho[~outside, j], "tab:blue")
+        _stems(ax, lags_s[outside], rho[outside, j], "tab:red")
         ax.axhspan(-band, band, color="0.85", zorder=0, label="±1.96/√N")
         ax.axhline(0.0, color="k", linewidth=0.5)
         if lag_used:
@@ -440,17 +679,38 @@ def autocorrelation_figure(
                 label=f"correction lag L = {lag_used}",
             )
         ax.set_title(f"{name}: {int(outside.sum())} of {len(rho) - 1} lags outside", fontsize=8)
-        ax.set_xlabel("lag [s]", fontsize=8)
-        ax.set_ylabel("ρ(k) [–]", fontsize=8)
         ax.set_ylim(min(-0.3, rho[:, j].min() - 0.05), 1.05)
-        ax.tick_params(labelsize=7)
-        ax.grid(True, linewidth=0.4, alpha=0.5)
+        _style_panel(ax)
+        # the lag axis is labelled under the lowest panel of each column only
+        lowest = j + columns >= len(names)
+        if lowest:
+            ax.set_xlabel("lag [s]", fontsize=_LABEL_PT)
+        if j % columns == 0:
+            ax.set_ylabel("ρ(k) [–]", fontsize=_LABEL_PT)
         if j == 0:
             ax.legend(fontsize=7, frameon=False, loc="upper right")
-    for k in range(len(names), rows * columns):
-        axes[k // columns, k % columns].set_visible(False)
-    figure.suptitle("residual autocorrelation", fontsize=10)
-    figure.tight_layout()
+        panels.append(ax)
+    labelled = [ax for j, ax in enumerate(panels) if j + columns >= len(names)]
+    _common_x_axis(panels, 0.0, float(lags_s[-1]) if lags_s.size else 1.0, labelled)
+    # columns share one left margin: the widest y tick labels of all panels
+    left = _left_in(panels)
+    gap = 0.1 + _TITLED_GAP_IN - _GAP_IN + _GAP_IN
+    width_in = columns * (left + panel_width_in) + _RIGHT_IN
+    height_in = _SUPTITLE_IN + rows * (gap + panel_height_in) + _BOTTOM_IN
+    figure.set_size_inches(width_in, height_in)
+    for j, ax in enumerate(panels):
+        row, column = divmod(j, columns)
+        bottom = height_in - _SUPTITLE_IN - (row + 1) * (gap + panel_height_in)
+        _place(
+            ax,
+            figure,
+            column * (left + panel_width_in) + left,
+            bottom,
+            panel_width_in,
+            panel_height_in,
+        )
+    _fix_text_positions(figure)
+    figure.suptitle("residual autocorrelation", fontsize=10, y=1.0 - 0.06 / height_in, va="top")
     return figure
 
 
@@ -470,13 +730,16 @@ def cost_history_figure(
     costs = np.asarray(costs, dtype=float)
     log_det_r = np.asarray(log_det_r, dtype=float)
     with_log_det = log_det_r.size == costs.size and bool(np.any(np.isfinite(log_det_r)))
-    figure = Figure(figsize=(6.5, 5.2 if with_log_det else 3.2))
-    axes = figure.subplots(2 if with_log_det else 1, 1, sharex=True, squeeze=False)[:, 0]
+    panel_height_in, width_in = 2.0, 6.5
+    count = 2 if with_log_det else 1
+    figure = Figure(figsize=(width_in, 1.0))
+    # top down: ln det R̂ (where shown), the cost
+    axes = [figure.add_axes((0, 0, 1, 1)) for _ in range(count)]
     passes = np.arange(costs.size)
     if with_log_det:
         finite = np.isfinite(log_det_r)
         axes[0].plot(passes[finite], log_det_r[finite], "o-", markersize=3.5, color="tab:green")
-        axes[0].set_ylabel("ln det R̂ [–]", fontsize=8)
+        axes[0].set_ylabel("ln det R̂ [–]", fontsize=_LABEL_PT)
         axes[0].set_title(title, fontsize=9)
     ax = axes[-1]
     # one line per stretch under one R: a cost under a new R is not comparable with the last
@@ -496,13 +759,29 @@ def cost_history_figure(
                 linewidth=1.0,
                 label="R re-estimated" if k == 0 else None,
             )
-        axis.tick_params(labelsize=7)
-        axis.grid(True, which="both", linewidth=0.3)
+        axis.tick_params(which="both", labelsize=_TICK_PT)
+        axis.grid(True, axis="y", which="both", linewidth=0.3)
+    if with_log_det:
+        axes[0].yaxis.set_major_locator(_ViewTicks(nbins=6, steps=[1, 2, 2.5, 5, 10]))
+    # whole passes on the pass axis, labelled under the cost panel
+    # (an R re-estimation after the last pass, at size − 0.5, inside the view)
+    _common_x_axis(axes, -0.7, costs.size - 0.3, [ax], integer=True)
     if len(noise_update_passes):
         axes[0].legend(fontsize=7, frameon=False)
-    ax.set_xlabel("pass [–]", fontsize=8)
-    ax.set_ylabel("cost J at fixed R = Σ νᵀR⁻¹ν [–]", fontsize=8)
+    ax.set_xlabel("pass [–]", fontsize=_LABEL_PT)
+    ax.set_ylabel("cost J at fixed R = Σ νᵀR⁻¹ν [–]", fontsize=_LABEL_PT)
     if not with_log_det:
         ax.set_title(title, fontsize=9)
-    figure.tight_layout()
+    left = _left_in(axes)
+    # the title above the top panel, an offset text's room above the second
+    height_in = 0.1 + _TITLED_GAP_IN + count * panel_height_in + (count - 1) * _GAP_IN
+    height_in += _BOTTOM_IN
+    figure.set_size_inches(width_in, height_in)
+    top = height_in - 0.1 - _TITLED_GAP_IN
+    for axis in axes:
+        _place(
+            axis, figure, left, top - panel_height_in, width_in - left - _RIGHT_IN, panel_height_in
+        )
+        top -= panel_height_in + _GAP_IN
+    _fix_text_positions(figure)
     return figure

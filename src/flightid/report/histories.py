@@ -60,15 +60,26 @@ def time_history_columns(run) -> list[dict]:
 
 
 def _rows(maneuver: str, role: str, time, inputs, measured, predicted) -> list[list]:
+    """One row per sample: the names, then the numbers as Python floats (written with
+    ``repr`` precision by ``csv``), an input that is not finite as an empty field. The
+    numbers are converted a matrix at a time (``tolist``), not one numpy scalar at a time."""
     residual = measured - predicted
-    rows = []
-    for i in range(len(time)):
-        row = [maneuver, role, float(time[i])]
-        row += ["" if not np.isfinite(v) else float(v) for v in inputs[i]]
-        for block in (measured, predicted, residual):
-            row += [float(v) for v in block[i]]
-        rows.append(row)
-    return rows
+    n = len(time)
+    numbers = np.column_stack(
+        [np.asarray(time, dtype=float).reshape(n, 1), measured, predicted, residual]
+    )
+    inputs = np.asarray(inputs, dtype=float).reshape(n, -1)
+    # an input that is not finite is written as an empty field
+    shown_inputs = np.where(np.isfinite(inputs), inputs, np.nan).tolist()
+    missing = ~np.isfinite(inputs)
+    if missing.any():
+        for i, j in zip(*np.nonzero(missing), strict=True):
+            shown_inputs[i][j] = ""
+    head = [maneuver, role]
+    return [
+        [*head, row[0], *shown, *row[1:]]
+        for row, shown in zip(numbers.tolist(), shown_inputs, strict=True)
+    ]
 
 
 def write_time_histories(run, path: Path) -> Path:
