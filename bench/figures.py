@@ -153,7 +153,7 @@ def main(argv=None) -> int:
     print("<!-- numbers: benchmarks-figures -->")
     print("| case | item | ms here | ms peer | here ÷ peer | ÷ --out work here |")
     print("|---|---|---:|---:|---:|---:|")
-    verdicts = []
+    summary = []
     lines = []
     for name in cases:
         if name == "attas_fpr_biases" and not (ROOT.parent / "shared" / "data").exists():
@@ -173,30 +173,19 @@ def main(argv=None) -> int:
             f"| {name} | **--out work** (figures + files) | {work:.0f} "
             f"| {there + other:.0f} | {work / (there + other):.2f} | 100 % |"
         )
-        if name == "hfb320_longitudinal" and peer is not None:
-            verdicts.append(
-                (
-                    here <= there / 3,
-                    f"hfb320_longitudinal: figures at most 1/3 "
-                    f"of the peer's CPU ({here:.0f} ms ÷ {there:.0f} ms = "
-                    f"{here / there:.2f})",
-                )
-            )
-        verdicts.append(
-            (
-                (here + other) / 1000 <= import_s,
-                f"{name}: the --out work "
-                f"({(here + other) / 1000:.2f} s) at most the bare import "
-                f"({import_s:.2f} s)",
-            )
+        summary.append(
+            f"{name}: figures {here / there:.2f} × the peer's CPU; the --out work "
+            f"{(here + other) / 1000:.2f} s = "
+            f"{(here + other) / 1000 / import_s:.2f} × the bare import"
         )
     print("<!-- /numbers -->\n")
     print(f"bare import (numpy, scipy, matplotlib.pyplot): {import_s:.3f} s, best of 2")
     print(f"CPU ms, best of {rounds} rounds in turns; peer: the figures of commit {args.peer}")
     for line in lines:
         print(line)
-    for ok, text in verdicts:
-        print(f"{'PASS' if ok else 'FAIL'}: {text}")
+    # the command's target (overhead ≤ 2 × the bare import) is checked by bench/startup.py
+    for text in summary:
+        print(text)
     return 0
 
 
