@@ -11,11 +11,11 @@ numba, so that ``flightid --help`` starts quickly.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING, Any
 
 from flightid import results as _results
 from flightid._version import __version__
+from flightid.lazy_exports import lazy_exports
 
 # public name -> module that defines it
 _LAZY_EXPORTS: dict[str, str] = {
@@ -61,15 +61,4 @@ def _result_figure(result: Any) -> Any:
 _results.set_renderers(summary=_result_summary, figure=_result_figure)
 
 
-def __getattr__(name: str) -> Any:
-    """Import a top-level export on first use and keep it in the module namespace."""
-    module_name = _LAZY_EXPORTS.get(name)
-    if module_name is None:
-        raise AttributeError(f"module 'flightid' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module_name), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY_EXPORTS)

@@ -23,10 +23,9 @@ methods a case may never use.
 
 from __future__ import annotations
 
-import importlib
-import sys
-import types
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from flightid.lazy_exports import lazy_exports
 
 # public name -> module that defines it
 _LAZY_EXPORTS: dict[str, str] = {
@@ -80,29 +79,4 @@ if TYPE_CHECKING:  # static tools see the eager imports
     from flightid.cases.usermodel import UserModelError, load_user_model
 
 
-class _Package(types.ModuleType):
-    """This package: importing a submodule that defines an export of the same name
-    (``flightid.cases.load_run``) binds the export, not the submodule, to the package's
-    name — as the eager imports did."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if isinstance(value, types.ModuleType) and _LAZY_EXPORTS.get(name) == value.__name__:
-            value = getattr(value, name)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
-
-
-def __getattr__(name: str) -> Any:
-    """Import an export on first use and keep it in the package namespace."""
-    module_name = _LAZY_EXPORTS.get(name)
-    if module_name is None:
-        raise AttributeError(f"module 'flightid.cases' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module_name), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY_EXPORTS)
