@@ -9,52 +9,22 @@ the same fixed point.
 import numpy as np
 import pytest
 
-from flightid.data.flightdata import FlightData
 from flightid.errors import InputError
 from flightid.estimation import MNR
 from flightid.estimation.filter_error import _extrapolated, estimate_filter_error
-from flightid.model.parameters import Parameter, Parameters
-from flightid.model.statespace import StateSpaceModel
-
-DT = 0.05
-TRUE = {"a11": -1.2, "a12": 2.0, "a21": -1.5, "a22": -0.8, "b1": 1.5, "b2": -3.0}
-
-
-def f_lin(t, x, u, theta):
-    dx = np.empty(2)
-    dx[0] = theta[0] * x[0] + theta[1] * x[1] + theta[4] * u[0]
-    dx[1] = theta[2] * x[0] + theta[3] * x[1] + theta[5] * u[0]
-    return dx
-
-
-def h_lin(t, x, u, theta):
-    y = np.empty(2)
-    y[0] = x[0]
-    y[1] = x[1]
-    return y
+from test_filter_error import TRUE
+from test_filter_error import _model as linear_model
+from test_filter_error import _simulate as simulate_linear
 
 
 def _model():
-    params = [Parameter(n, v * 1.1) for n, v in TRUE.items()]
-    params += [Parameter("F11", 0.1), Parameter("F22", 0.1)]
-    return StateSpaceModel(("x1", "x2"), ("u",), ("y1", "y2"), f_lin, h_lin, Parameters(params))
+    """The linear test model of test_filter_error, started 10 % off the truth, F = 0.1."""
+    return linear_model({name: 1.1 * value for name, value in TRUE.items()}, 0.1, 0.1)
 
 
-def _simulate(seed=7, n=600, process=0.4, noise=0.02):
-    """Euler–Maruyama at Δt/10, unit-intensity w through F = diag(process), seeded."""
-    rng = np.random.default_rng(seed)
-    a = np.array([[TRUE["a11"], TRUE["a12"]], [TRUE["a21"], TRUE["a22"]]])
-    b = np.array([TRUE["b1"], TRUE["b2"]])
-    t = np.arange(n) * DT
-    u = np.where((t % 4.0) < 2.0, 0.2, -0.2) * (t < 20)
-    x = np.zeros(2)
-    z = np.empty((n, 2))
-    for k in range(n):
-        z[k] = x + noise * rng.normal(size=2)
-        for _ in range(10):
-            h = DT / 10
-            x = x + h * (a @ x + b * u[k]) + process * np.sqrt(h) * rng.normal(size=2)
-    return FlightData(t, {"u": u}, {"y1": z[:, 0], "y2": z[:, 1]})
+def _simulate(seed=7, n=600):
+    """test_filter_error's seeded Euler–Maruyama simulation (process 0.4, noise 0.02)."""
+    return simulate_linear(seed, n=n)
 
 
 NOISE = {"x1": "F11", "x2": "F22"}
