@@ -21,23 +21,11 @@ from numba.core import event
 from flightid.cases import load_case, prepare_case, run_case
 from flightid.cli.main import main
 from flightid.errors import CompileWarning
+from test_compile_cache import _Compiles
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = ROOT / "examples" / "csv_walkthrough"
 _TAGS = iter(range(1, 10_000))
-
-
-class _Compiles(event.Listener):
-    """Counts numba compilations (nested ones included)."""
-
-    def __init__(self) -> None:
-        self.count = 0
-
-    def on_start(self, ev) -> None:
-        self.count += 1
-
-    def on_end(self, ev) -> None:
-        pass
 
 
 def _biased_case(tmp_path: Path, uncompilable: bool = False) -> tuple[Path, int]:
