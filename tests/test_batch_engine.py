@@ -295,3 +295,25 @@ def test_an_interrupted_run_is_not_held_up_by_the_running_tasks():
     outcomes.close()  # the interrupt leaves the loop of map_unordered
     engine.close()
     assert time.perf_counter() - started < CLOSE_TIMEOUT_S / 2
+
+
+def test_a_warm_up_that_does_not_end_does_not_hold_the_batch(monkeypatch):
+    """The warm-up on every worker is waited for at most WARM_UP_TIMEOUT_S, then cancelled
+    (a model that kills each worker it runs on is rescheduled on replacement after
+    replacement)."""
+    distributed = pytest.importorskip("distributed")
+    import time
+
+    from flightid.batch import engine as engine_module
+
+    monkeypatch.setattr(engine_module, "WARM_UP_TIMEOUT_S", 0.5)
+    with distributed.LocalCluster(
+        n_workers=1, processes=False, threads_per_worker=1, dashboard_address=None
+    ) as cluster:
+        engine = engine_module.DaskEngine(scheduler=cluster.scheduler_address)
+        try:
+            started = time.perf_counter()
+            engine._on_every_worker(time.sleep, 4.0)
+            assert time.perf_counter() - started < 3.0
+        finally:
+            engine.close()

@@ -316,6 +316,11 @@ async def _close_workers(cluster: Any, timeout_s: float) -> None:
     )
 
 
+# the longest a warm-up on every worker is waited for (s): warming is a saving, not a result;
+# a model that kills every worker it runs on must not hold the batch up (its cases fail alone)
+WARM_UP_TIMEOUT_S = 120.0
+
+
 class DaskEngine:
     """Runs the tasks on a Dask distributed cluster (a LocalCluster, or a scheduler address).
 
@@ -404,8 +409,12 @@ class DaskEngine:
             )
             for address in addresses
         ]
-        wait(futures)
-        lost = any(future.status == "error" for future in futures)
+        try:
+            wait(futures, timeout=WARM_UP_TIMEOUT_S)
+            lost = any(future.status == "error" for future in futures)
+        except TimeoutError:  # a task rescheduled on replacement after replacement: give up
+            self.client.cancel(futures)
+            lost = True
         for future in futures:
             future.release()
         if lost:  # a worker died under it: wait for its nanny's new worker before the cases
