@@ -100,24 +100,36 @@ def envelope_indices(values: np.ndarray, bins: int) -> np.ndarray:
 # ------------------------------------------------------------------------------ ticks
 
 
+def _step_candidates(raw: float, integer: bool) -> list[float]:
+    """Round intervals from the smallest not below ``raw`` downwards: 1, 2, 2.5, 5 × 10^k
+    (1, 2, 5 × 10^k, at least 1, with ``integer``)."""
+    steps = _INTEGER_STEPS if integer else _STEPS
+    scale = 10.0 ** math.floor(math.log10(raw))
+    k = next(i for i, s in enumerate(steps) if s * scale >= raw * (1 - 1e-12))
+    candidates = [steps[k] * scale]
+    candidates += [s * scale for s in reversed(steps[:k])] + [s * scale / 10 for s in steps[-2::-1]]
+    return [c for c in candidates if c >= 1.0] or [1.0] if integer else candidates
+
+
 def nice_ticks(low: float, high: float, bins: int = 4, integer: bool = False) -> np.ndarray:
-    """Round tick values inside [low, high], at most ``bins + 1`` of them: the interval is
-    the smallest 1, 2, 2.5 or 5 × 10^k (1, 2 or 5 × 10^k, at least 1, with ``integer``) not
-    below (high − low)/bins, as matplotlib's ``MaxNLocator``."""
+    """Round tick values inside [low, high]: the interval is the smallest 1, 2, 2.5 or
+    5 × 10^k (1, 2 or 5 × 10^k, at least 1, with ``integer``) not below (high − low)/bins,
+    as matplotlib's ``MaxNLocator``, so at most ``bins + 1`` ticks; where that leaves fewer
+    than three inside, the next smaller round interval (up to twice)."""
     low, high = float(low), float(high)
     if not (math.isfinite(low) and math.isfinite(high)) or not high > low:
         return np.array([low]) if math.isfinite(low) else np.zeros(0)
     raw = (high - low) / max(int(bins), 1)
-    scale = 10.0 ** math.floor(math.log10(raw))
-    steps = _INTEGER_STEPS if integer else _STEPS
-    step = scale * next(s for s in steps if s * scale >= raw * (1 - 1e-12))
-    if integer:
-        step = max(step, 1.0)
-    first = math.ceil(low / step - 1e-9)
-    last = math.floor(high / step + 1e-9)
-    ticks = np.arange(first, last + 1) * step
-    # 0.1 · 3 is 0.30000000000000004: rounded to the interval's decimals
-    return np.round(ticks, max(0, 12 - math.floor(math.log10(step))))
+    ticks = np.zeros(0)
+    for step in _step_candidates(raw, integer)[:3]:
+        first = math.ceil(low / step - 1e-9)
+        last = math.floor(high / step + 1e-9)
+        ticks = np.arange(first, last + 1) * step
+        # 0.1 · 3 is 0.30000000000000004: rounded to the interval's decimals
+        ticks = np.round(ticks, max(0, 12 - math.floor(math.log10(step))))
+        if ticks.size >= 3:
+            break
+    return ticks
 
 
 def _superscript(exponent: int) -> str:

@@ -52,7 +52,7 @@ def _x_axis(low: float, high: float, integer: bool = False):
     """The common x axis' limits, round ticks inside and their labels."""
     if not high > low:
         high = low + 1.0
-    ticks = ax.nice_ticks(low, high, 7, integer)
+    ticks = ax.nice_ticks(low, high, 8 if integer else 7, integer)
     labels, _ = ax.tick_labels(ticks)
     return low, high, ticks, labels
 
