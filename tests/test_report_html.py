@@ -190,19 +190,40 @@ def test_warning_only_when_coloured_and_understated():
 
 def test_page_stands_alone(walk_page):
     path, page = walk_page
-    sources = re.findall(r"src=['\"]([^'\"]*)['\"]", page)
-    assert len(sources) >= 3  # one maneuver, autocorrelation, cost history
-    for source in sources:
-        assert source.startswith("data:image/png;base64,")
-        png = base64.b64decode(source.split(",", 1)[1])
-        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # the SVG figures (the default) are inline: the page holds each file's text
+    figures = sorted((path.parent / "figures").glob("*"))
+    assert [f.suffix for f in figures] == [".svg"] * 3  # one maneuver, autocorrelation, cost
+    for figure in figures:
+        assert figure.read_text(encoding="utf-8") in page, figure.name
+    assert page.count("<svg xmlns=") == 3 and page.count("</svg>") == page.count("<svg")
+    assert re.findall(r"src=['\"]([^'\"]*)['\"]", page) == []
     assert "<link" not in page and "<script" not in page
     # the only links are to the files of the result folder itself, by relative name
     hrefs = re.findall(r"href=['\"]([^'\"]*)['\"]", page)
     assert hrefs and all((path.parent / h).is_file() for h in hrefs)
     assert not any("://" in h or h.startswith("/") for h in hrefs)
     # the figures are also kept as files beside it
-    assert (path.parent / "figures" / "convergence.png").is_file()
+    assert (path.parent / "figures" / "convergence.svg").is_file()
+
+
+def test_png_figures_are_embedded_as_base64_images(walk_run, tmp_path):
+    case = dataclasses.replace(
+        walk_run.case, output={**walk_run.case.output, "figure_format": "png"}
+    )
+    path = write_report(dataclasses.replace(walk_run, case=case), tmp_path / "out")
+    page = path.read_text(encoding="utf-8")
+    sources = re.findall(r"src=['\"]([^'\"]*)['\"]", page)
+    assert len(sources) == 3  # one maneuver, autocorrelation, cost history
+    for source in sources:
+        assert source.startswith("data:image/png;base64,")
+        png = base64.b64decode(source.split(",", 1)[1])
+        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (path.parent / "figures").iterdir()) == [
+        "autocorrelation.png",
+        "convergence.png",
+        "fit_1_my_flight.png",
+    ]
+    assert "<svg" not in page
 
 
 def test_page_provenance(walk_page):

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from flightid.errors import InputError
+
 # the envelope decimation and the axis labels are the SVG figures' (one implementation)
 from flightid.report.svg_axes import axis_label, envelope_indices
 

@@ -240,9 +240,7 @@ def log_scale(values: np.ndarray) -> YScale:
         linear = nice_ticks(10.0**low, 10.0**high, 3)
         labels, _ = tick_labels(linear)
         ticks = [(math.log10(v), t) for v, t in zip(linear, labels, strict=True) if v > 0]
-    return YScale(
-        low, high, np.array([t[0] for t in ticks]), [t[1] for t in ticks], "", log=True
-    )
+    return YScale(low, high, np.array([t[0] for t in ticks]), [t[1] for t in ticks], "", log=True)
 
 
 # ------------------------------------------------------------------------------ panels
@@ -438,6 +436,14 @@ def render_panel(panel: Panel, x_ticks: np.ndarray, x_labels: list[str], text: P
         f"<rect x='{left:.1f}' y='{top:.1f}' width='{width:.1f}' height='{height:.1f}' "
         "fill='none' stroke='black' stroke-width='0.8'/>",
     ]
+    out += _panel_labels(panel, x_px, y_px, x_labels, text)
+    return "\n".join(p for p in out if p)
+
+
+def _panel_labels(panel: Panel, x_px, y_px, x_labels: list[str], text: PanelText) -> list[str]:
+    """Tick marks and labels, the offset text, axis labels, title and legend of a panel."""
+    left, top, width, height = panel.left, panel.top, panel.width, panel.height
+    out = []
     # tick marks outside the frame: 3.5 px
     marks = "".join(f"M{left:.1f} {top + v:.1f}h-3.5" for v in y_px)
     if text.x_labelled:
@@ -464,7 +470,7 @@ def render_panel(panel: Panel, x_ticks: np.ndarray, x_labels: list[str], text: P
         lift = 16.0 if panel.y.offset else 5.0
         out.append(_text(left, top - lift, text.title, TITLE_PX))
     out += legend(left + width, top - 6.0, text.legend)
-    return "\n".join(p for p in out if p)
+    return out
 
 
 def y_label_margin(scales: list[YScale]) -> float:
