@@ -281,7 +281,10 @@ def test_page_warns_on_coloured_residuals_and_shows_the_prediction(walk_run, col
     assert "Prediction check on held-out maneuvers" in page
     rms = np.sqrt(np.mean((held.outputs - est.predicted) ** 2, axis=0))
     assert all(f"<td>{e:.4g}</td>" in page for e in rms)
-    assert page.count("data:image/png;base64,") == 4  # fit, prediction, autocorrelation, cost
+    # fit, prediction, autocorrelation, cost: inline SVG (the default figure format)
+    assert page.count("<svg xmlns=") == 4 and "data:image/png" not in page
+    png_page = render_html(run, render_figures(run, dpi=40, figure_format="png"))
+    assert png_page.count("data:image/png;base64,") == 4 and "<svg" not in png_page
 
 
 def test_estimates_show_the_digits_their_sigma_supports(walk_run):

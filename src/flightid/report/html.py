@@ -97,7 +97,7 @@ class Figures:
 FIGURE_FORMATS = ("svg", "png")
 
 
-def figure_format(run) -> str:
+def run_figure_format(run) -> str:
     """The run's figure format: ``[output] figure_format`` ("svg" by default)."""
     return str(run.case.output.get("figure_format", "svg"))
 
@@ -181,12 +181,16 @@ def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
     return [f"{name}.png" for name in files], jobs
 
 
-def render_figures(run, dpi: int = 96, pool=None, figure_format: str = "png") -> Figures:
+def render_figures(run, dpi: int = 96, pool=None, figure_format: str | None = None) -> Figures:
     """The report's figures (time histories with inputs per maneuver and per held-out
     maneuver, residual autocorrelation, cost history), each drawn once: as SVG text
     written from the arrays here (``flightid.report.svg_figures``, no matplotlib), or as PNG
     bytes drawn by matplotlib in the worker processes of ``pool``, else of the active
-    ``flightid.report.drawing.FigurePool``, else here."""
+    ``flightid.report.drawing.FigurePool``, else here. ``figure_format``: "svg" or "png";
+    None: the run's ``[output] figure_format`` ("svg" by default)."""
+    figure_format = figure_format or run_figure_format(run)
+    if figure_format not in FIGURE_FORMATS:
+        raise ValueError(f"figure_format: expected one of {FIGURE_FORMATS}, got {figure_format!r}")
     if figure_format == "svg":
         from flightid.report.svg_figures import SVG_FUNCTIONS
 
@@ -898,7 +902,7 @@ def write_files(run, directory: Path) -> Path:
     write_reconstruction(run, directory)
     figures = None
     if run.case.output.get("figures", True):
-        figures = render_figures(run, figure_format=figure_format(run))
+        figures = render_figures(run)
     if figures is not None:
         (directory / "figures").mkdir(parents=True, exist_ok=True)
         for name, data in figures.all():
