@@ -82,7 +82,8 @@ def maneuver_svg(
     has_inputs = inputs is not None and len(input_names)
     u = _matrix(inputs, n, "inputs") if has_inputs else np.zeros((n, 0))
     n_u, n_o = u.shape[1], len(output_names)
-    residuals = z - y
+    with np.errstate(invalid="ignore"):
+        residuals = z - y
     input_scales = [ax.y_scale(u[:, i], bins=3) for i in range(n_u)]
     output_scales = [ax.y_scale(np.concatenate([z[:, j], y[:, j]])) for j in range(n_o)]
     residual_scales = [ax.y_scale(residuals[:, j]) for j in range(n_o)]
