@@ -5,8 +5,8 @@ Chromium prints every console message (console.log / error, uncaught exceptions)
 as ``...:CONSOLE...`` lines with ``--enable-logging=stderr --v=0``; the report has no script,
 so any such line is an error. The figures are inline SVG elements (the default) or
 base64 PNG images; both are counted as figures shown. A page that does log one is checked
-first, so that a Chromium whose log format changed cannot pass silently. Skipped where no Chromium binary is found
-(Debian: ``apt-get install chromium``).
+first, so that a Chromium whose log format changed cannot pass silently. Skipped where no
+Chromium binary is found (Debian: ``apt-get install chromium``).
 """
 
 from __future__ import annotations
