@@ -143,7 +143,7 @@ def test_csv_walkthrough_end_to_end(tmp_path, capsys):
     assert values["Ma"] == pytest.approx(-4.5, rel=0.05)
     assert values["Mq"] == pytest.approx(-1.6, rel=0.05)
     assert values["Mde"] == pytest.approx(-7.0, rel=0.05)
-    for name in ("results.json", "estimates.csv", "report.html", "figures/convergence.png"):
+    for name in ("results.json", "estimates.csv", "report.html", "figures/convergence.svg"):
         assert (out / name).is_file(), name
     assert "Correlation matrix" in (out / "report.html").read_text()
     assert json.loads((out / "results.json").read_text())["results"][0]["cost"] == entry["cost"]

@@ -174,7 +174,8 @@ def test_maneuver_figure_draws_each_columns_peaks_with_fewer_points():
 def _run_out(tmp_path: Path, name: str, workers: str) -> Path:
     out = tmp_path / name
     done = subprocess.run(
-        [sys.executable, "-m", "flightid.cli.main", "run", str(CASE), "--out", str(out)],
+        [sys.executable, "-m", "flightid.cli.main", "run", str(CASE), "--out", str(out)]
+        + ["--figure-format", "png"],
         capture_output=True,
         text=True,
         env=_env(FLIGHTID_FIGURE_WORKERS=workers),
@@ -211,7 +212,8 @@ def test_figures_drawn_by_workers_are_those_drawn_here(tmp_path):
 
 def test_a_bad_figure_worker_count_is_refused(tmp_path):
     done = subprocess.run(
-        [sys.executable, "-m", "flightid.cli.main", "run", str(CASE), "--out", str(tmp_path / "o")],
+        [sys.executable, "-m", "flightid.cli.main", "run", str(CASE), "--out", str(tmp_path / "o")]
+        + ["--figure-format", "png"],
         capture_output=True,
         text=True,
         env=_env(FLIGHTID_FIGURE_WORKERS="two"),
@@ -276,12 +278,15 @@ def test_whiteness_p_value_is_the_chi_square_survival_function():
 
 def test_each_figure_is_drawn_once_and_embedded_as_written(tmp_path, monkeypatch):
     import base64
+    import dataclasses
 
     from flightid.cases import load_case, run_case
     from flightid.report import drawing
     from flightid.report.html import write_files
 
     run = run_case(load_case(CASE))
+    case = dataclasses.replace(run.case, output={**run.case.output, "figure_format": "png"})
+    run = dataclasses.replace(run, case=case)
     drawn = []
     original = drawing.draw_job
     monkeypatch.setattr(
@@ -313,7 +318,8 @@ def test_ctrl_c_while_workers_draw_ends_in_one_line_and_leaves_no_process(tmp_pa
         "    return future\n"
         "drawing.FigurePool.submit = submit\n"
         "from flightid.cli.main import main\n"
-        f"sys.exit(main(['run', {str(CASE)!r}, '--out', {str(target)!r}, '--quiet']))\n"
+        f"sys.exit(main(['run', {str(CASE)!r}, '--out', {str(target)!r}, '--quiet', "
+        "'--figure-format', 'png']))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", script],

@@ -3,9 +3,10 @@ embedded figure decodes, the tables are in the DOM, and the page logs nothing to
 
 Chromium prints every console message (console.log / error, uncaught exceptions) to stderr
 as ``...:CONSOLE...`` lines with ``--enable-logging=stderr --v=0``; the report has no script,
-so any such line is an error. A page that does log one is checked first, so that a Chromium
-whose log format changed cannot pass silently. Skipped where no Chromium binary is found
-(Debian: ``apt-get install chromium``).
+so any such line is an error. The figures are inline SVG elements (the default) or
+base64 PNG images; both are counted as figures shown. A page that does log one is checked
+first, so that a Chromium whose log format changed cannot pass silently. Skipped where no
+Chromium binary is found (Debian: ``apt-get install chromium``).
 """
 
 from __future__ import annotations
@@ -40,8 +41,10 @@ WIDTH, HEIGHT = 1280, 4000
 _IMAGE_CHECK = """<script>
 window.addEventListener("load", () => {
   const images = Array.from(document.images);
-  const decoded = images.filter((i) => i.complete && i.naturalWidth > 0).length;
-  console.log(`flightid-check images=${images.length} decoded=${decoded}`);
+  const figures = Array.from(document.querySelectorAll("figure > svg"));
+  const decoded = images.filter((i) => i.complete && i.naturalWidth > 0).length
+    + figures.filter((f) => f.getBoundingClientRect().width > 0).length;
+  console.log(`flightid-check images=${images.length + figures.length} decoded=${decoded}`);
 });
 </script>"""
 

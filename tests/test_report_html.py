@@ -190,19 +190,40 @@ def test_warning_only_when_coloured_and_understated():
 
 def test_page_stands_alone(walk_page):
     path, page = walk_page
-    sources = re.findall(r"src=['\"]([^'\"]*)['\"]", page)
-    assert len(sources) >= 3  # one maneuver, autocorrelation, cost history
-    for source in sources:
-        assert source.startswith("data:image/png;base64,")
-        png = base64.b64decode(source.split(",", 1)[1])
-        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # the SVG figures (the default) are inline: the page holds each file's text
+    figures = sorted((path.parent / "figures").glob("*"))
+    assert [f.suffix for f in figures] == [".svg"] * 3  # one maneuver, autocorrelation, cost
+    for figure in figures:
+        assert figure.read_text(encoding="utf-8") in page, figure.name
+    assert page.count("<svg xmlns=") == 3 and page.count("</svg>") == page.count("<svg")
+    assert re.findall(r"src=['\"]([^'\"]*)['\"]", page) == []
     assert "<link" not in page and "<script" not in page
     # the only links are to the files of the result folder itself, by relative name
     hrefs = re.findall(r"href=['\"]([^'\"]*)['\"]", page)
     assert hrefs and all((path.parent / h).is_file() for h in hrefs)
     assert not any("://" in h or h.startswith("/") for h in hrefs)
     # the figures are also kept as files beside it
-    assert (path.parent / "figures" / "convergence.png").is_file()
+    assert (path.parent / "figures" / "convergence.svg").is_file()
+
+
+def test_png_figures_are_embedded_as_base64_images(walk_run, tmp_path):
+    case = dataclasses.replace(
+        walk_run.case, output={**walk_run.case.output, "figure_format": "png"}
+    )
+    path = write_report(dataclasses.replace(walk_run, case=case), tmp_path / "out")
+    page = path.read_text(encoding="utf-8")
+    sources = re.findall(r"src=['\"]([^'\"]*)['\"]", page)
+    assert len(sources) == 3  # one maneuver, autocorrelation, cost history
+    for source in sources:
+        assert source.startswith("data:image/png;base64,")
+        png = base64.b64decode(source.split(",", 1)[1])
+        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (path.parent / "figures").iterdir()) == [
+        "autocorrelation.png",
+        "convergence.png",
+        "fit_1_my_flight.png",
+    ]
+    assert "<svg" not in page
 
 
 def test_page_provenance(walk_page):
@@ -260,7 +281,10 @@ def test_page_warns_on_coloured_residuals_and_shows_the_prediction(walk_run, col
     assert "Prediction check on held-out maneuvers" in page
     rms = np.sqrt(np.mean((held.outputs - est.predicted) ** 2, axis=0))
     assert all(f"<td>{e:.4g}</td>" in page for e in rms)
-    assert page.count("data:image/png;base64,") == 4  # fit, prediction, autocorrelation, cost
+    # fit, prediction, autocorrelation, cost: inline SVG (the default figure format)
+    assert page.count("<svg xmlns=") == 4 and "data:image/png" not in page
+    png_page = render_html(run, render_figures(run, dpi=40, figure_format="png"))
+    assert png_page.count("data:image/png;base64,") == 4 and "<svg" not in png_page
 
 
 def test_estimates_show_the_digits_their_sigma_supports(walk_run):

@@ -28,7 +28,7 @@ the walk-through and every key)::
                                             # methods (["cr", "profile", "search"]), budget,
                                             # seed, kind, distribution
     [prediction]                            # maneuvers to predict with the estimated model
-    [output]                                # figures, report
+    [output]                                # figures, figure_format, report, dir
     [flying_qualities]                      # class ("I" … "IV"), category ("A", "B", "C"):
                                             # the report judges the modes (MIL-F-8785C)
 
@@ -163,7 +163,10 @@ _MODEL = {
     "input_delays",
     "delay_convention",
 }
-_OUTPUT = {"figures", "report", "dir"}
+_OUTPUT = {"figures", "report", "dir", "figure_format"}
+# [output] figure_format: the report figures' files (SVG written from the arrays, or PNG
+# drawn by matplotlib)
+FIGURE_FORMATS = ("svg", "png")
 AIRCRAFT_TYPES = ("wind_axis_longitudinal", "longitudinal", "lateral", "six_dof")
 # "alpha_q": α and q integrated, the other flight variables measured (flightid.cases.alpha_q);
 # "kinematic": flight-path reconstruction (flightid.compat)
@@ -524,6 +527,12 @@ def _output_section(raw: Mapping[str, Any]) -> Mapping[str, Any]:
             _bool(output[key], f"output.{key}")
     if "dir" in output:
         _string(output["dir"], "output.dir")
+    if "figure_format" in output and output["figure_format"] not in FIGURE_FORMATS:
+        raise CaseError(
+            f"output.figure_format: expected one of {', '.join(map(repr, FIGURE_FORMATS))} "
+            f"(the report figures' files: SVG written from the arrays, or PNG drawn by "
+            f"matplotlib), got {output['figure_format']!r}"
+        )
     return output
 
 

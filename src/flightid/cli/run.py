@@ -21,7 +21,7 @@ estimation ran (read ``converged``/``status``), 1 on any failure (one line
 ``flightid: error: ...``), 130 when interrupted.
 
 ``--out DIR`` (or the case's ``output.dir``) writes results.json (the same document),
-estimates.csv, figures/*.png and report.html. The folder is checked and locked before the
+estimates.csv, figures/*.svg (or *.png) and report.html. The folder is checked and locked before the
 estimation, the files are written to a temporary folder beside it and moved into place at
 once (``flightid.report.folder``), after the summary has been printed; a folder that already
 holds a run is replaced (whole) only with ``--overwrite``, and only when flightid wrote every
@@ -107,6 +107,14 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
         "--scheduler",
         default=None,
         help="run them on the running Dask scheduler at this address (tcp://host:8786) instead",
+    )
+    parser.add_argument(
+        "--figure-format",
+        choices=("svg", "png"),
+        default=None,
+        help="the report figures' files in --out: svg (written from the arrays, no "
+        "matplotlib) or png (drawn by matplotlib); default: the case's output.figure_format, "
+        "else svg",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
 
@@ -243,7 +251,7 @@ def run(args: argparse.Namespace) -> int:
     from flightid.cases.run import stderr_progress
     from flightid.results import results_document
 
-    case = load_case(args.case)
+    case = with_figure_format(load_case(args.case), getattr(args, "figure_format", None))
     # the result folder is checked (and locked) before any work, so that a bad --out costs
     # nothing and a second run into the same folder stops here
     folder = open_result_folder(case, args, args.out)
@@ -295,9 +303,20 @@ def _write_report(result, directory):
     return write_files(result, directory)
 
 
+def with_figure_format(case, figure_format: str | None):
+    """The case with ``--figure-format`` in its ``[output] figure_format`` (the case's own
+    setting where the option is not given)."""
+    if figure_format is None:
+        return case
+    import dataclasses
+
+    return dataclasses.replace(case, output={**case.output, "figure_format": figure_format})
+
+
 def figure_pool(case, folder):
     """Worker processes for the report's figures (``flightid.report.drawing.FigurePool``)
-    when the run writes figures; else None (the figures are drawn in this process).
+    when the run writes PNG figures (``[output] figure_format = "png"``); else None (PNG
+    figures are then drawn in this process; SVG figures are always written here).
 
     Two workers when this process may use two cores and one of them is idle (the 1-minute
     load average leaves at least 1.5 cores free): the figures are drawn two at a time. Else
@@ -307,6 +326,9 @@ def figure_pool(case, folder):
     import os
 
     if folder is None or not case.output.get("figures", True):
+        return None
+    # SVG figures are written in this process from the arrays: no matplotlib, no workers
+    if case.output.get("figure_format", "svg") != "png":
         return None
     given = os.environ.get("FLIGHTID_FIGURE_WORKERS", "").strip()
     if given and not given.isdigit():

@@ -23,6 +23,9 @@ from matplotlib.ticker import MaxNLocator
 
 from flightid.errors import InputError
 
+# the envelope decimation and the axis labels are the SVG figures' (one implementation)
+from flightid.report.svg_axes import axis_label, envelope_indices
+
 __all__ = ["plot_measured_vs_predicted", "plot_inputs", "plot_residuals", "plot_time_histories"]
 
 # the width of a maneuver's time-history figure (inches): inputs full width, outputs and
@@ -42,45 +45,6 @@ def _as_matrix(values, n: int, argument: str) -> np.ndarray:
             f"got shape {matrix.shape}"
         )
     return matrix
-
-
-def envelope_indices(values: np.ndarray, bins: int) -> np.ndarray:
-    """The sample indices that keep the look of a time history drawn ``bins`` pixels wide:
-    per pixel column (``bins`` equal runs of consecutive samples) the sample of the smallest
-    and of the largest value, in time order (min/max envelope decimation). Every pixel
-    column's extremes, and so every peak, are kept; the line through them covers the same
-    pixels as the line through all samples. All indices when there are at most two samples
-    per column. NaN samples are kept (they break the line as before).
-
-    Args:
-        values: the samples (N,) of one channel.
-        bins: the plot's width in pixels (≥ 1).
-
-    Returns:
-        Increasing indices into ``values`` (at most 2·bins plus the NaN samples).
-    """
-    values = np.asarray(values, dtype=float)
-    n = values.shape[0]
-    bins = max(int(bins), 1)
-    if n <= 2 * bins:
-        return np.arange(n)
-    # bin b holds the samples [edges[b], edges[b + 1])
-    edges = (np.arange(bins + 1) * n) // bins
-    finite = np.where(np.isfinite(values), values, np.nan)
-    lows = np.fmin.reduceat(np.where(np.isnan(finite), np.inf, finite), edges[:-1])
-    highs = np.fmax.reduceat(np.where(np.isnan(finite), -np.inf, finite), edges[:-1])
-    owner = np.repeat(np.arange(bins), np.diff(edges))
-    # the first sample of each bin equal to its minimum, and to its maximum
-    is_low = values == lows[owner]
-    is_high = values == highs[owner]
-    first_low = np.full(bins, -1)
-    first_high = np.full(bins, -1)
-    index = np.arange(n)
-    # reversed assignment leaves the first matching index of each bin
-    first_low[owner[is_low][::-1]] = index[is_low][::-1]
-    first_high[owner[is_high][::-1]] = index[is_high][::-1]
-    keep = np.concatenate([first_low, first_high, index[np.isnan(values)]])
-    return np.unique(keep[keep >= 0])
 
 
 def _segments(maneuver_index: np.ndarray | None, n: int) -> list[np.ndarray]:
@@ -297,12 +261,6 @@ def plot_residuals(
 # ------------------------------------------------------------------ report figures
 # The HTML report embeds these (``flightid.report.html``): each function returns a Figure,
 # ``png_bytes`` renders it. Axis labels carry units as "name [unit]".
-
-
-def axis_label(name: str, unit: str | None) -> str:
-    """``"alpha [rad]"``; a channel without a known unit shows ``[?]`` rather than nothing."""
-    unit = (unit or "?").replace("^2", "²").replace("^3", "³")
-    return f"{name} [{unit}]"
 
 
 def png_bytes(figure: Figure, dpi: int = 90) -> bytes:

@@ -11,10 +11,11 @@
     out_dir/estimates.csv    name, unit, value, std (the default σ), std_cr (the Cramér–Rao
                              bound), std_kind, interval, start, free (and, with an accuracy
                              assessment, the profile and search limits)
-    out_dir/figures/*.png    per maneuver inputs, measured vs predicted outputs and residuals;
+    out_dir/figures/*.svg    per maneuver inputs, measured vs predicted outputs and residuals;
                              the same for each held-out maneuver; residual autocorrelation;
-                             cost history
-    out_dir/report.html      everything on one page with the figures embedded (base64 PNG):
+                             cost history (*.png with ``[output] figure_format = "png"``)
+    out_dir/report.html      everything on one page with the figures embedded (inline SVG,
+                             or base64 PNG):
                              provenance (flightid version, UTC time, case file and the SHA-256
                              of its bytes), estimates with units, CR σ beside the coloured-
                              residual σ (``flightid.report.diagnostics``) and a plain warning
@@ -81,7 +82,7 @@ def channel_units(run) -> dict[str, str]:
 
 @dataclass
 class Figures:
-    """Rendered report figures: (file name, PNG bytes) per kind."""
+    """Rendered report figures: (file name, SVG text as UTF-8 or PNG bytes) per kind."""
 
     fits: list[tuple[str, bytes]] = field(default_factory=list)
     prediction: list[tuple[str, bytes]] = field(default_factory=list)
@@ -93,32 +94,38 @@ class Figures:
         return [*self.fits, *self.prediction, *extra]
 
 
-def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
-    """The report's figures as jobs (``flightid.report.drawing``) and their file names:
-    per maneuver and per held-out maneuver its time histories with the inputs, then the
-    residual autocorrelation and the cost history."""
-    from flightid.report.drawing import FigureJob
+FIGURE_FORMATS = ("svg", "png")
 
+
+def run_figure_format(run) -> str:
+    """The run's figure format: ``[output] figure_format`` ("svg" by default)."""
+    return str(run.case.output.get("figure_format", "svg"))
+
+
+def _figure_specs(run) -> tuple[list[str], list[tuple[str, tuple, dict, float]]]:
+    """The report's figures as (figure function, arguments, options, weight) and their file
+    names without extension: per maneuver and per held-out maneuver its time histories
+    with the inputs, then the residual autocorrelation and the cost history. The functions
+    are ``flightid.report.figures``' (PNG) and, by the same names,
+    ``flightid.report.svg_figures.SVG_FUNCTIONS``' (SVG)."""
     est = run.estimate
     names = list(est.output_names)
     units = channel_units(run)
     steps = getattr(est, "input_interpolation", "linear") == "zoh"
     files: list[str] = []
-    jobs: list[FigureJob] = []
+    specs: list[tuple[str, tuple, dict, float]] = []
 
-    def maneuver_job(time, inputs, input_names, measured, predicted, outputs, units_, title):
+    def maneuver_spec(time, inputs, input_names, measured, predicted, outputs, units_, title):
         arguments = (time, inputs, input_names, measured, predicted, outputs, units_, title)
-        # the time histories are drawn through their envelope per pixel column at this dpi
-        options = {"input_steps": steps, "dpi": dpi}
         # drawing time grows with the panels: inputs + 2 per output
         weight = len(input_names) + 2 * len(outputs)
-        return FigureJob("maneuver_figure", arguments, options, dpi, weight)
+        return ("maneuver_figure", arguments, {"input_steps": steps}, weight)
 
     for k, maneuver in enumerate(run.maneuvers):
         rows = est.maneuver_index == k
-        files.append(f"fit_{k + 1}_{_safe(maneuver.name)}.png")
-        jobs.append(
-            maneuver_job(
+        files.append(f"fit_{k + 1}_{_safe(maneuver.name)}")
+        specs.append(
+            maneuver_spec(
                 est.time[rows],
                 maneuver.inputs if maneuver.input_names else None,
                 list(maneuver.input_names),
@@ -130,9 +137,9 @@ def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
             )
         )
     for p in run.predictions:
-        files.append(f"prediction_{_safe(p.name)}.png")
-        jobs.append(
-            maneuver_job(
+        files.append(f"prediction_{_safe(p.name)}")
+        specs.append(
+            maneuver_spec(
                 p.time,
                 getattr(p, "inputs", None),
                 list(getattr(p, "input_names", ())),
@@ -145,29 +152,58 @@ def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
         )
     coloured = _coloured(run)
     rho, band = _autocorrelation(run, coloured.lag)
-    files.append("autocorrelation.png")
+    files.append("autocorrelation")
     arguments = (rho, band, run.maneuvers[0].dt, names, coloured.lag)
-    jobs.append(FigureJob("autocorrelation_figure", arguments, {}, dpi, len(names)))
-    files.append("convergence.png")
+    specs.append(("autocorrelation_figure", arguments, {}, len(names)))
+    files.append("convergence")
     arguments = (
         est.cost_history,
         tuple(getattr(est, "noise_update_passes", ())),
         f"convergence ({est.solver}, noise {est.noise_policy})",
     )
     options = {"log_det_r": getattr(est, "log_det_r_history", ())}
-    jobs.append(FigureJob("cost_history_figure", arguments, options, dpi, 2.0))
-    return files, jobs
+    specs.append(("cost_history_figure", arguments, options, 2.0))
+    return files, specs
 
 
-def render_figures(run, dpi: int = 96, pool=None) -> Figures:
-    """Draw the report's figures (time histories with inputs per maneuver and per held-out
-    maneuver, residual autocorrelation, cost history) as PNG bytes, each once: in the
-    worker processes of ``pool``, else of the active ``flightid.report.drawing.FigurePool``,
-    else here."""
-    from flightid.report.drawing import draw
+def figure_jobs(run, dpi: int = 96) -> tuple[list[str], list]:
+    """The report's figures as PNG jobs (``flightid.report.drawing``) and their file
+    names (``_figure_specs``)."""
+    from flightid.report.drawing import FigureJob
 
-    files, jobs = figure_jobs(run, dpi)
-    drawn = list(zip(files, draw(jobs, pool), strict=True))
+    files, specs = _figure_specs(run)
+    jobs = []
+    for function, arguments, options, weight in specs:
+        if function == "maneuver_figure":
+            # the time histories are drawn through their envelope per pixel column at this dpi
+            options = {**options, "dpi": dpi}
+        jobs.append(FigureJob(function, arguments, options, dpi, weight))
+    return [f"{name}.png" for name in files], jobs
+
+
+def render_figures(run, dpi: int = 96, pool=None, figure_format: str | None = None) -> Figures:
+    """The report's figures (time histories with inputs per maneuver and per held-out
+    maneuver, residual autocorrelation, cost history), each drawn once: as SVG text
+    written from the arrays here (``flightid.report.svg_figures``, no matplotlib), or as PNG
+    bytes drawn by matplotlib in the worker processes of ``pool``, else of the active
+    ``flightid.report.drawing.FigurePool``, else here. ``figure_format``: "svg" or "png";
+    None: the run's ``[output] figure_format`` ("svg" by default)."""
+    figure_format = figure_format or run_figure_format(run)
+    if figure_format not in FIGURE_FORMATS:
+        raise ValueError(f"figure_format: expected one of {FIGURE_FORMATS}, got {figure_format!r}")
+    if figure_format == "svg":
+        from flightid.report.svg_figures import SVG_FUNCTIONS
+
+        files, specs = _figure_specs(run)
+        drawn = [
+            (f"{name}.svg", SVG_FUNCTIONS[function](*arguments, **options).encode("utf-8"))
+            for name, (function, arguments, options, _) in zip(files, specs, strict=True)
+        ]
+    else:
+        from flightid.report.drawing import draw
+
+        files, jobs = figure_jobs(run, dpi)
+        drawn = list(zip(files, draw(jobs, pool), strict=True))
     n_fits, n_predictions = len(run.maneuvers), len(run.predictions)
     return Figures(
         fits=drawn[:n_fits],
@@ -848,9 +884,11 @@ def write_files(run, directory: Path) -> Path:
 
     results.json is strict JSON (``flightid.jsonout``: NaN / ±inf become null, listed
     under ``"nonfinite"``). The figures are written to ``figures/`` and embedded in
-    report.html (base64 PNG), so the page stands alone. ``[output] figures = false`` skips the
-    figures (folder and page), ``report = false`` the HTML page. The figures are drawn by
-    the active ``flightid.report.drawing.FigurePool`` if there is one, else here.
+    report.html, so the page stands alone: SVG written here from the arrays (``[output]
+    figure_format = "svg"``, the default; inline ``<svg>`` elements in the page), or PNG
+    drawn by matplotlib (``"png"``: base64 images; drawn by the active
+    ``flightid.report.drawing.FigurePool`` if there is one, else here). ``[output] figures =
+    false`` skips the figures (folder and page), ``report = false`` the HTML page.
     """
     from flightid.report.histories import write_results_and_histories
 
@@ -862,7 +900,9 @@ def write_files(run, directory: Path) -> Path:
     from flightid.compat.reconstruct import write_reconstruction
 
     write_reconstruction(run, directory)
-    figures = render_figures(run) if run.case.output.get("figures", True) else None
+    figures = None
+    if run.case.output.get("figures", True):
+        figures = render_figures(run)
     if figures is not None:
         (directory / "figures").mkdir(parents=True, exist_ok=True)
         for name, data in figures.all():

@@ -141,9 +141,17 @@ def table(
 
 
 def image(figure: tuple[str, bytes] | None, alt: str, width: str = "100%") -> str:
-    """An <img> with the PNG embedded as a base64 data URI: the page needs no other file."""
+    """The figure embedded in the page, which then needs no other file: an SVG figure
+    (a file name ending in ``.svg``, its UTF-8 text one ``<svg>`` element) inline, labelled
+    by ``alt``; a PNG as an <img> with a base64 data URI."""
     if figure is None:
         return ""
+    if figure[0].lower().endswith(".svg"):
+        svg = figure[1].decode("utf-8")
+        return (
+            f"<figure style='max-width:{width}' role='img' aria-label='{html.escape(alt)}'>"
+            f"{svg}<figcaption>{html.escape(alt)}</figcaption></figure>"
+        )
     data = base64.b64encode(figure[1]).decode("ascii")
     return (
         f"<figure><img alt='{html.escape(alt)}' style='max-width:{width}' "
