@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from test_cli_safety import _leftovers, _old_run, _small_case
 from test_compile_cache import case_file  # noqa: F401  (fixture)
 

@@ -230,9 +230,7 @@ def exit_now(status: object) -> None:
     is set to anything but ``0``, or while another non-daemon thread runs (the ordinary exit
     waits for it)."""
     code = _exit_status(status)
-    others = [
-        t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon
-    ]
+    others = [t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon]
     if os.environ.get("FLIGHTID_NORMAL_EXIT", "0") not in ("", "0") or others:
         sys.exit(code)
     if not _flush_standard_streams() and code == 0:
