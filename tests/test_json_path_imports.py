@@ -55,3 +55,17 @@ def test_run_json_does_not_load_scipy_special():
     assert (
         sorted(m for m in modules if m == "scipy.special" or m.startswith("scipy.special.")) == []
     )
+
+
+def test_run_json_loads_neither_the_likelihood_region_nor_the_file_writers():
+    # a Cramér–Rao assessment (the case's default) and the modal analysis every run makes
+    modules = _run_json(str(WALK), "--accuracy", "cr")
+    assert "flightid.export.modal" in modules
+    unneeded = (
+        "flightid.accuracy.profile",
+        "flightid.accuracy.search",
+        "flightid.export.statespace",
+        "flightid.export.python_module",
+        "flightid.export.files",
+    )
+    assert sorted(set(unneeded) & modules) == []
