@@ -243,3 +243,18 @@ def test_numba_cache_written_by_a_run_serves_the_next(case_file, tmp_path):  # n
         counts.append(json.loads(done.stdout.strip().splitlines()[-1])["compiles"])
     assert counts[0] > 0
     assert counts[1] == 0
+
+
+def test_batch_on_dask_workers_ends_cleanly(tmp_path):
+    # the cluster is closed by the command itself; the fast exit then finds no worker left
+    pytest.importorskip("distributed", reason="dask[distributed] not installed (flightid[dask])")
+    from test_batch_engine import _simulated_case
+
+    cases = [str(_simulated_case(tmp_path, k)) for k in range(2)]
+    out = tmp_path / "out"
+    done = _flightid("batch", *cases, "--workers", "2", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    assert "engine dask distributed (LocalCluster, 2 worker(s))" in done.stderr
+    noise = [line for line in done.stderr.splitlines() if "WARNING" in line or "Traceback" in line]
+    assert noise == []
+    assert sorted(p.name for p in (out / "cases").iterdir()) == ["sim0", "sim1"]
