@@ -31,6 +31,14 @@ Usage:
     OPENBLAS_NUM_THREADS=1 python bench/startup.py [--cases NAME ...] [--rounds N]
     OPENBLAS_NUM_THREADS=1 python bench/startup.py --quick        # one case, one round
     OPENBLAS_NUM_THREADS=1 python bench/startup.py --compiles [--cases NAME ...]
+    OPENBLAS_NUM_THREADS=1 python bench/startup.py --source ...   # no bytecode cache
+
+**As installed.** An installed flightid has its modules' bytecode (``.pyc``) cached; a
+source checkout run with ``PYTHONDONTWRITEBYTECODE=1`` (or a read-only tree) compiles every
+flightid module from source in every process (about 0.1 s). The children therefore run with
+``PYTHONDONTWRITEBYTECODE`` unset and ``PYTHONPYCACHEPREFIX`` pointing at a temporary folder
+that the warm-up runs fill; the first line printed says so. ``--source`` measures without
+bytecode instead (every module compiled in every run), also said on that line.
 
 Timings scatter with machine load (run it on a quiet machine); the compile counts do not.
 """
@@ -222,8 +230,11 @@ def _compiles(command: list[str], env: dict[str, str]) -> int:
     return int(_run_child(command[3:], env)["compiles"])
 
 
-def overhead_table(names: list[str], rounds: int, env: dict[str, str], data_dir: str | None):
-    """Measure and print the overhead table (see the module docstring); returns the rows."""
+def overhead_table(
+    names: list[str], rounds: int, env: dict[str, str], data_dir: str | None, setting: str = ""
+):
+    """Measure and print the overhead table (see the module docstring; ``setting``: the
+    line saying how bytecode is cached, printed before the table); returns the rows."""
     cases = [CASES / f"{name}.toml" for name in names]
     for case in cases:
         if not case.is_file():
@@ -270,7 +281,7 @@ def overhead_table(names: list[str], rounds: int, env: dict[str, str], data_dir:
             rows.append(
                 (case.stem, mode, wall, estimation, overhead, ratio, compiles[(case.stem, mode)])
             )
-    _print_overhead(rows, bare, rounds)
+    _print_overhead(rows, bare, rounds, setting)
     worker_ratio = _print_workers(outs_wall)
     print("<!-- /numbers -->")
     print()
@@ -300,8 +311,10 @@ def _print_workers(outs_wall: dict[str, dict[str, list[float]]]) -> float:
     return float(np.median(ratios))
 
 
-def _print_overhead(rows, bare: float, rounds: int) -> None:
+def _print_overhead(rows, bare: float, rounds: int, setting: str = "") -> None:
     print("<!-- guide: docs/benchmarks.md -->")
+    if setting:
+        print(setting)
     print("<!-- numbers: benchmarks-startup-overhead -->")
     print(f'bare import (`python -c "{BARE_IMPORT}"`): {bare:.3f} s, best of {rounds}')
     print()
@@ -346,18 +359,44 @@ def main() -> None:
     parser.add_argument(
         "--compiles", action="store_true", help="the compile table of every shipped case instead"
     )
+    parser.add_argument(
+        "--source",
+        action="store_true",
+        help="no bytecode cache: every module compiled from source in every run",
+    )
     args = parser.parse_args()
     env = dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SRC), env.get("PYTHONPATH")]))
-    if args.compiles:
-        compiles_table(args.cases, env)
-        return
-    names = list(args.cases or STANDARD_CASES)
-    rounds = args.rounds
-    if args.quick:
-        names, rounds = names[:1], 1
-    overhead_table(names, rounds, env, args.data_dir)
+    with tempfile.TemporaryDirectory(prefix="flightid-pycache-") as pycache:
+        setting = bytecode_setting(env, None if args.source else Path(pycache))
+        if args.compiles:
+            print(setting, flush=True)
+            compiles_table(args.cases, env)
+            return
+        names = list(args.cases or STANDARD_CASES)
+        rounds = args.rounds
+        if args.quick:
+            names, rounds = names[:1], 1
+        overhead_table(names, rounds, env, args.data_dir, setting)
+
+
+def bytecode_setting(env: dict[str, str], pycache: Path | None) -> str:
+    """Set the children's bytecode environment in ``env``; returns the line that says it.
+
+    With ``pycache`` (as installed): ``PYTHONDONTWRITEBYTECODE`` unset, ``PYTHONPYCACHEPREFIX``
+    = ``pycache``, filled by the warm-up runs. Without: ``PYTHONDONTWRITEBYTECODE=1``, no
+    prefix (every module compiled from source in every run)."""
+    if pycache is None:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+        env.pop("PYTHONPYCACHEPREFIX", None)
+        return "bytecode: none (--source): every module compiled from source in every run"
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    return (
+        "bytecode: cached, as installed (PYTHONPYCACHEPREFIX = a temporary folder the "
+        "warm-up runs fill; --source measures without)"
+    )
 
 
 if __name__ == "__main__":

@@ -46,3 +46,26 @@ def _run_json(*arguments: str) -> set[str]:
 def test_run_json_does_not_load_the_report():
     modules = _run_json(str(WALK), "--accuracy", "cr")
     assert "flightid.report.html" not in modules
+
+
+def test_run_json_does_not_load_scipy_special():
+    # the whiteness test's χ² survival function is flightid's own (flightid.accuracy.chi_square)
+    modules = _run_json(str(WALK))
+    assert "flightid.accuracy.whiteness" in modules
+    assert (
+        sorted(m for m in modules if m == "scipy.special" or m.startswith("scipy.special.")) == []
+    )
+
+
+def test_run_json_loads_neither_the_likelihood_region_nor_the_file_writers():
+    # a Cramér–Rao assessment (the case's default) and the modal analysis every run makes
+    modules = _run_json(str(WALK), "--accuracy", "cr")
+    assert "flightid.export.modal" in modules
+    unneeded = (
+        "flightid.accuracy.profile",
+        "flightid.accuracy.search",
+        "flightid.export.statespace",
+        "flightid.export.python_module",
+        "flightid.export.files",
+    )
+    assert sorted(set(unneeded) & modules) == []

@@ -30,9 +30,7 @@ from flightid.accuracy.coloured import coloured_covariance
 from flightid.accuracy.contour import Contour, polish_minimum
 from flightid.accuracy.intervals import correlation_matrix, correlation_warnings, emit
 from flightid.accuracy.nonlinearity import beale_nonlinearity
-from flightid.accuracy.profile import profile_limits
 from flightid.accuracy.result import AccuracyResult
-from flightid.accuracy.search import random_search
 from flightid.data.flightdata import FlightData
 from flightid.errors import InputError, InputTypeError, describe
 from flightid.estimation.problem import OutputErrorProblem
@@ -253,12 +251,18 @@ def assess(
     trace_level = delta_beale if beale_corrected else delta
     contour = Contour(problem, r_diag, theta_min, cost_min, trace_level, outputs_min)
     profile = search = None
+    # the profile and the search are imported where they run: a Cramér–Rao-only assessment
+    # (the default) does not load them
     if "profile" in chosen:
+        from flightid.accuracy.profile import profile_limits
+
         before = contour.evaluations
         profile = profile_limits(contour, covariance, parameters=subset, engine=engine)
         evaluations["profile"] = contour.evaluations - before
         messages += _profile_messages(profile, names)
     if "search" in chosen:
+        from flightid.accuracy.search import random_search
+
         before = contour.evaluations
         search = random_search(
             contour,

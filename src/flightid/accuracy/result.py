@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from flightid.accuracy.nonlinearity import Nonlinearity
-from flightid.accuracy.profile import ProfileLimits
-from flightid.accuracy.search import SearchLimits
 from flightid.errors import InputError
 from flightid.results import (
     ResultSurface,
@@ -19,6 +18,10 @@ from flightid.results import (
     finite_or_none,
     render_summary,
 )
+
+if TYPE_CHECKING:  # annotations only: the profile and the search load where they run
+    from flightid.accuracy.profile import ProfileLimits
+    from flightid.accuracy.search import SearchLimits
 
 __all__ = ["AccuracyResult", "accuracy_json", "INTERVAL_METHODS"]
 

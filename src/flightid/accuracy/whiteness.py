@@ -37,8 +37,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import chdtrc
 
+from flightid.accuracy.chi_square import chi_square_survival
 from flightid.accuracy.coloured import residual_autocovariance
 from flightid.errors import InputError, describe
 
@@ -219,7 +219,7 @@ def residual_whiteness(
     # Q_o = N (N + 2) Σ_{k=1..m} ρ_o(k)² / (N − M k)
     q = n * (n + 2) * np.sum(rho[1 : m + 1] ** 2 / pairs[:, None], axis=0)
     # p = P(χ²_m > Q): the χ² survival function (what scipy.stats.chi2.sf evaluates)
-    p_value = chdtrc(m, q)
+    p_value = np.asarray(chi_square_survival(m, q), dtype=float)
     return Whiteness(
         names=names,
         rho=rho,

@@ -508,10 +508,11 @@ def flying_qualities_settings(table: Mapping[str, Any], key: str = "flying_quali
     MIL-F-8785C limits the report judges the modes against (``flightid.export``); optional
     ``speed`` [m/s] and ``n_alpha`` [g/rad] for the control anticipation parameter and
     ``include_unverified`` (judge with the limits marked unverified too). {} when absent."""
-    from flightid.export.flying_qualities import AIRPLANE_CLASSES, CATEGORIES
-
     if not table:
         return {}
+    # imported only for a case that has the table (it loads flightid.export)
+    from flightid.export.flying_qualities import AIRPLANE_CLASSES, CATEGORIES
+
     _known(table, _FLYING_QUALITIES, key)
     for required in ("class", "category"):
         if required not in table:

@@ -50,11 +50,14 @@ class Reconstruction:
     def write_csv(self, path: Path) -> Path:
         """Write the columns as CSV (header row ``name [unit]``, full precision)."""
         names = list(self.columns)
-        data = np.column_stack([self.columns[n] for n in names])
+        data = np.column_stack([self.columns[n] for n in names]).astype(float)
+        # every number as repr(float): the shortest text that reads back as the same double;
+        # the rows converted a matrix at a time (tolist), not one numpy scalar at a time
+        lines = [",".join(map(repr, row)) for row in data.tolist()]
         with open(path, "w", encoding="utf-8", newline="") as stream:
             stream.write(",".join(names) + "\n")
-            for row in data:
-                stream.write(",".join(repr(float(v)) for v in row) + "\n")
+            if lines:
+                stream.write("\n".join(lines) + "\n")
         return path
 
 

@@ -18,6 +18,7 @@ rounding). The units of the columns are listed in results.json under ``time_hist
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -59,34 +60,43 @@ def time_history_columns(run) -> list[dict]:
     return columns
 
 
-def _rows(maneuver: str, role: str, time, inputs, measured, predicted) -> list[list]:
-    """One row per sample: the names, then the numbers as Python floats (written with
-    ``repr`` precision by ``csv``), an input that is not finite as an empty field. The
-    numbers are converted a matrix at a time (``tolist``), not one numpy scalar at a time."""
+def _csv_fields(*texts: str) -> str:
+    """``texts`` as the start of a CSV row, quoted as ``csv`` quotes them, with a trailing
+    comma."""
+    out = io.StringIO(newline="")
+    csv.writer(out).writerow(texts)
+    # csv's own line end taken off (a field holding a line break is quoted as before)
+    return out.getvalue().removesuffix("\r\n") + ","
+
+
+def _rows(maneuver: str, role: str, time, inputs, measured, predicted) -> list[str]:
+    """One CSV line per sample (without its line end): the names, then the numbers, each
+    as ``repr`` of a Python float (as ``csv`` writes a float), an input that is not finite
+    as an empty field. The numbers are converted a matrix at a time (``tolist``), not one
+    numpy scalar at a time."""
     residual = measured - predicted
     n = len(time)
-    numbers = np.column_stack(
-        [np.asarray(time, dtype=float).reshape(n, 1), measured, predicted, residual]
-    )
     inputs = np.asarray(inputs, dtype=float).reshape(n, -1)
-    # an input that is not finite is written as an empty field
-    shown_inputs = np.where(np.isfinite(inputs), inputs, np.nan).tolist()
+    numbers = np.column_stack(
+        [np.asarray(time, dtype=float).reshape(n, 1), inputs, measured, predicted, residual]
+    )
+    head = _csv_fields(maneuver, role)
+    lines = [head + ",".join(map(repr, row)) for row in numbers.tolist()]
     missing = ~np.isfinite(inputs)
-    if missing.any():
-        for i, j in zip(*np.nonzero(missing), strict=True):
-            shown_inputs[i][j] = ""
-    head = [maneuver, role]
-    return [
-        [*head, row[0], *shown, *row[1:]]
-        for row, shown in zip(numbers.tolist(), shown_inputs, strict=True)
-    ]
+    for i in np.flatnonzero(missing.any(axis=1)):
+        # an input that is not finite is written as an empty field (column 1 + j)
+        fields = [repr(v) for v in numbers[i].tolist()]
+        for j in np.flatnonzero(missing[i]):
+            fields[1 + j] = ""
+        lines[i] = head + ",".join(fields)
+    return lines
 
 
 def write_time_histories(run, path: Path) -> Path:
     """Write ``time_histories.csv`` of a ``CaseRun`` to ``path``; returns the path."""
     estimate = run.estimate
     input_names = list(run.model.inputs)
-    rows: list[list] = []
+    rows: list[str] = []
     index = np.asarray(estimate.maneuver_index)
     for k, maneuver in enumerate(run.maneuvers):
         selected = index == k
@@ -122,9 +132,10 @@ def write_time_histories(run, path: Path) -> Path:
         )
     path = Path(path)
     with path.open("w", newline="", encoding="utf-8") as stream:
-        writer = csv.writer(stream)
-        writer.writerow([c["name"] for c in time_history_columns(run)])
-        writer.writerows(rows)
+        # csv's line end, \r\n, on every row
+        csv.writer(stream).writerow([c["name"] for c in time_history_columns(run)])
+        if rows:
+            stream.write("\r\n".join(rows) + "\r\n")
     return path
 
 
