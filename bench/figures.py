@@ -3,24 +3,26 @@ and the other files of the result folder (results.json with time_histories.csv,
 estimates.csv, report.html).
 
 For each case (``examples/cases/NAME.toml``) the run is made once in this process; then, taking
-turns over ``--rounds`` rounds, each of the report's figure jobs (``flightid.report.html.
-figure_jobs``) is drawn to PNG bytes (``flightid.report.drawing.draw_job``: the figure built,
-drawn on an Agg canvas, encoded), with the figure module of this tree and, as the peer, with
-the figure module of the commit ``--peer`` (``git show``; the starting point of the figure
-work), and the other files are written to a temporary folder. CPU time of this process
-(``time.process_time``), best over the rounds, in ms.
+turns over ``--rounds`` rounds, each of the report's figures is made three ways: as SVG text
+written from the arrays (``flightid.report.svg_figures``, the default ``--out``), as PNG bytes
+drawn by matplotlib (``flightid.report.drawing.draw_job``: ``--figure-format png``), and, as the
+peer, as PNG bytes by the figure module of the commit ``--peer`` (``git show``; the figures
+before the figure work); and the other files are written to a temporary folder. CPU time of
+this process (``time.process_time``), best over the rounds, in ms.
 
-Prints a table per figure (``ms here``, ``ms peer``, ratio) and per other file, the sum of the
-figures and their share of the ``--out`` work measured here (figures + files), and the
-bare import time of numpy, scipy and matplotlib.pyplot (the start-up yardstick,
-``bench/startup.py``) for scale. Target lines: the figures of hfb320_longitudinal cost at
-most 1/3 of the peer's; the whole ``--out`` work of every case is at most the bare import.
+Prints a table per figure (ms SVG, ms PNG, ms PNG peer, SVG ÷ PNG, PNG ÷ peer) and per other
+file, the sums, the share of each item in the default ``--out`` work (SVG figures + files),
+and the bare import time of numpy, scipy and matplotlib.pyplot (the start-up yardstick,
+``bench/startup.py``) for scale. Fact lines: the SVG figures' CPU against the PNG ones, and
+the default ``--out`` work against the bare import. (The command's target, overhead ≤ 2 × the
+bare import, is ``bench/startup.py``'s; the PNG figures are matplotlib's cost and only paid
+on request.)
 
 Usage:
     OPENBLAS_NUM_THREADS=1 python bench/figures.py [--cases NAME ...] [--rounds N]
     OPENBLAS_NUM_THREADS=1 python bench/figures.py --quick     # hfb320_longitudinal, 2 rounds
 
-Timings scatter with machine load; the turns keep the ratio fair.
+Timings scatter with machine load; the turns keep the ratios fair.
 """
 
 from __future__ import annotations
@@ -93,6 +95,14 @@ def _bare_import_s() -> float:
     return best
 
 
+def _svg(job) -> bytes:
+    """A job's figure as SVG text (the default ``--out`` figures)."""
+    from flightid.report.svg_figures import SVG_FUNCTIONS
+
+    options = {key: value for key, value in job.kwargs.items() if key != "dpi"}
+    return SVG_FUNCTIONS[job.function](*job.args, **options).encode("utf-8")
+
+
 def _other_files(run, directory: Path) -> dict[str, callable]:
     from flightid.report import html
     from flightid.report.histories import write_results_and_histories
@@ -109,14 +119,15 @@ def _other_files(run, directory: Path) -> dict[str, callable]:
     }
 
 
-def bench_case(name: str, rounds: int, peer) -> tuple[list[list], float, float, float]:
-    """Rows (item, ms here, ms peer, ratio) of one case; and the figures' ms here and peer,
-    and the ms of the other files."""
+def bench_case(name: str, rounds: int, peer) -> tuple[list[list], list[float], float]:
+    """Rows (item, ms SVG, ms PNG here, ms PNG peer) of one case; the figures' ms (SVG, PNG
+    here, PNG peer) and the ms of the other files."""
     from flightid.cases import run_case
     from flightid.report.html import figure_jobs
 
     run = run_case(ROOT / "examples" / "cases" / f"{name}.toml", accuracy="cr")
     files, jobs = figure_jobs(run)
+    svg = [float("inf")] * len(jobs)
     here = [float("inf")] * len(jobs)
     there = [float("inf")] * len(jobs)
     with tempfile.TemporaryDirectory() as folder:
@@ -124,17 +135,28 @@ def bench_case(name: str, rounds: int, peer) -> tuple[list[list], float, float, 
         other_ms = dict.fromkeys(others, float("inf"))
         for _ in range(rounds):
             for k, job in enumerate(jobs):
+                svg[k] = min(svg[k], _cpu_ms(lambda job=job: _svg(job)))
                 here[k] = min(here[k], _cpu_ms(lambda job=job: _draw_here(job)))
                 if peer is not None:
                     there[k] = min(there[k], _cpu_ms(lambda job=job: _draw(peer, job)))
             for item, action in others.items():
                 other_ms[item] = min(other_ms[item], _cpu_ms(action))
     rows = []
-    for file, job, a, b in zip(files, jobs, here, there, strict=True):
+    for file, job, v, a, b in zip(files, jobs, svg, here, there, strict=True):
+        stem = file.removesuffix(".png")
         panels = f"{job.function}" + (f" ({int(job.weight)} panels)" if "maneuver" in file else "")
-        rows.append([f"{file}: {panels}", a, b])
-    rows += [[item, ms, float("nan")] for item, ms in other_ms.items()]
-    return rows, sum(here), sum(there), sum(other_ms.values())
+        rows.append([f"{stem}: {panels}", v, a, b])
+    nan = float("nan")
+    rows += [[item, ms, nan, nan] for item, ms in other_ms.items()]
+    return rows, [sum(svg), sum(here), sum(there)], sum(other_ms.values())
+
+
+def _ms(value: float) -> str:
+    return f"{value:.0f}" if value == value and value < float("inf") else ""
+
+
+def _ratio(a: float, b: float) -> str:
+    return f"{a / b:.3f}" if a == a and b == b and 0 < b < float("inf") else ""
 
 
 def main(argv=None) -> int:
@@ -151,36 +173,37 @@ def main(argv=None) -> int:
     import_s = _bare_import_s()
     print("<!-- guide: docs/benchmarks.md -->")
     print("<!-- numbers: benchmarks-figures -->")
-    print("| case | item | ms here | ms peer | here ÷ peer | ÷ --out work here |")
-    print("|---|---|---:|---:|---:|---:|")
+    print(
+        "| case | item | ms SVG (default) | ms PNG | ms PNG peer | SVG ÷ PNG | PNG ÷ peer "
+        "| ÷ --out work |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|---:|")
     summary = []
     lines = []
     for name in cases:
         if name == "attas_fpr_biases" and not (ROOT.parent / "shared" / "data").exists():
             lines.append(f"{name}: skipped (no reference data)")
             continue
-        rows, here, there, other = bench_case(name, rounds, peer)
-        work = here + other
-        for item, a, b in rows:
-            ratio = f"{a / b:.2f}" if b == b and b > 0 else ""
-            peer_ms = f"{b:.0f}" if b == b and b < float("inf") else ""
-            print(f"| {name} | {item} | {a:.0f} | {peer_ms} | {ratio} | {100 * a / work:.0f} % |")
+        rows, (svg, png, peer_png), other = bench_case(name, rounds, peer)
+        work = svg + other
+        for item, v, a, b in rows:
+            print(
+                f"| {name} | {item} | {v:.1f} | {_ms(a)} | {_ms(b)} | {_ratio(v, a)} "
+                f"| {_ratio(a, b)} | {100 * v / work:.0f} % |"
+            )
         print(
-            f"| {name} | **all figures** | {here:.0f} | {there:.0f} | {here / there:.2f} "
-            f"| {100 * here / work:.0f} % |"
+            f"| {name} | **all figures** | {svg:.1f} | {png:.0f} | {_ms(peer_png)} "
+            f"| {_ratio(svg, png)} | {_ratio(png, peer_png)} | {100 * svg / work:.0f} % |"
         )
-        print(
-            f"| {name} | **--out work** (figures + files) | {work:.0f} "
-            f"| {there + other:.0f} | {work / (there + other):.2f} | 100 % |"
-        )
+        print(f"| {name} | **--out work** (SVG figures + files) | {work:.0f} | | | | | 100 % |")
         summary.append(
-            f"{name}: figures {here / there:.2f} × the peer's CPU; the --out work "
-            f"{(here + other) / 1000:.2f} s = "
-            f"{(here + other) / 1000 / import_s:.2f} × the bare import"
+            f"{name}: SVG figures {svg:.1f} ms = {svg / png:.3f} × the PNG figures' CPU; the "
+            f"default --out work {work / 1000:.3f} s = {work / 1000 / import_s:.2f} × the bare "
+            f"import"
         )
     print("<!-- /numbers -->\n")
     print(f"bare import (numpy, scipy, matplotlib.pyplot): {import_s:.3f} s, best of 2")
-    print(f"CPU ms, best of {rounds} rounds in turns; peer: the figures of commit {args.peer}")
+    print(f"CPU ms, best of {rounds} rounds in turns; peer: the PNG figures of commit {args.peer}")
     for line in lines:
         print(line)
     # the command's target (overhead ≤ 2 × the bare import) is checked by bench/startup.py
