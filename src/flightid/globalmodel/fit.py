@@ -244,7 +244,8 @@ def _fit_coefficient(
     parameters = tuple(f"{name}_{t.identifier}" for t in selected)
     response_unit = units.get(channel, "")
     parameter_units = {
-        p: _parameter_unit(t, response_unit, units) for p, t in zip(parameters, selected)
+        p: _parameter_unit(t, response_unit, units)
+        for p, t in zip(parameters, selected, strict=True)
     }
     fit = least_squares(
         Phi,
