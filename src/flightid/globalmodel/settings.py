@@ -88,7 +88,7 @@ class GlobalModelSettings:
     residual_variance: str = "global"
     local_k: int | None = None
     support_k: int = 5
-    spacing_s: float = 0.25
+    spacing_s: float = 0.1
     support_quantile: float = 0.99
     support_factor: float = 2.0
     tol: float = field(default=1e-10)

@@ -6,7 +6,7 @@ data, "hidden extrapolation". Two measures flag it, both on every prediction:
 
 - **distance**: in support coordinates v = (x − c)/r (the data box is [−1, 1]^m,
   ``flightid.globalmodel.variables``) the distance d_k(x₀) from the point to its k-th nearest
-  reference sample (the data thinned to one sample per ``spacing_s`` per maneuver, so a long
+  reference sample (the data thinned to one sample per ``spacing_s`` (0.1 s) per maneuver, so a long
   steady stretch does not count as many), against d_ref, the ``quantile`` (0.99) of the same
   distance among the reference samples themselves (their (k+1)-th neighbour, the first being
   the sample itself): ``distance_ratio = d_k / d_ref``;
@@ -85,7 +85,7 @@ class Support:
         dt: float | None,
         *,
         k: int = 5,
-        spacing_s: float = 0.25,
+        spacing_s: float = 0.1,
         quantile: float = 0.99,
         factor: float = 2.0,
         max_reference: int = MAX_REFERENCE,
