@@ -290,3 +290,43 @@ def test_orders_of_an_unknown_variable_is_a_named_error():
     settings = GlobalModelSettings(orders={"beta": 2})
     with pytest.raises(GlobalModelError, match=r"orders: expected variables from .* \['beta'\]"):
         fit_global_model(signals, ["CL"], ["alpha", "Mach", "de"], settings=settings)
+
+
+def test_the_facade_exports_the_front_door():
+    import flightid
+    import flightid.globalmodel.fit as fit_module
+    import flightid.globalmodel.model as model_module
+
+    assert flightid.fit_global_model is fit_module.fit_global_model
+    assert flightid.GlobalModel is model_module.GlobalModel
+
+
+def test_aero_model_carries_the_selected_terms_and_names():
+    signals, true = _known_polynomial(seed=12, n=2000)
+    model = fit_global_model(signals, {"CL": "CL"}, ["alpha", "Mach", "de"], settings=SETTINGS)
+    aero = model.aero_model()
+    cl = model["CL"]
+    assert aero.coefficients == ("CL",)
+    assert [t.label for t in aero.terms("CL")] == list(cl.terms)
+    assert aero.parameter_names == list(cl.parameters)
+    # NASA names: coefficient, underscore, the term's signals with powers
+    assert set(cl.parameters) == {"CL_0", "CL_alpha", "CL_alpha2", "CL_alpha_Mach", "CL_alpha2_de"}
+    values = model.parameter_values()
+    assert values["CL_alpha"] == pytest.approx(4.5, abs=0.01)
+    other = fit_global_model(signals, {"lift": "CL"}, ["alpha", "Mach", "de"], settings=SETTINGS)
+    with pytest.raises(GlobalModelError, match=r"aero_model: expected coefficients .* \['lift'\]"):
+        other.aero_model()
+
+
+def test_summary_and_frame_list_the_selected_terms():
+    pytest.importorskip("pandas")
+    signals, _ = _known_polynomial(seed=13, n=1000)
+    model = fit_global_model(signals, ["CL"], ["alpha", "Mach", "de"], settings=SETTINGS)
+    text = model.summary()
+    for term in model["CL"].terms:
+        assert term in text
+    frame = model.to_frame()
+    assert list(frame.index) == list(model["CL"].parameters)
+    np.testing.assert_array_equal(frame["value"].to_numpy(), model["CL"].estimates)
+    prediction = model.predict({"alpha": [0.0, 0.2], "Mach": 0.5, "de": 0.0})["CL"]
+    assert list(prediction.to_frame()["value"]) == list(prediction.value)
