@@ -330,3 +330,17 @@ def test_summary_and_frame_list_the_selected_terms():
     np.testing.assert_array_equal(frame["value"].to_numpy(), model["CL"].estimates)
     prediction = model.predict({"alpha": [0.0, 0.2], "Mach": 0.5, "de": 0.0})["CL"]
     assert list(prediction.to_frame()["value"]) == list(prediction.value)
+
+
+def test_a_variable_that_does_not_vary_leaves_the_lower_order_term():
+    rng = np.random.default_rng(14)
+    n = 1500
+    alpha = rng.uniform(-0.1, 0.4, n)
+    signals = {"alpha": alpha, "Mach": np.full(n, 0.6)}
+    signals["CL"] = 0.1 + 5 * alpha - 2 * alpha**2 + rng.normal(0, 0.01, n)
+    model = fit_global_model(
+        signals, ["CL"], ["alpha", "Mach"], settings=GlobalModelSettings(max_order=3)
+    )
+    # α·M and α·M² are α times a constant: the same function as α, which is kept
+    assert set(model["CL"].terms) == {"1", "alpha", "alpha^2"}
+    assert model.predict({"alpha": 0.1, "Mach": 0.7})["CL"].outside[0]

@@ -5,8 +5,8 @@ explanatory variables. ``predict(points)`` gives, for every coefficient and poin
 regressors φ₀ (the selected terms at x₀):
 
     ŷ₀         = φ₀ᵀ θ̂
-    Var_mean   = φ₀ᵀ C θ̂-covariance φ₀     C = the coloured-residual covariance of the fit
-                                            (``LeastSquaresResult.covariance_default``)
+    Var_mean   = φ₀ᵀ C φ₀                C = the coloured-residual covariance of θ̂
+                                        (``LeastSquaresResult.covariance_default``)
     σ²_e(x₀)   = s² (``"global"``) or, for ``"local"``, the mean squared residual of the
                  local_k fitted samples nearest to x₀ (support coordinates) × N/(N − n_p)
     interval   = ŷ₀ ± t_{dof,(1+c)/2} · sqrt(Var_mean + σ²_e(x₀))   (a new observation)
@@ -213,7 +213,8 @@ class CoefficientModel(ResultSurface):
         support: the data support.
         settings: the settings it was fitted with.
         path_table: the MOF path (n_terms, term, mse, pse per step).
-        cost_share: ΔJ share of each selected term (fraction of ½Σ(z − z̄)²).
+        cost_share: ΔJ of each selected term as a fraction of ½Σ(z − z̄)² (NaN for the
+            constant, whose ΔJ = ½Nz̄² is not part of that spread).
         n_candidates: candidates offered.
         path: the ``MofPath`` (None after reloading).
         fit: the ``LeastSquaresResult`` of the selected terms (None after reloading).

@@ -59,6 +59,8 @@ from flightid.globalmodel.variables import GlobalModelError
 __all__ = ["MofPath", "select_terms", "predicted_squared_error", "RANKINGS"]
 
 RANKINGS = ("greedy", "fixed_order")
+# relative difference of ΔJ below which two candidates tie
+_TIE = 1e-9
 
 
 def predicted_squared_error(mse, n_terms, n_samples: int, sigma2_max: float):
@@ -103,8 +105,12 @@ class MofPath:
         return self.labels[: self.n_terms]
 
     def cost_share(self, z_spread: float) -> np.ndarray:
-        """ΔJ of each ranked function as a share of ½ Σ (z − z̄)² (``z_spread`` = Σ (z − z̄)²)."""
-        return self.cost_reduction / (0.5 * z_spread) if z_spread > 0 else self.cost_reduction * 0
+        """ΔJ of each ranked function as a share of ½ Σ (z − z̄)² (``z_spread`` = Σ (z − z̄)²);
+        NaN for the constant term and when z does not vary."""
+        if not z_spread > 0:
+            return np.full(self.cost_reduction.shape, np.nan)
+        share = self.cost_reduction / (0.5 * z_spread)
+        return np.where([label == "1" for label in self.labels], np.nan, share)
 
     def to_dict(self) -> list[dict]:
         """The path: one entry per ranked function (n_terms, term, mse, pse)."""
@@ -175,7 +181,9 @@ def _greedy(
         else:
             # ΔJ_j = ½ (w_jᵀz)² / w_jᵀw_j over the usable candidates
             gain = np.where(usable, wz**2 / np.where(usable, ww, 1.0), -np.inf)
-            j = int(np.argmax(gain))
+            # ties (to round-off) go to the earlier, lower-order candidate: with a variable
+            # that does not vary, α and α·M are the same function and α is kept
+            j = int(np.flatnonzero(gain >= np.max(gain) * (1.0 - _TIE))[0])
         p = work[:, j].copy()
         pp = float(ww[j])
         reductions.append(0.5 * float(wz[j]) ** 2 / pp)
