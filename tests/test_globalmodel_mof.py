@@ -344,3 +344,21 @@ def test_a_variable_that_does_not_vary_leaves_the_lower_order_term():
     # α·M and α·M² are α times a constant: the same function as α, which is kept
     assert set(model["CL"].terms) == {"1", "alpha", "alpha^2"}
     assert model.predict({"alpha": 0.1, "Mach": 0.7})["CL"].outside[0]
+
+
+def test_a_spline_term_past_a_knot_is_selected_and_recovered():
+    rng = np.random.default_rng(15)
+    n = 3000
+    alpha, qhat = rng.uniform(-0.1, 0.6, n), rng.uniform(-0.02, 0.02, n)
+    true = {"1": 0.1, "alpha": 4.0, "spline1(alpha,0.3)": -6.0, "qhat*spline1(alpha,0.3)": 40.0}
+    signals = {"alpha": alpha, "qhat": qhat}
+    z = sum(v * parse_term(t).evaluate(signals, n) for t, v in true.items())
+    signals["CL"] = z + rng.normal(0, 0.005, n)
+    settings = GlobalModelSettings(
+        orders={"alpha": 3, "qhat": 1}, max_order=3, knots={"alpha": [0.3]}, cross_with=["qhat"]
+    )
+    model = fit_global_model(signals, ["CL"], ["alpha", "qhat"], settings=settings)
+    cl = model["CL"]
+    assert set(cl.terms) == set(true)
+    for j, term in enumerate(cl.terms):
+        assert abs(cl.estimates[j] - true[term]) < 3.0 * cl.std[j], term
