@@ -264,7 +264,8 @@ def select_terms(
         raise GlobalModelError(f"forced: expected candidate terms, got {unknown}")
     forced_index = [labels.index(f) for f in forced]
     n, m = columns.shape
-    max_terms = m if max_terms is None else min(int(max_terms), m)
+    # the path holds at least the forced terms
+    max_terms = m if max_terms is None else min(max(int(max_terms), len(forced_index), 1), m)
     s2max = _sigma2_max(sigma2_max, z, columns, tol)
     if ranking == "greedy":
         order, reductions, P, Gamma = _greedy(
