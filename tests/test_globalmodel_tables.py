@@ -157,10 +157,11 @@ def test_times_component_recovers_rate_derivative_table():
         TableComponent(("alpha",), {"alpha": ALPHA}),
         TableComponent(("alpha",), {"alpha": ALPHA}, times="qhat"),
     ]
-    fit = fit_table_model(z, components, signals)
+    fit = fit_table_model(z, components, signals, units={"qhat*alpha": "1/rad"})
     np.testing.assert_allclose(fit.values[0], cl0, atol=1e-10)
     np.testing.assert_allclose(fit.values[1], clq, atol=1e-8)
     assert fit.names[5] == "qhat*alpha[0]"
+    assert fit.fit.unit_map["qhat*alpha[4]"] == "1/rad" and fit.fit.unit_map["alpha[4]"] == ""
 
 
 def test_second_component_values_relative_to_its_first_breakpoint():
@@ -214,7 +215,11 @@ def test_empty_cell_filled_and_flagged_with_smoothing():
     truth = _multilinear(ALPHA[:, None], DE[None, :])
     np.testing.assert_allclose(fit.values[0], truth, atol=1e-9)
     assert isinstance(fit.fit, PenalisedLeastSquaresResult)
-    assert fit.fit.effective_parameters < 25
+    # statistics over the data rows only: N samples, N − edf dof
+    assert fit.fit.n_samples == signals["alpha"].size and fit.fit.n_parameters == 25
+    # the filled value has no data column: edf ≤ rank B = 24
+    assert 23 < fit.fit.effective_parameters < 24
+    assert fit.dof == pytest.approx(fit.fit.n_samples - fit.fit.effective_parameters)
 
 
 def test_empty_cell_dropped_and_flagged_without_smoothing():
@@ -415,6 +420,9 @@ def test_bad_fit_inputs_raise_named_errors():
         auto_breakpoints(np.ones(10), 4)
     with pytest.raises(TableError, match="expected a mapping with keys"):
         TableFit.from_dict({"tables": []})
+    written = fit_table_model(z, alpha, signals, units={"alpha": "1/rad"}).to_dict()
+    with pytest.raises(TableError, match=r"one name per fitted table coefficient \(5\), got 4"):
+        TableFit.from_dict(dict(written, parameters=written["parameters"][:4]))
     # all data at α = 0.35: only the last value has data, the others dropped, nothing fits
     edge = {"alpha": np.full(100, 0.35)}
     fit = fit_table_model(z, alpha, edge)

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -181,7 +182,7 @@ class TableComponent:
         if isinstance(self.degree, bool) or self.degree not in DEGREES:
             raise TableError(f"degree: expected 1 or 3, got {self.degree!r}")
         object.__setattr__(self, "variables", variables)
-        object.__setattr__(self, "breakpoints", breakpoints)
+        object.__setattr__(self, "breakpoints", types.MappingProxyType(breakpoints))
         object.__setattr__(self, "degree", int(self.degree))
 
     @property
@@ -803,6 +804,16 @@ class TableFit:
                 per[key].append(_from_nested(f"tables[{c}].{key}", entry.get(key), shape, dtype))
         names = tuple(data["parameters"])
         n_p = len(names)
+        free = sum(
+            int(np.sum(~np.isnan(coefficients))) - int(fixed)
+            for coefficients, fixed in zip(
+                per["coefficients"], _fixed_first(components), strict=True
+            )
+        )
+        if free != n_p:
+            raise TableError(
+                f"parameters: expected one name per fitted table coefficient ({free}), got {n_p}"
+            )
         s2 = data["s2"]
         return cls(
             components=components,
@@ -819,7 +830,7 @@ class TableFit:
 
 def _check_fit_options(smoothing: float, min_weight: float) -> tuple[float, float]:
     for name, value in (("smoothing", smoothing), ("min_weight", min_weight)):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise TableError(f"{name}: expected a non-negative number, got {describe(value)}")
         if not (math.isfinite(value) and value >= 0):
             raise TableError(f"{name}: expected a non-negative finite number, got {value!r}")
