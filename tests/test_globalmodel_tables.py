@@ -408,6 +408,8 @@ def test_bad_fit_inputs_raise_named_errors():
         fit_table_model(z, alpha, bad)
     with pytest.raises(TableError, match="smoothing: expected a non-negative"):
         fit_table_model(z, alpha, signals, smoothing=-1.0)
+    with pytest.raises(TableError, match="sigma2_max: expected a non-negative"):
+        fit_table_model(z, alpha, signals, smoothing=1.0, sigma2_max=float("nan"))
     with pytest.raises(TableError, match="no variable in common"):
         fit_table_model(z, [alpha_de, alpha], signals)
     with pytest.raises(TableError, match="units: expected component labels"):
@@ -423,6 +425,16 @@ def test_bad_fit_inputs_raise_named_errors():
     written = fit_table_model(z, alpha, signals, units={"alpha": "1/rad"}).to_dict()
     with pytest.raises(TableError, match=r"one name per fitted table coefficient \(5\), got 4"):
         TableFit.from_dict(dict(written, parameters=written["parameters"][:4]))
+    # a table times a constant signal repeats the plain table: named, not a silent split
+    ones = dict(signals, one=np.ones(100))
+    doubled = [alpha, TableComponent(("alpha",), {"alpha": ALPHA}, times="one")]
+    with pytest.raises(TableError, match="do not determine the table values"):
+        fit_table_model(z, doubled, ones)
+    # data on the line δe ∝ α − 0.1: the multilinear δe − k(α − 0.1) vanishes on the data and
+    # has no second differences, so even smoothing cannot determine it
+    line = {"alpha": signals["alpha"], "de": 1.2 * (signals["alpha"] - 0.1)}
+    with pytest.raises(TableError, match="do not determine the table values"):
+        fit_table_model(z, alpha_de, line, smoothing=1e-3)
     # all data at α = 0.35: only the last value has data, the others dropped, nothing fits
     edge = {"alpha": np.full(100, 0.35)}
     fit = fit_table_model(z, alpha, edge)

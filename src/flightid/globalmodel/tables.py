@@ -828,8 +828,12 @@ class TableFit:
         )
 
 
-def _check_fit_options(smoothing: float, min_weight: float) -> tuple[float, float]:
-    for name, value in (("smoothing", smoothing), ("min_weight", min_weight)):
+def _check_fit_options(
+    smoothing: float, min_weight: float, name: str = "smoothing"
+) -> tuple[float, float]:
+    """Both options as floats: non-negative finite numbers (else ``TableError``); ``name`` is
+    the first one's name."""
+    for name, value in ((name, smoothing), ("min_weight", min_weight)):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise TableError(f"{name}: expected a non-negative number, got {describe(value)}")
         if not (math.isfinite(value) and value >= 0):
@@ -886,6 +890,8 @@ def fit_table_model(
     """
     components = _checked_components(components)
     smoothing, min_weight = _check_fit_options(smoothing, min_weight)
+    if sigma2_max is not None:
+        _check_fit_options(sigma2_max, 0.0, "sigma2_max")
     data = _check_signals(signals, _signal_names(components))
     n = next(iter(data.values())).size
     z = _series("z", z, n)
@@ -975,8 +981,8 @@ def _plain_fit(B, z, names, has_constant, sigma2_max, units, maneuver_index):
 def _table_fit(components, fit, keep, without_data, smoothing, min_weight) -> TableFit:
     """Scatter θ̂ and its covariance back onto each component's grids."""
     n_all = keep.size
+    # fixed first functions stay 0, dropped ones become NaN
     theta_all = np.zeros(n_all)
-    theta_all[~keep] = 0.0
     cov_all = np.zeros((n_all, n_all))
     kept = np.flatnonzero(keep)
     theta_all[kept] = fit.estimates
