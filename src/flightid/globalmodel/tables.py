@@ -829,11 +829,11 @@ class TableFit:
 
 
 def _check_fit_options(
-    smoothing: float, min_weight: float, name: str = "smoothing"
+    smoothing: float, min_weight: float, first: str = "smoothing"
 ) -> tuple[float, float]:
-    """Both options as floats: non-negative finite numbers (else ``TableError``); ``name`` is
-    the first one's name."""
-    for name, value in ((name, smoothing), ("min_weight", min_weight)):
+    """Both options as floats: non-negative finite numbers (else ``TableError``); ``first``
+    is the first one's name."""
+    for name, value in ((first, smoothing), ("min_weight", min_weight)):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise TableError(f"{name}: expected a non-negative number, got {describe(value)}")
         if not (math.isfinite(value) and value >= 0):
