@@ -26,6 +26,8 @@ _LAZY_EXPORTS: dict[str, str] = {
     "MNRES": "flightid.estimation",
     "estimate": "flightid.estimation",
     "FlightData": "flightid.data",
+    "GlobalModel": "flightid.globalmodel",
+    "fit_global_model": "flightid.globalmodel",
     "Parameter": "flightid.model",
     "Parameters": "flightid.model",
     "StateSpaceModel": "flightid.model",
@@ -38,6 +40,7 @@ __all__ = [*_LAZY_EXPORTS, "__version__"]
 if TYPE_CHECKING:  # static tools see the eager imports (re-exported through __all__)
     from flightid.data import FlightData  # noqa: F401
     from flightid.estimation import FPS, MNR, MNRES, Convergence, Estimate, estimate  # noqa: F401
+    from flightid.globalmodel import GlobalModel, fit_global_model  # noqa: F401
     from flightid.model import Parameter, Parameters, StateSpaceModel  # noqa: F401
     from flightid.simulation import Simulator, simulate  # noqa: F401
 

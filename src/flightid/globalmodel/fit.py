@@ -1,0 +1,381 @@
+"""The front door of global modelling: ``fit_global_model``.
+
+For each coefficient: keep every ``decimate``-th sample of each maneuver, build the
+candidates (``candidates``), select the terms by multivariate orthogonal functions and PSE
+(``mof``), refit the selected raw terms by ``flightid.regression.least_squares`` (θ̂, the
+coloured-residual covariance by maneuver, σ_cr, R², PSE), and attach what predictions need:
+the effective sample size, the leverage bound, the data support and, for
+``residual_variance="local"``, the residual reference (``model``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from flightid.errors import describe
+from flightid.globalmodel.candidates import candidate_columns, generate_candidates
+from flightid.globalmodel.model import CoefficientModel, GlobalModel, SourceInfo
+from flightid.globalmodel.mof import select_terms
+from flightid.globalmodel.settings import GlobalModelSettings
+from flightid.globalmodel.support import Support, leverages
+from flightid.globalmodel.variables import GlobalModelError, Normalisation, check_series
+from flightid.model.terms import Abs, Spline, Term, TermError, evaluate_terms, parse_term
+
+__all__ = ["fit_global_model", "effective_sample_size", "decimated_indices"]
+
+# N_eff is kept at least this many samples above the parameter count
+_MIN_DOF = 5
+
+
+def decimated_indices(maneuver_index: np.ndarray, decimate: int) -> np.ndarray:
+    """Every ``decimate``-th sample of each maneuver (the first of each kept), in order."""
+    maneuver_index = np.asarray(maneuver_index)
+    if decimate == 1:
+        return np.arange(maneuver_index.size)
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(maneuver_index) != 0) + 1])
+    position = np.arange(maneuver_index.size) - np.repeat(
+        starts, np.diff(np.concatenate([starts, [maneuver_index.size]]))
+    )
+    return np.flatnonzero(position % decimate == 0)
+
+
+def effective_sample_size(
+    residuals: np.ndarray, lag: int, maneuver_index: np.ndarray | None, n_parameters: int
+) -> float:
+    """N_eff = N / (1 + 2 Σ_{k=1}^{L} ρ̂(k)), clamped to [n_p + 5, N] (``model`` docstring)."""
+    from flightid.coloured import residual_autocovariance
+
+    n = residuals.size
+    if lag <= 0:
+        return float(n)
+    gamma = residual_autocovariance(residuals[:, None], lag, maneuver_index)[:, 0, 0]
+    if gamma[0] <= 0:
+        return float(n)
+    # ρ̂(k) = R̂(k) / R̂(0)
+    rho = gamma[1:] / gamma[0]
+    inflation = 1.0 + 2.0 * float(np.sum(rho))
+    n_eff = n / inflation if inflation > 0 else float(n)
+    return float(min(max(n_eff, n_parameters + _MIN_DOF), n))
+
+
+def _xtx_inverse(Phi: np.ndarray) -> np.ndarray:
+    """(ΦᵀΦ)⁻¹ through the QR factors of the unit-length columns."""
+    norms = np.linalg.norm(Phi, axis=0)
+    _, R = np.linalg.qr(Phi / norms)
+    R_inv = np.linalg.solve(R, np.eye(R.shape[0]))
+    # (ΦᵀΦ)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹
+    return (R_inv @ R_inv.T) / np.outer(norms, norms)
+
+
+def _parameter_unit(term: Term, response_unit: str, units: Mapping[str, str]) -> str:
+    """Unit of a term's parameter: the response's unit over the term's signal units."""
+    parts = []
+    for key, power in term.factors:
+        name = key.signal if isinstance(key, (Spline, Abs)) else key
+        unit = units.get(name, "")
+        if unit and unit not in ("-", "1"):
+            parts.append(unit if power == 1 else f"{unit}^{power}")
+    if not parts:
+        return response_unit
+    return f"{response_unit or '1'}/{'/'.join(parts)}"
+
+
+def _checked_signals(
+    signals: Mapping[str, object], channels: Sequence[str]
+) -> tuple[dict[str, np.ndarray], int]:
+    if not isinstance(signals, Mapping):
+        raise GlobalModelError(
+            f"signals: expected a mapping {{channel: series}}, got {describe(signals)}"
+        )
+    missing = [c for c in channels if c not in signals]
+    if missing:
+        raise GlobalModelError(
+            f"signals: expected channels {missing} (variables and responses), available: "
+            f"{sorted(signals)}"
+        )
+    first = check_series(signals[channels[0]], f"signals[{channels[0]!r}]")
+    n = first.size
+    out = {channels[0]: first}
+    for channel in channels[1:]:
+        out[channel] = check_series(signals[channel], f"signals[{channel!r}]", n)
+    return out, n
+
+
+def _responses(responses) -> dict[str, str]:
+    if isinstance(responses, str):
+        responses = [responses]
+    if isinstance(responses, Mapping):
+        pairs = dict(responses)
+    elif isinstance(responses, Sequence):
+        pairs = {r: r for r in responses}
+    else:
+        raise GlobalModelError(
+            f"responses: expected channel names or {{coefficient: channel}}, got "
+            f"{describe(responses)}"
+        )
+    if not pairs or not all(isinstance(k, str) and isinstance(v, str) for k, v in pairs.items()):
+        raise GlobalModelError(
+            f"responses: expected at least one coefficient name → channel name, got {pairs!r}"
+        )
+    return pairs
+
+
+def _variables(variables, responses: Mapping[str, str]) -> tuple[str, ...]:
+    if isinstance(variables, str) or not isinstance(variables, Sequence) or not variables:
+        raise GlobalModelError(
+            f"variables: expected a non-empty list of channel names, got {describe(variables)}"
+        )
+    names = tuple(variables)
+    if not all(isinstance(v, str) for v in names) or len(set(names)) != len(names):
+        raise GlobalModelError(f"variables: expected distinct channel names, got {list(names)}")
+    both = sorted(set(names) & set(responses.values()))
+    if both:
+        raise GlobalModelError(f"variables: {both} are also responses")
+    return names
+
+
+def _settings_for(settings, coefficients: Sequence[str]) -> dict[str, GlobalModelSettings]:
+    if settings is None or isinstance(settings, GlobalModelSettings):
+        chosen = settings or GlobalModelSettings()
+        return {c: chosen for c in coefficients}
+    if not isinstance(settings, Mapping):
+        raise GlobalModelError(
+            "settings: expected GlobalModelSettings or {coefficient: GlobalModelSettings}, got "
+            f"{describe(settings)}"
+        )
+    unknown = sorted(set(settings) - set(coefficients))
+    if unknown:
+        raise GlobalModelError(
+            f"settings: expected coefficients from {coefficients}, got {unknown}"
+        )
+    out = {}
+    for c in coefficients:
+        value = settings.get(c, GlobalModelSettings())
+        if not isinstance(value, GlobalModelSettings):
+            raise GlobalModelError(
+                f"settings[{c!r}]: expected GlobalModelSettings, got {describe(value)}"
+            )
+        out[c] = value
+    return out
+
+
+def _maneuver_index(maneuver_index, n: int) -> np.ndarray:
+    if maneuver_index is None:
+        return np.zeros(n, dtype=int)
+    index = np.asarray(maneuver_index)
+    if index.shape != (n,):
+        raise GlobalModelError(
+            f"maneuver_index: expected one entry per sample ({n}), got {describe(index)}"
+        )
+    return index
+
+
+def _candidates(variables, settings: GlobalModelSettings) -> tuple[list[Term], list[str]]:
+    """The candidate terms (forced terms first, added when not generated) and forced labels."""
+    terms = list(
+        generate_candidates(
+            variables,
+            settings.orders,
+            settings.max_order,
+            settings.knots,
+            settings.spline_order,
+            settings.cross_with,
+            settings.cross_order,
+            settings.max_candidates,
+        )
+    )
+    try:
+        forced = [parse_term(text) for text in settings.forced]
+    except TermError as error:
+        raise GlobalModelError(f"forced: {error}") from None
+    labels = [t.label for t in terms]
+    for term in forced:
+        if term.label not in labels:
+            terms.append(term)
+            labels.append(term.label)
+    if len(terms) > settings.max_candidates:
+        raise GlobalModelError(
+            f"candidates: expected at most max_candidates = {settings.max_candidates} "
+            f"candidate terms, got {len(terms)}"
+        )
+    return terms, [t.label for t in forced]
+
+
+def _fit_coefficient(
+    name: str,
+    channel: str,
+    z_all: np.ndarray,
+    X_all: np.ndarray,
+    maneuver_index: np.ndarray,
+    normalisation: Normalisation,
+    settings: GlobalModelSettings,
+    dt: float | None,
+    units: Mapping[str, str],
+) -> CoefficientModel:
+    """One coefficient's model (module docstring)."""
+    from flightid.regression.least_squares import least_squares
+
+    rows = decimated_indices(maneuver_index, settings.decimate)
+    X, z, index = X_all[rows], z_all[rows], maneuver_index[rows]
+    variables = normalisation.names
+    terms, forced = _candidates(variables, settings)
+    if z.size <= len(terms) + _MIN_DOF:
+        raise GlobalModelError(
+            f"signals[{channel!r}]: expected more samples than the {len(terms)} candidate terms "
+            f"+ {_MIN_DOF} after decimate = {settings.decimate}, got {z.size}"
+        )
+    signals = {v: X[:, k] for k, v in enumerate(variables)}
+    columns = candidate_columns(terms, signals, normalisation)
+    path = select_terms(
+        z,
+        columns,
+        [t.label for t in terms],
+        forced=forced,
+        sigma2_max=settings.sigma2_max,
+        ranking=settings.ranking,
+        max_terms=settings.max_terms,
+        patience=settings.patience,
+        tol=settings.tol,
+    )
+    selected = [terms[j] for j in path.indices[: path.n_terms]]
+    Phi = evaluate_terms(selected, signals)
+    parameters = tuple(f"{name}_{t.identifier}" for t in selected)
+    response_unit = units.get(channel, "")
+    parameter_units = {
+        p: _parameter_unit(t, response_unit, units)
+        for p, t in zip(parameters, selected, strict=True)
+    }
+    fit = least_squares(
+        Phi,
+        z,
+        parameters,
+        sigma2_max=path.sigma2_max,
+        units=parameter_units,
+        maneuver_index=index,
+    )
+    n_p = len(selected)
+    n_eff = effective_sample_size(np.asarray(fit.residuals), fit.coloured_lag, index, n_p)
+    xtx_inv = _xtx_inverse(Phi)
+    V = normalisation.support_coordinates(X)
+    support = Support.from_data(
+        V,
+        index,
+        None if dt is None else dt * settings.decimate,
+        k=settings.support_k,
+        spacing_s=settings.spacing_s,
+        quantile=settings.support_quantile,
+        factor=settings.support_factor,
+    )
+    local = settings.residual_variance == "local"
+    local_k = settings.local_k or max(100, z.size // 50)
+    spread = float(np.sum((z - z.mean()) ** 2))
+    return CoefficientModel(
+        response=name,
+        channel=channel,
+        method=settings.method,
+        normalisation=normalisation,
+        terms=tuple(t.label for t in selected),
+        parameters=parameters,
+        estimates=np.array(fit.estimates),
+        covariance=np.array(fit.covariance_default),
+        covariance_cr=np.array(fit.covariance),
+        xtx_inv=xtx_inv,
+        units=tuple(parameter_units[p] for p in parameters),
+        s2=float(fit.s2),
+        n_samples=int(z.size),
+        n_eff=n_eff,
+        dof=n_eff - n_p,
+        coloured_lag=int(fit.coloured_lag),
+        std_kind=fit.std_kind,
+        residuals_white=fit.residuals_white,
+        r2=float(fit.r2),
+        pse=float(fit.pse),
+        sigma2_max=float(path.sigma2_max),
+        rms_fit=float(np.sqrt(fit.rss / z.size)),
+        leverage_max=float(np.max(leverages(Phi, xtx_inv))),
+        residual_variance=settings.residual_variance,
+        local_k=int(min(local_k, z.size)),
+        local_reference=V if local else np.zeros((0, len(variables))),
+        local_squared_residuals=np.asarray(fit.residuals) ** 2 if local else np.zeros(0),
+        support=support,
+        settings=settings,
+        path_table=tuple(path.to_dict()),
+        cost_share=tuple(float(x) for x in path.cost_share(spread)[: path.n_terms]),
+        n_candidates=len(terms),
+        path=path,
+        fit=fit,
+    )
+
+
+def _sources(sources, index: np.ndarray) -> tuple[SourceInfo, ...]:
+    if sources:
+        if not all(isinstance(s, SourceInfo) for s in sources):
+            raise GlobalModelError(f"sources: expected SourceInfo entries, got {describe(sources)}")
+        return tuple(sources)
+    values, counts = np.unique(index, return_counts=True)
+    return tuple(SourceInfo(str(v), n_samples=int(c)) for v, c in zip(values, counts, strict=True))
+
+
+def fit_global_model(
+    signals: Mapping[str, object],
+    responses: Sequence[str] | Mapping[str, str],
+    variables: Sequence[str],
+    *,
+    settings: GlobalModelSettings | Mapping[str, GlobalModelSettings] | None = None,
+    maneuver_index: object | None = None,
+    dt: float | None = None,
+    units: Mapping[str, str] | None = None,
+    sources: Sequence[SourceInfo] = (),
+) -> GlobalModel:
+    """Fit a global model of each response over the explanatory ``variables``.
+
+    Args:
+        signals: {channel: series (N,)} — the variables and the responses, many maneuvers
+            end to end, signal units.
+        responses: channel names, or {coefficient name: channel} (``{"CL": "CL_meas"}``).
+        variables: the explanatory channels (``["alpha", "Mach", "qhat", "de"]``).
+        settings: one ``GlobalModelSettings`` for all coefficients, or one per coefficient
+            (a coefficient not listed gets the defaults).
+        maneuver_index: (N,) maneuver of each sample (default one maneuver): decimation is
+            per maneuver, residual correlations stay within a maneuver.
+        dt: sampling interval, s (thins the support reference set to one sample per
+            ``spacing_s``; without it every sample is a reference sample).
+        units: {channel: unit} for the parameters' units and the report.
+        sources: the maneuvers, for the record (default one per ``maneuver_index`` value).
+
+    Returns:
+        A ``GlobalModel``; ``predict(points)`` gives each coefficient with its prediction
+        interval and data support.
+
+    Raises:
+        GlobalModelError: a channel missing, series of different lengths or with non-finite
+            values, too few samples for the candidates, too many candidates, or a malformed
+            setting; the message names the key.
+    """
+    pairs = _responses(responses)
+    names = _variables(variables, pairs)
+    checked, n = _checked_signals(signals, [*names, *dict.fromkeys(pairs.values())])
+    index = _maneuver_index(maneuver_index, n)
+    if dt is not None and not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
+        raise GlobalModelError(f"dt: expected a positive number of seconds, got {dt!r}")
+    units = dict(units or {})
+    per_coefficient = _settings_for(settings, list(pairs))
+    normalisation = Normalisation.from_data(checked, names, units)
+    X = np.column_stack([checked[v] for v in names])
+    models = {
+        coefficient: _fit_coefficient(
+            coefficient,
+            channel,
+            checked[channel],
+            X,
+            index,
+            normalisation,
+            per_coefficient[coefficient],
+            dt,
+            units,
+        )
+        for coefficient, channel in pairs.items()
+    }
+    return GlobalModel(models, normalisation, _sources(sources, index))
