@@ -195,6 +195,7 @@ def run_global_model_stage(
             settings=_coefficient_settings(stage),
             maneuver_index=index,
             dt=dt,
+            units={k: v for k, v in maneuvers[0].units.items() if k in signals and v},
         )
     except InputError as exc:
         raise CaseError(f"stages[{stage.index}]: {exc}") from None
@@ -208,9 +209,9 @@ def run_global_model_stage(
 
 def global_model_entry(model) -> dict[str, Any]:
     """The stage's entry in results.json, ``{"global_model": {...}}``: the variables (name,
-    unit, range), the maneuvers and, per coefficient, the selected terms with value, σ and σ_cr, the selection path and
-    the fit statistics; the matrices and the support's reference set are in
-    ``GLOBAL_MODEL_FILE`` (``model_file``)."""
+    unit, range), the maneuvers and, per coefficient, the selected terms with value, σ and
+    σ_cr, the selection path and the fit statistics; the matrices and the support's
+    reference set are in ``GLOBAL_MODEL_FILE`` (``model_file``)."""
     document = model.to_dict()
     coefficients = {
         name: {key: value for key, value in entry.items() if key not in _HEAVY}

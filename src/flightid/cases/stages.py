@@ -150,8 +150,9 @@ class StagesRun:
         """One entry per stage: ``kind``, ``name`` and, for regression stages,
         ``coefficients`` ({name: result.to_dict() with ``whiteness``, the residual
         autocorrelation and Ljung–Box test}); a global-model stage adds its model
-        (``flightid.cases.globalmodel_case.global_model_entry``); the output-error stage adds ``start`` (the values
-        it started from) when it took them from the stage before."""
+        (``flightid.cases.globalmodel_case.global_model_entry``); the output-error stage
+        adds ``start`` (the values it started from) when it took them from the stage
+        before."""
         from flightid.cases.globalmodel_case import global_model_entry
 
         entries = []

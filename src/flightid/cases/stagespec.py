@@ -37,8 +37,9 @@ Kinds and their keys:
 - ``compatibility``, ``filter_error``: names of the language, not available yet (an error).
 
 For now each kind appears at most once, regression stages come before the output-error
-stage, accuracy and prediction after it; a global-model stage stands apart (anywhere). With ``[[stages]]`` the settings live in the stages:
-top-level [estimation], [accuracy] and [prediction] are refused (one place for each setting).
+stage, accuracy and prediction after it; a global-model stage stands apart (anywhere). With
+``[[stages]]`` the settings live in the stages: top-level [estimation], [accuracy] and
+[prediction] are refused (one place for each setting).
 """
 
 from __future__ import annotations

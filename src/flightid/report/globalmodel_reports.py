@@ -119,7 +119,7 @@ def carpet_svg(model, x: str | None = None, by: str | None = None, level: float 
     held_text = ", ".join(f"{n} = {_fmt(v)}" for n, v in held.items())
     title = f"{model.response}: global model, {level:.0%} prediction interval"
     text = PanelText(
-        axis_label(model.response, ""),
+        axis_label(model.response, "–"),  # an aerodynamic coefficient: dimensionless
         title,
         axis_label(x, units.get(x, "")),
         True,
@@ -217,7 +217,12 @@ def global_model_sections(
 def variables_table(model) -> str:
     """The variables' names, units and data ranges."""
     rows = [
-        [html.escape(v["name"]), html.escape(v["unit"] or "–"), f"{v['low']:.4g}", f"{v['high']:.4g}"]
+        [
+            html.escape(v["name"]),
+            html.escape(v["unit"] or "–"),
+            f"{v['low']:.4g}",
+            f"{v['high']:.4g}",
+        ]
         for v in model.normalisation.to_dict()
     ]
     return table(["variable", "unit", "low", "high"], rows)
