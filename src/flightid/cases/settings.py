@@ -147,14 +147,16 @@ class StageSpec:
     """One checked ``[[stages]]`` entry (see ``flightid.cases.stagespec``).
 
     Attributes:
-        kind: "stepwise", "regression", "output_error", "accuracy" or "prediction".
+        kind: "stepwise", "regression", "global_model", "output_error", "accuracy" or
+            "prediction".
         name: a label (default the kind).
         index: position in ``[[stages]]`` (0-based), for messages (``stages[index]``).
         source: "previous" when the stage takes its structure and start values from the
             stage before (``from = "previous"``), else None.
         settings: the stage's own keys (options of its kind).
-        coefficients: per coefficient of a regression stage: (name, response channel,
-            terms (candidates of a stepwise stage), per-coefficient options).
+        coefficients: per coefficient of a regression or global-model stage: (name,
+            response channel, terms (candidates of a stepwise stage; none for a global
+            model), per-coefficient options).
     """
 
     kind: str

@@ -114,6 +114,7 @@ class StagesRun:
         case: the case.
         data_dir: the data directory used.
         regressions: per regression stage (in order): (stage, {coefficient: result}).
+        global_models: per global-model stage (in order): (stage, ``GlobalModel``).
         output_error: the output-error run (estimate, accuracy, predictions), or None.
         pipeline: regression → output error (comparison table), when ``from = "previous"``.
     """
@@ -125,6 +126,8 @@ class StagesRun:
     pipeline: PipelineResult | None = None
     maneuver_index: np.ndarray | None = None  # (N,) maneuver of each regression sample
     dt: float | None = None  # s, sample interval of the first maneuver
+    # per global-model stage (in order): (stage, flightid.globalmodel.GlobalModel)
+    global_models: tuple[tuple[StageSpec, Any], ...] = ()
 
     def whiteness(self, result: RegressionResult) -> Whiteness | None:
         """Residual whiteness of one regression fit (``flightid.accuracy.whiteness``; lags
@@ -146,12 +149,19 @@ class StagesRun:
     def stages_dict(self) -> list[dict]:
         """One entry per stage: ``kind``, ``name`` and, for regression stages,
         ``coefficients`` ({name: result.to_dict() with ``whiteness``, the residual
-        autocorrelation and Ljung–Box test}); the output-error stage adds ``start`` (the values
-        it started from) when it took them from the stage before."""
+        autocorrelation and Ljung–Box test}); a global-model stage adds its model
+        (``flightid.cases.globalmodel_case.global_model_entry``); the output-error stage
+        adds ``start`` (the values it started from) when it took them from the stage
+        before."""
+        from flightid.cases.globalmodel_case import global_model_entry
+
         entries = []
         regressions = {stage.index: results for stage, results in self.regressions}
+        global_models = {stage.index: model for stage, model in self.global_models}
         for stage in self.case.stages:
             entry: dict[str, Any] = {"kind": stage.kind, "name": stage.name}
+            if stage.index in global_models:
+                entry.update(global_model_entry(global_models[stage.index]))
             if stage.index in regressions:
                 coefficients = {}
                 for n, r in regressions[stage.index].items():
@@ -181,6 +191,8 @@ class StagesRun:
                 whiteness = self.whiteness(result)
                 tail = "" if whiteness is None else "\n" + whiteness.summary()
                 parts.append(result.summary() + tail)
+        for _, model in self.global_models:
+            parts.append(model.summary())
         if self.pipeline is not None:
             parts.append("Regression → output error\n" + self.pipeline.comparison())
         return "\n\n".join(parts)
@@ -188,7 +200,7 @@ class StagesRun:
 
 def has_regression_stages(case: Case) -> bool:
     """True when the case has stages other than output error, accuracy and prediction."""
-    return any(stage.kind in ("stepwise", "regression") for stage in case.stages)
+    return any(stage.kind in ("stepwise", "regression", "global_model") for stage in case.stages)
 
 
 # ------------------------------------------------------------------------------ regression
@@ -296,9 +308,15 @@ def run_stages(
         dt=float(maneuvers[0].dt),
     )
     regressions: list[tuple[StageSpec, Mapping[str, RegressionResult]]] = []
+    global_models = []
     for stage in case.stages:
         if stage.kind in ("stepwise", "regression"):
             regressions.append((stage, run_regression_stage(stage, signals, say)))
+        elif stage.kind == "global_model":
+            from flightid.cases.globalmodel_case import run_global_model_stage
+
+            global_models.append((stage, run_global_model_stage(stage, maneuvers, say)))
+    samples["global_models"] = tuple(global_models)
     oe_stage = _output_error_stage(case)
     if oe_stage is None:
         return StagesRun(case, directory, tuple(regressions), **samples)
@@ -368,13 +386,18 @@ def validate_stages(
     error stage or None). The output-error stage after a regression is built with all the
     candidate terms (start 0), so ``check_model`` sees every term it may get."""
     directory = _data_directory(case, data_dir)
-    signals = stage_signals(load_maneuvers(case, directory))
+    maneuvers = load_maneuvers(case, directory)
+    signals = stage_signals(maneuvers)
     lines, prepared = [], None
     last_regression = None
     for stage in case.stages:
         if stage.kind in ("stepwise", "regression"):
             lines.append(_check_terms(stage, signals))
             last_regression = stage
+        elif stage.kind == "global_model":
+            from flightid.cases.globalmodel_case import validate_global_model_stage
+
+            lines.append(validate_global_model_stage(stage, maneuvers))
         elif stage.kind == "output_error":
             base = None
             if stage.source == "previous":

@@ -1,7 +1,8 @@
 """``[[stages]]``: the ordered list of stages of a case file, checked (see docs/cases.md).
 
     [[stages]]
-    kind = "stepwise"               # or "regression", "output_error", "accuracy", "prediction"
+    kind = "stepwise"               # or "regression", "global_model", "output_error",
+                                    # "accuracy", "prediction"
     name = "structure"              # optional label (default: the kind)
     f_enter = 4.0                   # options of the kind (below)
     [stages.coefficients.Cm]        # stepwise / regression: one table per coefficient
@@ -23,6 +24,10 @@ Kinds and their keys:
   method ("ols" ordinary, "tls" total least squares) and covariance ("ols": s²(XᵀX)⁻¹,
   "eiv": errors-in-variables sandwich; TLS only) for the stage or per coefficient, and per
   coefficient ``parameters`` (one name per term, for the reports).
+- ``global_model``: variables, conditions and the options of
+  ``flightid.globalmodel.GlobalModelSettings``, and ``[stages.coefficients.NAME]`` with
+  response and any of those options for that coefficient alone
+  (``flightid.cases.globalmodel_case``).
 - ``output_error``: the keys of ``[estimation]``; ``from = "previous"`` after a stepwise or
   regression stage takes the selected terms and their least-squares estimates as the
   structure and start values of ``[model] type = "alpha_q"`` (coefficients CZ and Cm).
@@ -32,8 +37,9 @@ Kinds and their keys:
 - ``compatibility``, ``filter_error``: names of the language, not available yet (an error).
 
 For now each kind appears at most once, regression stages come before the output-error
-stage, accuracy and prediction after it. With ``[[stages]]`` the settings live in the stages:
-top-level [estimation], [accuracy] and [prediction] are refused (one place for each setting).
+stage, accuracy and prediction after it; a global-model stage stands apart (anywhere). With
+``[[stages]]`` the settings live in the stages: top-level [estimation], [accuracy] and
+[prediction] are refused (one place for each setting).
 """
 
 from __future__ import annotations
@@ -52,7 +58,14 @@ from flightid.model.terms import TermError, parse_term
 
 __all__ = ["STAGE_KINDS", "LATER_KINDS", "STEPWISE_OPTIONS", "parse_stages"]
 
-STAGE_KINDS = ("stepwise", "regression", "output_error", "accuracy", "prediction")
+STAGE_KINDS = (
+    "stepwise",
+    "regression",
+    "global_model",
+    "output_error",
+    "accuracy",
+    "prediction",
+)
 # names of the language whose stages come in later work
 LATER_KINDS = ("compatibility", "filter_error")
 REGRESSION_KINDS = ("stepwise", "regression")
@@ -230,10 +243,16 @@ def _stage(stage: Any, index: int, data: Mapping[str, Any], channels: set[str]) 
         _string(source, f"{where}.from", ("previous",))
         if kind != "output_error":
             raise CaseError(f"{where}.from: only an output_error stage takes 'from', not {kind}")
+    name = _string(stage.get("name", kind), f"{where}.name")
+    if kind == "global_model":
+        from flightid.cases.globalmodel_case import parse_global_model_stage
+
+        settings, coefficients = parse_global_model_stage(stage, where, channels)
+        return StageSpec(kind, name, index, source, settings, coefficients)
     coefficients = _coefficients(stage, where, kind, channels) if kind in REGRESSION_KINDS else ()
     return StageSpec(
         kind=kind,
-        name=_string(stage.get("name", kind), f"{where}.name"),
+        name=name,
         index=index,
         source=source,
         settings=_stage_settings(stage, kind, where, data),

@@ -606,7 +606,8 @@ def write_stages_files(
 ) -> Path:
     """The regression stages' part of a staged run's folder: stage_estimates.csv (or
     estimates.csv when there is no output-error stage), stage_time_histories.csv,
-    figures/stage_fit_<stage>.png, figures/whiteness_<stage>.png and the page (``page_name``;
+    figures/stage_fit_<stage>.png, figures/whiteness_<stage>.png, a global-model stage's files
+    (``flightid.report.globalmodel_reports``) and the page (``page_name``;
     default stages.html when an output-error stage writes report.html, else report.html).
     Returns the page's path."""
     from flightid.report.estimator_figures import coefficient_fit_figure
@@ -675,6 +676,10 @@ def write_stages_files(
                     image((name, data), "residual autocorrelation per coefficient"),
                 )
             )
+    for stage, model in getattr(run, "global_models", ()):
+        from flightid.report.globalmodel_reports import global_model_sections
+
+        fits += global_model_sections(stage, model, directory, figures)
     write_estimates_csv(rows, directory / ("estimates.csv" if alone else "stage_estimates.csv"))
     _write_csv(
         directory / "stage_time_histories.csv",
@@ -694,6 +699,7 @@ def write_stages_files(
             True,
             "fitted",
             f"{len(run.regressions)} regression stage(s)"
+            + (f", {len(run.global_models)} global model(s)" if run.global_models else "")
             + ("" if alone else "; the output-error stage's report is report.html"),
         ),
         estimates_html=estimates_section(

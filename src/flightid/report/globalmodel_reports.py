@@ -1,0 +1,228 @@
+"""The report of a global model (``flightid.globalmodel.GlobalModel``): its files and its
+section of the stages' page.
+
+Files beside results.json:
+
+    global_model.json        the whole model (reloadable: ``flightid.globalmodel.
+                             load_global_model``; it predicts without the data)
+    global_model_terms.csv   coefficient, parameter, term, unit, value, std (the default σ:
+                             coloured-residual where the residuals are coloured), std_cr
+    figures/carpet_<C>.svg   per coefficient a carpet plot (``carpet_svg``)
+
+The carpet plot shows the coefficient against the first variable, one curve for each of a
+few values of the second variable spread over its data range, the other variables held at
+0 where 0 lies in their data range, else at its middle. Around each curve the prediction
+interval is shaded; where a point lies outside the data's support
+(``Prediction.outside``) the curve is dashed and the band is left out: there the model is
+an extrapolation, and the interval does not hold.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+from pathlib import Path
+
+import numpy as np
+
+from flightid.report import svg_axes as ax
+from flightid.report.page import image, table
+from flightid.report.svg_axes import Panel, PanelText, axis_label
+
+__all__ = ["carpet_svg", "global_model_sections", "write_global_model_files"]
+
+MODEL_FILE = "global_model.json"
+TERMS_FILE = "global_model_terms.csv"
+# one colour per curve of a carpet
+COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
+BAND_OPACITY = 0.18
+
+
+def _held_value(low: float, high: float) -> float:
+    """0 where it lies in [low, high], else the middle of the range."""
+    return 0.0 if low <= 0.0 <= high else 0.5 * (low + high)
+
+
+def carpet_points(model, x: str, by: str | None, n_by: int = 4, n_x: int = 61):
+    """The carpet's grid: (x values, by values (or [None]), points per curve, held values).
+    x spans its data range widened by 10 % on each side (so the support flag shows)."""
+    norm = model.normalisation
+    names = list(norm.names)
+    low = dict(zip(names, np.asarray(norm.low, dtype=float), strict=True))
+    high = dict(zip(names, np.asarray(norm.high, dtype=float), strict=True))
+    width = high[x] - low[x] or 1.0
+    xs = np.linspace(low[x] - 0.1 * width, high[x] + 0.1 * width, n_x)
+    held = {n: _held_value(low[n], high[n]) for n in names if n not in (x, by)}
+    levels = [None] if by is None else list(np.linspace(low[by], high[by], n_by))
+    curves = []
+    for level in levels:
+        point = {n: np.full(n_x, v) for n, v in held.items()}
+        point[x] = xs
+        if by is not None:
+            point[by] = np.full(n_x, level)
+        curves.append(point)
+    return xs, levels, curves, held
+
+
+def _band_path(panel: Panel, x, low, high, colour: str) -> None:
+    """The region between ``low`` and ``high`` over ``x``, one polygon per finite run."""
+    px, lo, hi = panel.px(x), panel.py(low), panel.py(high)
+    finite = np.isfinite(px) & np.isfinite(lo) & np.isfinite(hi)
+    for start, stop in ax._runs(finite):
+        xs = np.concatenate([px[start:stop], px[start:stop][::-1]])
+        ys = np.concatenate([hi[start:stop], lo[start:stop][::-1]])
+        panel.parts.insert(
+            0,
+            f"<polygon fill='{colour}' fill-opacity='{BAND_OPACITY}' stroke='none' "
+            f"points='{ax._pairs(xs, ys)}'/>",
+        )
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.4g}"
+
+
+def carpet_svg(model, x: str | None = None, by: str | None = None, level: float = 0.95) -> str:
+    """A carpet plot of one coefficient's global model (``CoefficientModel``) as SVG (module
+    docstring); ``x``, ``by``: the variables on the axis and across the curves (default the
+    model's first and second variables)."""
+    names = list(model.normalisation.names)
+    x = x or names[0]
+    if by is None and len(names) > 1:
+        by = next(n for n in names if n != x)
+    xs, levels, curves, held = carpet_points(model, x, by)
+    predictions = [model.predict(point, level=level) for point in curves]
+    values = np.concatenate(
+        [np.concatenate([p.value, p.lower[~p.outside], p.upper[~p.outside]]) for p in predictions]
+    )
+    scale = ax.y_scale(values[np.isfinite(values)], 5)
+    width, height = 7.0 * ax.PX_PER_IN, 3.6 * ax.PX_PER_IN
+    left = ax.y_label_margin([scale])
+    ticks = ax.nice_ticks(float(xs[0]), float(xs[-1]), 7)
+    labels, _ = ax.tick_labels(ticks)
+    panel = Panel(left, 52.0, width - left - 20.0, height, float(xs[0]), float(xs[-1]), scale)
+    entries = []
+    units = dict(zip(names, model.normalisation.units, strict=True))
+    for k, (value, prediction) in enumerate(zip(levels, predictions, strict=True)):
+        colour = COLOURS[k % len(COLOURS)]
+        inside = ~np.asarray(prediction.outside, dtype=bool)
+        lower = np.where(inside, prediction.lower, np.nan)
+        upper = np.where(inside, prediction.upper, np.nan)
+        _band_path(panel, xs, lower, upper, colour)
+        ax.polyline(panel, xs, np.where(inside, prediction.value, np.nan), colour, 1.6)
+        # outside the support: dashed, one sample into the support so the line is unbroken
+        outside = ~inside
+        outside = outside | np.roll(outside, 1) | np.roll(outside, -1)
+        ax.polyline(panel, xs, np.where(outside, prediction.value, np.nan), colour, 1.2, dash="5 3")
+        if value is not None:
+            entries.append(("line", colour, f"{by} = {_fmt(value)}"))
+    held_text = ", ".join(f"{n} = {_fmt(v)}" for n, v in held.items())
+    title = f"{model.response}: global model, {level:.0%} prediction interval"
+    text = PanelText(
+        axis_label(model.response, "–"),  # an aerodynamic coefficient: dimensionless
+        title,
+        axis_label(x, units.get(x, "")),
+        True,
+        tuple(entries),
+    )
+    body = [ax.render_panel(panel, ticks, labels, text)]
+    note = "dashed: outside the data's support (extrapolation)"
+    if held_text:
+        note += f"; held: {held_text}"
+    body.append(
+        f"<text x='{left:.1f}' y='{52.0 + height + 48.0:.1f}' font-size='{ax.TICK_PX}'>"
+        f"{ax.escape(note)}</text>"
+    )
+    return ax.document(width, 52.0 + height + 60.0, body)
+
+
+def write_global_model_files(model, directory: Path) -> list[str]:
+    """Write ``global_model.json`` and ``global_model_terms.csv`` into ``directory``;
+    returns their names."""
+    directory = Path(directory)
+    model.write(directory / MODEL_FILE)
+    with (directory / TERMS_FILE).open("w", newline="", encoding="utf-8") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(["coefficient", "parameter", "term", "unit", "value", "std", "std_cr"])
+        for name, coefficient in model.coefficients.items():
+            for row in coefficient.to_dict()["terms"]:
+                writer.writerow(
+                    [
+                        name,
+                        row["parameter"],
+                        row["term"],
+                        row["unit"],
+                        repr(row["value"]),
+                        repr(row["std"]),
+                        repr(row["std_cr"]),
+                    ]
+                )
+    return [MODEL_FILE, TERMS_FILE]
+
+
+def _terms_table(coefficient) -> str:
+    entry = coefficient.to_dict()
+    rows = []
+    for row in entry["terms"]:
+        share = row.get("cost_share")
+        rows.append(
+            [
+                html.escape(row["parameter"]),
+                f"<code>{html.escape(row['term'])}</code>",
+                f"{row['value']:.6g}",
+                f"{row['std']:.3g}",
+                f"{row['std_cr']:.3g}",
+                "" if share is None else f"{100 * share:.2f} %",
+            ]
+        )
+    headers = ["parameter", "term", "value", "σ (default)", "CR σ", "cost share"]
+    facts = (
+        f"<p>{len(entry['terms'])} of {entry['n_candidates']} candidate terms selected by "
+        f"predicted squared error; N = {entry['n_samples']}, N_eff = {entry['n_eff']:.0f}, "
+        f"R² = {entry['r2']:.5f}, fit RMS = {entry['rms_fit']:.4g}, PSE = {entry['pse']:.4g} "
+        f"(σ²_max = {entry['sigma2_max']:.4g}); σ: {entry['std_kind']} "
+        f"(residual lag {entry['coloured_lag']}); prediction intervals with the "
+        f"{entry['residual_variance']} residual variance.</p>"
+    )
+    return facts + table(headers, rows)
+
+
+def global_model_sections(
+    stage, model, directory: Path, figures: bool = True
+) -> list[tuple[str, str]]:
+    """(heading, HTML) per coefficient of the stage's global model: the selected terms
+    with their σ and the fit, and the carpet plot (written to figures/carpet_<C>.svg)."""
+    directory = Path(directory)
+    write_global_model_files(model, directory)
+    sections = [
+        (
+            f"Global model: stage {stage.name}",
+            f"<p>{len(model.sources)} maneuvers; the variables and their data range:</p>"
+            + variables_table(model),
+        )
+    ]
+    for name, coefficient in model.coefficients.items():
+        fragment = _terms_table(coefficient)
+        if figures:
+            svg = carpet_svg(coefficient).encode("utf-8")
+            file = f"carpet_{name}.svg"
+            (directory / "figures").mkdir(parents=True, exist_ok=True)
+            (directory / "figures" / file).write_bytes(svg)
+            fragment += image((file, svg), f"{name} over the envelope (carpet plot)")
+        heading = f"Global model: stage {stage.name}, {name}"
+        sections.append((heading, fragment))
+    return sections
+
+
+def variables_table(model) -> str:
+    """The variables' names, units and data ranges."""
+    rows = [
+        [
+            html.escape(v["name"]),
+            html.escape(v["unit"] or "–"),
+            f"{v['low']:.4g}",
+            f"{v['high']:.4g}",
+        ]
+        for v in model.normalisation.to_dict()
+    ]
+    return table(["variable", "unit", "low", "high"], rows)
