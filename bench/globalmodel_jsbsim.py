@@ -1,0 +1,477 @@
+"""The JSBSim validation study of global aerodynamic models: does a model fitted over many
+maneuvers predict the truth aircraft's coefficients, and do its 95 % prediction intervals and
+its support flag tell the truth?
+
+Truth aircraft: JSBSim's F-16 (``aircraft/f16``, tables of the Stevens–Lewis type in α, β, M,
+δh, lef, rates). Two copies are loaded:
+
+* the *flying* aircraft, the shipped model with its flight-control system (pitch g-command,
+  α limiter, leading-edge-flap schedule), trimmed at each flight condition and flown with
+  designed stick inputs (``fly_condition``);
+* the *truth oracle* (``truth_oracle``), a copy in a temporary folder with the flight-control
+  system and the systems removed (the surface positions are then plain properties that hold
+  what is set), which evaluates C_L, C_D, C_Y, C_l, C_m, C_n at any point by JSBSim's own
+  ``run_ic`` and its aerodynamic forces and moments.
+
+Coefficients (both copies, and the reconstruction): body-axis forces over q̄ S; C_L, C_D
+rotated by α only, C_L = C_X sin α − C_Z cos α, C_D = −C_X cos α − C_Z sin α (the form
+``flightid.data.coefficients.aero_coefficients`` uses); moments about the centre of gravity
+(JSBSim's ``moments/*-aero-lbsft``) over q̄ S b (C_l, C_n) and q̄ S c̄ (C_m). Units: angles in
+rad, rates in rad/s, lengths in m, dynamic pressure in Pa, Mach dimensionless; p̂ = p b/2V,
+q̂ = q c̄/2V, r̂ = r b/2V with V the true airspeed.
+
+Flights: per condition (Mach × altitude) the trimmed aircraft (gear up, fuel frozen) flies
+designed elevator-stick inputs (a multisine of ``flightid.design``, a slow pull-up with a small
+multisine on top, and a combined maneuver held out from the fit), simulated at 150 Hz and
+recorded at 50 Hz. Measurement noise (seeded) is added to what a flight-test instrumentation
+would record; the coefficients are reconstructed from the noisy motion with
+``aero_coefficients`` (specific forces, rates, rate derivatives by ``smooth_derivative``, q̄,
+thrust, mass and geometry read from JSBSim), as a user would; the per-sample truth is the
+oracle at the true states.
+
+Measures (``fit_and_measure``): a global model of C_L, C_D, C_m over (α, M, δh, q̂) fitted to
+the reconstructed coefficients of all but one maneuver per condition; on the held-out maneuvers
+and on a grid (α from below the data to well beyond it, Mach steps, δh at the data's trim
+schedule, q̂ = 0): the share of the truth inside the 95 % prediction interval where the model
+says it is inside its support, the RMS error inside the support, the share flagged outside,
+and the RMS error inside vs outside the flag.
+
+Usage::
+
+    PYTHONPATH=src python bench/globalmodel_jsbsim.py [--quick] [--write-data DIR]
+        [--carpets PATH] [--stand-in]
+
+It prints ``<!-- guide: docs/globalmodel.md -->``, the table between the numbers markers,
+and PASS/FAIL lines. ``--stand-in`` fits with the fixed-polynomial stand-in of this module
+instead of ``flightid.globalmodel`` (a check of the study's plumbing, not of the method).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+# unit conversions (exact by definition)
+FT_M = 0.3048
+IN_M = 0.0254
+LBF_N = 4.4482216152605
+SLUG_KG = LBF_N / FT_M  # 14.5939… kg
+SLUG_FT2_KG_M2 = SLUG_KG * FT_M**2
+PSF_PA = LBF_N / FT_M**2
+DEG = math.pi / 180.0
+
+COEFFICIENTS = ("CL", "CD", "CY", "Cl", "Cm", "Cn")
+FIT_RESPONSES = ("CL", "CD", "Cm")
+FIT_VARIABLES = ("alpha", "Mach", "de", "qhat")
+SAMPLE_HZ = 50.0
+SUBSTEPS = 3  # JSBSim at 150 Hz: three steps per 50 Hz sample
+# measurement-noise σ (SI): α, β 0.1°; p, q, r 0.1°/s; specific forces 0.02 m/s²;
+# q̄ 0.5 % (relative); V 0.1 m/s; Mach 0.001
+NOISE = {"alpha": 0.1 * DEG, "beta": 0.1 * DEG, "rate": 0.1 * DEG, "accel": 0.02,
+         "qbar_rel": 0.005, "V": 0.1, "Mach": 0.001}  # fmt: skip
+
+# the aerodynamic inputs of the truth oracle and the JSBSim properties they set
+SURFACES = {
+    "de": "fcs/elevator-pos-rad",
+    "da": "fcs/aileron-pos-rad",
+    "dr": "fcs/rudder-pos-rad",
+    "lef": "fcs/lef-pos-rad",
+    "flaperon": "fcs/flaperon-mix-rad",
+    "speedbrake": "fcs/speedbrake-pos-rad",
+}
+# properties the stripped copy declares (the flight-control system defined them)
+_DECLARED = ("fcs/lef-pos-rad", "fcs/flaperon-mix-rad", "fcs/aileron-pos-rad")
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A trim condition: Mach number and pressure altitude (ft, JSBSim's unit)."""
+
+    mach: float
+    altitude_ft: float
+
+    @property
+    def label(self) -> str:
+        return f"M{self.mach:.2f}/{self.altitude_ft / 1000:.0f}kft"
+
+
+FULL_CONDITIONS = tuple(Condition(m, h) for h in (10000.0, 25000.0) for m in (0.35, 0.5, 0.65, 0.8, 0.9))
+QUICK_CONDITIONS = tuple(Condition(m, h) for h in (10000.0, 25000.0) for m in (0.4, 0.6, 0.8))
+
+
+def _jsbsim():
+    os.environ.setdefault("JSBSIM_DEBUG", "0")  # no start-up banner
+    import jsbsim
+
+    return jsbsim
+
+
+def _executive(aircraft_path: str | None = None):
+    jsbsim = _jsbsim()
+    fdm = jsbsim.FGFDMExec(os.path.dirname(jsbsim.__file__))
+    fdm.set_debug_level(0)
+    if aircraft_path is not None:
+        fdm.set_aircraft_path(aircraft_path)
+    return fdm
+
+
+def lef_schedule(alpha_rad: np.ndarray, mach: np.ndarray) -> np.ndarray:
+    """The F-16's leading-edge-flap position (rad) as its flight-control system sets it in
+    flight with the gear up: the first test of its switch that holds,
+    α > 0.2618 → 0.436, α > 0.0873 → 0.262, M > 0.9 → −0.0349, else 0."""
+    alpha = np.asarray(alpha_rad, dtype=float)
+    mach = np.broadcast_to(np.asarray(mach, dtype=float), alpha.shape)
+    return np.select(
+        [alpha > 0.2618, alpha > 0.0873, mach > 0.9], [0.436, 0.262, -0.0349], default=0.0
+    )
+
+
+# ------------------------------------------------------------------------ the truth oracle
+class TruthOracle:
+    """The truth aircraft's coefficients at arbitrary points (module docstring).
+
+    ``oracle(points)`` takes arrays (broadcast together) under the names ``alpha``, ``beta``
+    (rad), ``Mach``, ``altitude_m`` (default 6000 m), rates ``p``, ``q``, ``r`` (rad/s) or
+    ``phat``, ``qhat``, ``rhat`` (dimensionless, with the true airspeed), surfaces ``de``,
+    ``da``, ``dr``, ``flaperon``, ``speedbrake`` (rad, default 0) and ``lef`` (rad; default
+    the in-flight schedule ``lef_schedule``); gear up. It returns {C_L, C_D, C_Y, C_l, C_m,
+    C_n} as arrays, moments about the centre of gravity of the aircraft as loaded.
+    """
+
+    def __init__(self, aircraft: str = "f16") -> None:
+        if aircraft != "f16":
+            raise ValueError(f"aircraft: expected 'f16' (the study's truth aircraft), got {aircraft!r}")
+        jsbsim = _jsbsim()
+        self._folder = tempfile.mkdtemp(prefix="truth_aircraft_")
+        source = Path(jsbsim.__file__).parent / "aircraft" / aircraft
+        target = Path(self._folder) / "aircraft" / aircraft
+        target.mkdir(parents=True)
+        strip_flight_controls(source / f"{aircraft}.xml", target / f"{aircraft}.xml")
+        self.fdm = _executive(str(Path(self._folder) / "aircraft"))
+        if not self.fdm.load_model(aircraft):
+            raise RuntimeError(f"JSBSim could not load the stripped {aircraft} copy")
+        self.fdm.disable_output()
+        self.fdm["gear/gear-pos-norm"] = 0.0
+        self.S_m2 = self.fdm["metrics/Sw-sqft"] * FT_M**2
+        self.b_m = self.fdm["metrics/bw-ft"] * FT_M
+        self.cbar_m = self.fdm["metrics/cbarw-ft"] * FT_M
+
+    def close(self) -> None:
+        shutil.rmtree(self._folder, ignore_errors=True)
+
+    def __enter__(self) -> TruthOracle:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __call__(self, points: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        names = ("alpha", "beta", "Mach", "altitude_m", "p", "q", "r", "phat", "qhat", "rhat")
+        given = {k: np.asarray(v, dtype=float) for k, v in points.items()}
+        unknown = set(given) - set(names) - set(SURFACES)
+        if unknown or "alpha" not in given or "Mach" not in given:
+            raise ValueError(
+                f"points: expected alpha, Mach and optionally {names[1:]} and {tuple(SURFACES)}, "
+                f"got {sorted(given)}"
+            )
+        arrays = np.broadcast_arrays(*given.values())
+        shape = arrays[0].shape
+        flat = {k: a.ravel() for k, a in zip(given, arrays, strict=True)}
+        if "lef" not in flat:
+            flat["lef"] = lef_schedule(flat["alpha"], flat["Mach"])
+        out = {c: np.empty(arrays[0].size) for c in COEFFICIENTS}
+        for i in range(arrays[0].size):
+            for name, value in self._point({k: float(v[i]) for k, v in flat.items()}).items():
+                out[name][i] = value
+        return {k: v.reshape(shape) for k, v in out.items()}
+
+    def _point(self, point: Mapping[str, float]) -> dict[str, float]:
+        fdm = self.fdm
+        fdm["ic/h-sl-ft"] = point.get("altitude_m", 6000.0) / FT_M
+        fdm["ic/mach"] = point["Mach"]
+        fdm["ic/alpha-rad"] = point["alpha"]
+        fdm["ic/beta-rad"] = point.get("beta", 0.0)
+        v_fps = fdm["ic/vt-fps"]
+        b_ft, c_ft = self.b_m / FT_M, self.cbar_m / FT_M
+        # p = 2V p̂ / b,  q = 2V q̂ / c̄,  r = 2V r̂ / b
+        rates = {
+            "p": point.get("p", 2.0 * v_fps * point.get("phat", 0.0) / b_ft),
+            "q": point.get("q", 2.0 * v_fps * point.get("qhat", 0.0) / c_ft),
+            "r": point.get("r", 2.0 * v_fps * point.get("rhat", 0.0) / b_ft),
+        }
+        for rate, value in rates.items():
+            fdm[f"ic/{rate}-rad_sec"] = value
+        for name, prop in SURFACES.items():
+            fdm[prop] = point.get(name, 0.0)
+        fdm.run_ic()
+        return jsbsim_coefficients(fdm)
+
+
+def jsbsim_coefficients(fdm) -> dict[str, float]:
+    """The coefficients of JSBSim's current aerodynamic forces and moments (module
+    docstring): C = F/(q̄ S), C_l = L/(q̄ S b), C_m = M/(q̄ S c̄), C_n = N/(q̄ S b);
+    C_L = C_X sin α − C_Z cos α, C_D = −C_X cos α − C_Z sin α."""
+    qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
+    b, c = fdm["metrics/bw-ft"], fdm["metrics/cbarw-ft"]
+    cx, cy, cz = (fdm[f"forces/fb{a}-aero-lbs"] / qs for a in "xyz")
+    a = fdm["aero/alpha-rad"]
+    return {
+        "CL": cx * math.sin(a) - cz * math.cos(a),
+        "CD": -(cx * math.cos(a) + cz * math.sin(a)),
+        "CY": cy,
+        "Cl": fdm["moments/l-aero-lbsft"] / (qs * b),
+        "Cm": fdm["moments/m-aero-lbsft"] / (qs * c),
+        "Cn": fdm["moments/n-aero-lbsft"] / (qs * b),
+    }
+
+
+def strip_flight_controls(source: Path, target: Path) -> None:
+    """Write the aircraft file ``source`` to ``target`` without its ``<flight_control>``,
+    ``<autopilot>`` and ``<system>`` elements; an empty flight-control section declares the
+    surface properties the aerodynamics reads that the removed channels used to define."""
+    tree = ET.parse(source)
+    root = tree.getroot()
+    for tag in ("flight_control", "autopilot", "system"):
+        for element in root.findall(tag):
+            root.remove(element)
+    declared = ET.Element("flight_control", name="surfaces set directly (truth oracle)")
+    for prop in _DECLARED:
+        ET.SubElement(declared, "property", value="0").text = prop
+    root.insert(list(root).index(root.find("aerodynamics")), declared)
+    tree.write(target)
+
+
+def truth_oracle(aircraft: str = "f16") -> TruthOracle:
+    """The truth oracle of ``aircraft`` (``TruthOracle``); close it (or use ``with``) to
+    remove its temporary folder."""
+    return TruthOracle(aircraft)
+
+
+# ------------------------------------------------------------------------------ the flights
+@dataclass
+class Flight:
+    """One recorded maneuver at 50 Hz: ``true`` states and surfaces (SI, noise-free),
+    ``measured`` (the same with seeded noise), ``coefficients`` reconstructed from the
+    measured motion, ``truth`` (the oracle at the true states) and ``jsbsim`` (the
+    coefficients of JSBSim's in-flight aerodynamic forces and moments)."""
+
+    condition: Condition
+    maneuver: str
+    held_out: bool
+    time_s: np.ndarray
+    true: dict[str, np.ndarray]
+    measured: dict[str, np.ndarray] = field(default_factory=dict)
+    coefficients: dict[str, np.ndarray] = field(default_factory=dict)
+    truth: dict[str, np.ndarray] = field(default_factory=dict)
+    jsbsim: dict[str, np.ndarray] = field(default_factory=dict)
+    geometry: dict[str, float] = field(default_factory=dict)
+
+
+def trimmed_f16(condition: Condition, dt_s: float = 1.0 / (SAMPLE_HZ * SUBSTEPS)):
+    """The shipped F-16 (with its flight-control system) trimmed by JSBSim in level flight
+    at ``condition``: gear up, fuel frozen (constant mass and centre of gravity), engine
+    running. Raises RuntimeError naming the condition when the trim fails."""
+    fdm = _executive()
+    fdm.load_model("f16")
+    fdm.disable_output()
+    for name, value in (("ic/h-sl-ft", condition.altitude_ft), ("ic/mach", condition.mach),
+                        ("ic/gamma-deg", 0.0), ("ic/psi-true-deg", 0.0), ("ic/phi-deg", 0.0),
+                        ("gear/gear-cmd-norm", 0.0), ("gear/gear-pos-norm", 0.0)):  # fmt: skip
+        fdm[name] = value
+    fdm.set_dt(dt_s)
+    fdm.run_ic()
+    fdm["propulsion/fuel_freeze"] = 1
+    fdm["propulsion/set-running"] = -1
+    try:
+        fdm["simulation/do_simple_trim"] = 1
+    except Exception as error:  # JSBSim's TrimFailureException
+        raise RuntimeError(f"trim failed at {condition.label}: {error}") from error
+    return fdm
+
+
+@dataclass(frozen=True)
+class ManeuverDesign:
+    """A maneuver: elevator-stick multisine (band in Hz, peak in stick units) over
+    ``duration_s``, plus a pull-up (stick ramped to ``pull`` over 40 % of the time, held 20 %,
+    ramped back; negative stick pulls); ``held_out`` maneuvers are kept out of the fit."""
+
+    name: str
+    duration_s: float
+    band_hz: tuple[float, float]
+    amplitude: float
+    pull: float = 0.0
+    held_out: bool = False
+
+
+def maneuver_designs(quick: bool) -> tuple[ManeuverDesign, ...]:
+    """The maneuvers flown at every condition (quick: shorter)."""
+    T = 15.0 if quick else 30.0
+    return (
+        ManeuverDesign("multisine", T, (0.1, 1.5), 0.25),
+        ManeuverDesign("pull-up", T, (0.2, 1.2), 0.08, pull=-0.9),
+        ManeuverDesign("combined", 0.7 * T, (0.15, 1.2), 0.2, pull=-0.5, held_out=True),
+    )
+
+
+def stick_command(design: ManeuverDesign, time_s: np.ndarray) -> np.ndarray:
+    """The elevator-stick command (added to the trim stick) of ``design`` at ``time_s``:
+    the multisine of ``flightid.design`` plus the pull-up ramp."""
+    from flightid.design.multisine import design_multisine
+
+    multisine = design_multisine(["stick"], design.duration_s, design.band_hz, [design.amplitude])
+    command = multisine.signals(time_s)[:, 0]
+    fraction = time_s / design.duration_s
+    # trapezoid: 0 → 1 over 0–40 %, 1 over 40–60 %, 1 → 0 over 60–100 %
+    ramp = np.clip(np.minimum(fraction / 0.4, (1.0 - fraction) / 0.4), 0.0, 1.0)
+    return command + design.pull * ramp
+
+
+# properties recorded per sample → (name, factor to SI)
+_RECORDED = (
+    ("V", "velocities/vt-fps", FT_M),
+    ("alpha", "aero/alpha-rad", 1.0),
+    ("beta", "aero/beta-rad", 1.0),
+    ("Mach", "velocities/mach", 1.0),
+    ("altitude_m", "position/h-sl-ft", FT_M),
+    ("p", "velocities/p-rad_sec", 1.0),
+    ("q", "velocities/q-rad_sec", 1.0),
+    ("r", "velocities/r-rad_sec", 1.0),
+    ("p_aero", "velocities/p-aero-rad_sec", 1.0),
+    ("q_aero", "velocities/q-aero-rad_sec", 1.0),
+    ("r_aero", "velocities/r-aero-rad_sec", 1.0),
+    ("pdot", "accelerations/pdot-rad_sec2", 1.0),
+    ("qdot", "accelerations/qdot-rad_sec2", 1.0),
+    ("rdot", "accelerations/rdot-rad_sec2", 1.0),
+    ("ax", "forces/fbx-total-lbs", LBF_N),
+    ("ay", "forces/fby-total-lbs", LBF_N),
+    ("az", "forces/fbz-total-lbs", LBF_N),
+    ("qbar", "aero/qbar-psf", PSF_PA),
+    ("thrust", "propulsion/engine/thrust-lbs", LBF_N),
+    ("stick", "fcs/elevator-cmd-norm", 1.0),
+    *((name, prop, 1.0) for name, prop in SURFACES.items()),
+)
+
+
+def _fly(fdm, commands: np.ndarray, trim_stick: float) -> tuple[dict, dict]:
+    """Fly ``commands`` (stick, one per 50 Hz sample) from trim; the recorded properties
+    (SI; forces still in N) and the in-flight coefficients per sample."""
+    rows = np.empty((commands.size, len(_RECORDED)))
+    flown = {c: np.empty(commands.size) for c in COEFFICIENTS}
+    for i, command in enumerate(commands):
+        rows[i] = [fdm[prop] * factor for _, prop, factor in _RECORDED]
+        for name, value in jsbsim_coefficients(fdm).items():
+            flown[name][i] = value
+        fdm["fcs/elevator-cmd-norm"] = trim_stick + command
+        for _ in range(SUBSTEPS):
+            fdm.run()
+    return {name: rows[:, j] for j, (name, _, _) in enumerate(_RECORDED)}, flown
+
+
+def _mass_geometry(fdm) -> dict[str, float]:
+    """Mass (kg), inertias (kg m²), reference geometry (m, m²) and the engine's position
+    from the centre of gravity in body axes (m) as JSBSim holds them (fuel frozen)."""
+    cg = [fdm[f"inertia/cg-{a}-in"] for a in "xyz"]
+    # body axes from JSBSim's structural frame (x aft, z up, inches): x_b = −Δx, z_b = −Δz;
+    # the F-16's thruster sits at the structural origin
+    engine = (-(0.0 - cg[0]) * IN_M, (0.0 - cg[1]) * IN_M, -(0.0 - cg[2]) * IN_M)
+    return {
+        "mass_kg": fdm["inertia/mass-slugs"] * SLUG_KG,
+        "Ix": fdm["inertia/ixx-slugs_ft2"] * SLUG_FT2_KG_M2,
+        "Iy": fdm["inertia/iyy-slugs_ft2"] * SLUG_FT2_KG_M2,
+        "Iz": fdm["inertia/izz-slugs_ft2"] * SLUG_FT2_KG_M2,
+        # JSBSim's inertia/ixz is the product of inertia with the sign opposite to
+        # MassGeometry's I_xz (a rolling flight reconstructs C_l, C_n to 1e-9 only so)
+        "Ixz": -fdm["inertia/ixz-slugs_ft2"] * SLUG_FT2_KG_M2,
+        "S_m2": fdm["metrics/Sw-sqft"] * FT_M**2,
+        "b_m": fdm["metrics/bw-ft"] * FT_M,
+        "cbar_m": fdm["metrics/cbarw-ft"] * FT_M,
+        "engine_x_m": engine[0], "engine_y_m": engine[1], "engine_z_m": engine[2],
+    }  # fmt: skip
+
+
+def fly_condition(
+    condition: Condition,
+    designs: Sequence[ManeuverDesign],
+    oracle: TruthOracle,
+    seed: int,
+    noise: bool = True,
+) -> list[Flight]:
+    """Each maneuver of ``designs`` flown from a fresh trim at ``condition`` and recorded at
+    50 Hz; the truth per sample from ``oracle`` at the true states; the coefficients
+    reconstructed from the motion with seeded measurement noise (``noise=False``: none)."""
+    flights = []
+    for index, design in enumerate(designs):
+        fdm = trimmed_f16(condition)
+        time_s = np.arange(0.0, design.duration_s, 1.0 / SAMPLE_HZ)
+        true, flown = _fly(fdm, stick_command(design, time_s), fdm["fcs/elevator-cmd-norm"])
+        geometry = _mass_geometry(fdm)
+        mass = geometry["mass_kg"]
+        for axis in ("ax", "ay", "az"):
+            true[axis] = true[axis] / mass  # specific force (m/s²): total non-gravity force / m
+        truth = oracle(_oracle_points(true))
+        flight = Flight(condition, design.name, design.held_out, time_s, true, truth=truth,
+                        jsbsim=flown, geometry=geometry)  # fmt: skip
+        rng = np.random.default_rng([seed, index])
+        flight.measured = measure(true, rng if noise else None)
+        flight.coefficients = reconstruct(flight.measured, geometry)
+        flights.append(flight)
+    return flights
+
+
+def _oracle_points(true: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The oracle's point for each recorded sample: the true states and surfaces."""
+    points = {k: true[k] for k in ("alpha", "beta", "Mach", "altitude_m", *SURFACES)}
+    points.update(p=true["p_aero"], q=true["q_aero"], r=true["r_aero"])
+    return points
+
+
+def measure(true: Mapping[str, np.ndarray], rng: np.random.Generator | None) -> dict[str, np.ndarray]:
+    """What the instrumentation records: the true signals plus seeded white noise of σ
+    ``NOISE`` (``rng`` None: noise-free); the rate derivatives by ``smooth_derivative`` of the
+    measured rates; q̂ = q c̄ / 2V from the measured q and V (set by ``reconstruct``)."""
+    from flightid.regression.differentiate import smooth_derivative
+
+    def noisy(x: np.ndarray, sigma: float) -> np.ndarray:
+        return x + (sigma * rng.standard_normal(x.shape) if rng is not None else 0.0)
+
+    measured = {k: np.array(true[k]) for k in ("de", "da", "dr", "lef", "thrust")}
+    measured["alpha"] = noisy(true["alpha"], NOISE["alpha"])
+    measured["beta"] = noisy(true["beta"], NOISE["beta"])
+    measured["Mach"] = noisy(true["Mach"], NOISE["Mach"])
+    measured["V"] = noisy(true["V"], NOISE["V"])
+    for rate in "pqr":
+        measured[rate] = noisy(true[rate], NOISE["rate"])
+        measured[f"{rate}dot"] = smooth_derivative(measured[rate], 1.0 / SAMPLE_HZ)
+    for axis in ("ax", "ay", "az"):
+        measured[axis] = noisy(true[axis], NOISE["accel"])
+    # q̄ with a relative error: q̄ (1 + ε), ε ~ N(0, 0.005²)
+    measured["qbar"] = true["qbar"] * noisy(np.ones_like(true["qbar"]), NOISE["qbar_rel"])
+    return measured
+
+
+def reconstruct(measured: dict[str, np.ndarray], geometry: Mapping[str, float]) -> dict[str, np.ndarray]:
+    """C_L, C_D, C_Y, C_l, C_m, C_n from the measured motion by ``aero_coefficients``
+    (moments about the centre of gravity), and the measured q̂ = q c̄ / 2V into ``measured``."""
+    from flightid.data.coefficients import Engine, MassGeometry, aero_coefficients
+
+    g = geometry
+    mass = MassGeometry(g["mass_kg"], g["Ix"], g["Iy"], g["Iz"], g["S_m2"], g["cbar_m"], g["b_m"],
+                        Ixz=g["Ixz"])  # fmt: skip
+    engine = Engine(measured["thrust"], (g["engine_x_m"], g["engine_y_m"], g["engine_z_m"]))
+    m = measured
+    # q̂ = q c̄ / (2V)
+    m["qhat"] = m["q"] * g["cbar_m"] / (2.0 * m["V"])
+    out = aero_coefficients(m["ax"], m["ay"], m["az"], m["p"], m["q"], m["r"], m["pdot"],
+                            m["qdot"], m["rdot"], m["qbar"], m["alpha"], mass, [engine])  # fmt: skip
+    return {c: np.asarray(out[c]) for c in COEFFICIENTS}
