@@ -475,3 +475,292 @@ def reconstruct(measured: dict[str, np.ndarray], geometry: Mapping[str, float]) 
     out = aero_coefficients(m["ax"], m["ay"], m["az"], m["p"], m["q"], m["r"], m["pdot"],
                             m["qdot"], m["rdot"], m["qbar"], m["alpha"], mass, [engine])  # fmt: skip
     return {c: np.asarray(out[c]) for c in COEFFICIENTS}
+
+
+# ---------------------------------------------- a stand-in fitter (for the study's plumbing)
+@dataclass(frozen=True)
+class StandInSettings:
+    """STAND-IN for ``flightid.globalmodel.GlobalModelSettings`` (the option names the study
+    passes): polynomial orders per variable, the total order, the decimation and the
+    residual variance of the prediction interval."""
+
+    orders: Mapping[str, int]
+    max_order: int = 3
+    decimate: int = 5
+    residual_variance: str = "global"
+
+
+@dataclass(frozen=True)
+class StandInPrediction:
+    """STAND-IN for ``flightid.globalmodel.Prediction`` (the attributes the study reads)."""
+
+    value: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    std_mean: np.ndarray
+    std_prediction: np.ndarray
+    outside: np.ndarray
+    distance_ratio: np.ndarray
+
+
+@dataclass(frozen=True)
+class StandInCoefficient:
+    """STAND-IN for ``flightid.globalmodel.CoefficientModel``: every monomial of the fixed
+    term set, fitted by ``least_squares``; a 95 % prediction interval
+    ŷ ± t_{N−n_p, 0.975} sqrt(φᵀ C φ + s²_e) (C the coloured covariance, s²_e the residual
+    mean square, globally or over the nearest data samples); outside the support where the
+    k-NN distance ratio exceeds 2 or the leverage exceeds the data's largest."""
+
+    terms: tuple[str, ...]
+    exponents: np.ndarray
+    scale: np.ndarray
+    fit: object
+    support: object
+    residual_variance: str
+
+    @property
+    def pse(self) -> float:
+        return float(self.fit.pse)
+
+    def regressors(self, X: np.ndarray) -> np.ndarray:
+        return np.prod((X / self.scale)[:, None, :] ** self.exponents[None], axis=2)
+
+    def predict(self, X: np.ndarray, level: float = 0.95) -> StandInPrediction:
+        from scipy import stats
+
+        phi = self.regressors(X)
+        value = phi @ self.fit.estimates
+        # Var_mean = φᵀ C φ  (C: the coloured-residual covariance)
+        var_mean = np.einsum("ij,jk,ik->i", phi, self.fit.covariance_default, phi)
+        distance_ratio, neighbours = self.support.distance(X)
+        if self.residual_variance == "local":
+            s2 = np.mean(self.support.residuals[neighbours] ** 2, axis=1)
+        else:
+            s2 = np.full(len(X), self.fit.s2)
+        std_prediction = np.sqrt(var_mean + s2)
+        t = stats.t.ppf(0.5 + level / 2.0, self.fit.n_samples - self.fit.n_parameters)
+        # leverage h₀ = φᵀ (ΦᵀΦ)⁻¹ φ against the data's largest
+        leverage = np.einsum("ij,jk,ik->i", phi, self.support.gram_inverse, phi)
+        outside = (distance_ratio > 2.0) | (leverage > self.support.leverage_max)
+        return StandInPrediction(value, value - t * std_prediction, value + t * std_prediction,
+                                 np.sqrt(var_mean), std_prediction, outside, distance_ratio)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _StandInSupport:
+    low: np.ndarray
+    high: np.ndarray
+    tree: object
+    d_ref: float
+    data_tree: object
+    residuals: np.ndarray
+    gram_inverse: np.ndarray
+    leverage_max: float
+    k: int = 5
+    local_k: int = 100
+
+    def coordinates(self, X: np.ndarray) -> np.ndarray:
+        # v = (x − mid) / half-range
+        return (X - (self.high + self.low) / 2) / ((self.high - self.low) / 2)
+
+    def distance(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        v = self.coordinates(X)
+        d, _ = self.tree.query(v, k=self.k)
+        _, neighbours = self.data_tree.query(v, k=min(self.local_k, len(self.residuals)))
+        return d[:, -1] / self.d_ref, neighbours
+
+
+class StandInModel:
+    """STAND-IN for ``flightid.globalmodel.GlobalModel``: ``coefficients`` and ``predict``."""
+
+    def __init__(self, variables: Sequence[str], coefficients: Mapping[str, StandInCoefficient]):
+        self.variables = tuple(variables)
+        self.coefficients = dict(coefficients)
+
+    def predict(self, points: Mapping[str, np.ndarray], level: float = 0.95):
+        X = np.column_stack([np.asarray(points[v], dtype=float).ravel() for v in self.variables])
+        return {name: c.predict(X, level) for name, c in self.coefficients.items()}
+
+
+def _monomials(orders: Sequence[int], max_order: int) -> np.ndarray:
+    ranges = [range(o + 1) for o in orders]
+    grid = np.array(np.meshgrid(*ranges, indexing="ij")).reshape(len(orders), -1).T
+    grid = grid[grid.sum(axis=1) <= max_order]
+    return grid[np.lexsort((*grid.T[::-1], grid.sum(axis=1)))]
+
+
+def stand_in_fitter(signals, responses, variables, *, settings, maneuver_index, dt, units=None):
+    """STAND-IN for ``flightid.globalmodel.fit_global_model`` (same call): every monomial of
+    ``settings.orders``/``max_order`` in the variables scaled by max|x|, no term selection;
+    decimated per maneuver by ``settings.decimate``."""
+    from scipy.spatial import cKDTree
+
+    from flightid.regression.least_squares import least_squares
+
+    index = np.asarray(maneuver_index)
+    keep = np.concatenate([np.flatnonzero(index == m)[:: settings.decimate] for m in np.unique(index)])
+    X = np.column_stack([np.asarray(signals[v], dtype=float)[keep] for v in variables])
+    exponents = _monomials([settings.orders[v] for v in variables], settings.max_order)
+    scale = np.max(np.abs(X), axis=0)
+    labels = tuple(
+        "*".join(f"{v}^{e}" if e > 1 else v for v, e in zip(variables, row, strict=True) if e) or "1"
+        for row in exponents
+    )
+    low, high = X.min(axis=0), X.max(axis=0)
+    v = (X - (high + low) / 2) / ((high - low) / 2)
+    spacing = max(1, round(0.25 / (dt * settings.decimate)))
+    reference = v[::spacing]
+    tree = cKDTree(reference)
+    d_ref = float(np.quantile(tree.query(reference, k=6)[0][:, -1], 0.99))
+    coefficients = {}
+    for name, channel in dict(responses).items():
+        z = np.asarray(signals[channel], dtype=float)[keep]
+        phi = np.prod((X / scale)[:, None, :] ** exponents[None], axis=2)
+        fit = least_squares(phi, z, labels, maneuver_index=index[keep])
+        gram_inverse = np.linalg.inv(phi.T @ phi)
+        leverage = np.einsum("ij,jk,ik->i", phi, gram_inverse, phi)
+        support = _StandInSupport(low, high, tree, d_ref, cKDTree(v), fit.residuals, gram_inverse,
+                                  float(leverage.max()))  # fmt: skip
+        coefficients[name] = StandInCoefficient(labels, exponents, scale, fit, support,
+                                                settings.residual_variance)  # fmt: skip
+    return StandInModel(variables, coefficients)
+
+
+# ------------------------------------------------------------------------------ the measures
+ORDERS = {"alpha": 4, "Mach": 2, "de": 2, "qhat": 1}
+MAX_ORDER = 3
+DECIMATE = 5
+
+
+def _samples(flights: Sequence[Flight], which: str) -> dict[str, np.ndarray]:
+    """The fit variables, coefficients, truth and maneuver index of ``flights`` stacked:
+    ``which="measured"`` the variables as measured and the reconstructed coefficients (what
+    the fit sees), ``"true"`` the true variables (where the held-out truth is)."""
+    out: dict[str, list] = {k: [] for k in (*FIT_VARIABLES, *FIT_RESPONSES, "maneuver")}
+    out.update({f"truth_{c}": [] for c in FIT_RESPONSES})
+    for index, flight in enumerate(flights):
+        source = flight.measured if which == "measured" else flight.true
+        qhat = source["q"] * flight.geometry["cbar_m"] / (2.0 * source["V"])  # q̂ = q c̄ / 2V
+        for name in FIT_VARIABLES:
+            out[name].append(qhat if name == "qhat" else source[name])
+        for c in FIT_RESPONSES:
+            out[c].append(flight.coefficients[c])
+            out[f"truth_{c}"].append(flight.truth[c])
+        out["maneuver"].append(np.full(flight.time_s.size, index))
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def interval_measures(prediction, truth: np.ndarray) -> dict[str, float]:
+    """Coverage and errors of one coefficient's prediction against the truth: the share of
+    the truth inside the prediction interval where the model says it is inside its support,
+    the RMS error inside and outside the flag, the share flagged outside."""
+    outside = np.asarray(prediction.outside, dtype=bool)
+    inside = ~outside
+    error = np.asarray(prediction.value) - truth
+    covered = (np.asarray(prediction.lower) <= truth) & (truth <= np.asarray(prediction.upper))
+
+    def rms(mask: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(error[mask] ** 2))) if mask.any() else float("nan")
+
+    return {
+        "n": int(truth.size),
+        "n_inside": int(inside.sum()),
+        "coverage_inside": float(covered[inside].mean()) if inside.any() else float("nan"),
+        "rms_inside": rms(inside),
+        "rms_outside": rms(outside),
+        "flagged": float(outside.mean()),
+    }
+
+
+def trim_schedule(alpha: np.ndarray, de: np.ndarray, bin_rad: float = 2 * DEG):
+    """δh as a function of α from the data (the median per 2° bin of α, interpolated, held
+    constant beyond the data): the grid's trim-like elevator."""
+    edges = np.arange(alpha.min(), alpha.max() + bin_rad, bin_rad)
+    which = np.digitize(alpha, edges)
+    centres, medians = [], []
+    for k in np.unique(which):
+        centres.append(float(np.median(alpha[which == k])))
+        medians.append(float(np.median(de[which == k])))
+    return lambda a: np.interp(a, centres, medians)
+
+
+def grid_points(quick: bool, schedule) -> dict[str, np.ndarray]:
+    """The grid of the carpets and the extrapolation check: α from −10° to 40° in 1° steps ×
+    Mach 0.3…1.0 (steps 0.05; quick 0.1), δh at the data's trim schedule, q̂ = 0."""
+    alpha = np.arange(-10.0, 40.5, 1.0) * DEG
+    mach = np.round(np.arange(0.3, 1.001, 0.1 if quick else 0.05), 2)
+    A, M = np.meshgrid(alpha, mach)  # (n_mach, n_alpha)
+    return {"alpha": A, "Mach": M, "de": schedule(A), "qhat": np.zeros_like(A)}
+
+
+def _fitter_and_settings(fitter, settings_type):
+    if fitter is None:  # the package under study
+        from flightid.globalmodel import GlobalModelSettings, fit_global_model
+
+        return fit_global_model, GlobalModelSettings
+    return fitter, settings_type or StandInSettings
+
+
+def fit_and_measure(
+    flights: Sequence[Flight],
+    truth_oracle: TruthOracle,
+    quick: bool,
+    fitter: Callable | None = None,
+    settings_type: type | None = None,
+) -> dict:
+    """Fit C_L, C_D, C_m over (α, M, δh, q̂) to the reconstructed coefficients of the flights
+    not held out (``fitter``: default ``flightid.globalmodel.fit_global_model``), then measure
+    (``interval_measures``) on the held-out maneuvers (at their true states against their
+    per-sample truth) and on the grid (against ``truth_oracle``), once per residual variance
+    ("global"; the full study also "local"). Returns the measures, the selected terms, PSE,
+    the grid's carpets and the extrapolation check."""
+    fit, settings_type = _fitter_and_settings(fitter, settings_type)
+    train = _samples([f for f in flights if not f.held_out], "measured")
+    held = _samples([f for f in flights if f.held_out], "true")
+    schedule = trim_schedule(train["alpha"], train["de"])
+    grid = grid_points(quick, schedule)
+    grid_truth = truth_oracle({k: grid[k] for k in ("alpha", "Mach", "de", "qhat")})
+    alpha_max = float(train["alpha"].max())
+    beyond = grid["alpha"] > alpha_max + 5 * DEG
+    results: dict = {"alpha_data_max_deg": alpha_max / DEG, "runs": {}}
+    for variance in ("global",) if quick else ("global", "local"):
+        settings = settings_type(orders=dict(ORDERS), max_order=MAX_ORDER, decimate=DECIMATE,
+                                 residual_variance=variance)  # fmt: skip
+        model = fit({k: train[k] for k in (*FIT_VARIABLES, *FIT_RESPONSES)},
+                    responses={c: c for c in FIT_RESPONSES}, variables=list(FIT_VARIABLES),
+                    settings=settings, maneuver_index=train["maneuver"], dt=1.0 / SAMPLE_HZ,
+                    units={"alpha": "rad", "Mach": "1", "de": "rad", "qhat": "1"})  # fmt: skip
+        held_pred = model.predict({k: held[k] for k in FIT_VARIABLES})
+        grid_pred = model.predict({k: grid[k].ravel() for k in FIT_VARIABLES})
+        run = {}
+        for c in FIT_RESPONSES:
+            g = grid_pred[c]
+            run[c] = {
+                "terms": list(model.coefficients[c].terms),
+                "pse": float(model.coefficients[c].pse),
+                "held_out": interval_measures(held_pred[c], held[f"truth_{c}"]),
+                "grid": interval_measures(g, grid_truth[c].ravel()),
+                "beyond_flagged": float(np.asarray(g.outside)[beyond.ravel()].mean()),
+                "carpet": {key: np.asarray(getattr(g, key)).reshape(grid["alpha"].shape).tolist()
+                           for key in ("value", "lower", "upper", "outside")},  # fmt: skip
+            }
+            run[c]["carpet"]["truth"] = grid_truth[c].tolist()
+        results["runs"][variance] = run
+    results["grid"] = {"alpha_deg": (grid["alpha"][0] / DEG).tolist(), "Mach": grid["Mach"][:, 0].tolist(),
+                       "de_rad": grid["de"].tolist()}  # fmt: skip
+    thin = slice(None, None, 25)
+    results["data"] = {"alpha_deg": (train["alpha"][thin] / DEG).tolist(), "Mach": train["Mach"][thin].tolist(),
+                       **{c: train[c][thin].tolist() for c in FIT_RESPONSES}}  # fmt: skip
+    return results
+
+
+def noise_share(flights: Sequence[Flight]) -> dict[str, dict[str, float]]:
+    """Per coefficient: RMS of (reconstructed − truth) over all samples, the truth's standard
+    deviation, and their ratio (the reconstruction-noise share)."""
+    out = {}
+    for c in COEFFICIENTS:
+        error = np.concatenate([f.coefficients[c] - f.truth[c] for f in flights])
+        truth = np.concatenate([f.truth[c] for f in flights])
+        rms, spread = float(np.sqrt(np.mean(error**2))), float(np.std(truth))
+        out[c] = {"rms": rms, "truth_std": spread, "share": rms / spread if spread > 0 else float("nan")}
+    return out
