@@ -106,7 +106,9 @@ class Condition:
         return f"M{self.mach:.2f}/{self.altitude_ft / 1000:.0f}kft"
 
 
-FULL_CONDITIONS = tuple(Condition(m, h) for h in (10000.0, 25000.0) for m in (0.35, 0.5, 0.65, 0.8, 0.9))
+FULL_CONDITIONS = tuple(
+    Condition(m, h) for h in (10000.0, 25000.0) for m in (0.35, 0.5, 0.65, 0.8, 0.9)
+)
 QUICK_CONDITIONS = tuple(Condition(m, h) for h in (10000.0, 25000.0) for m in (0.4, 0.6, 0.8))
 
 
@@ -151,7 +153,9 @@ class TruthOracle:
 
     def __init__(self, aircraft: str = "f16") -> None:
         if aircraft != "f16":
-            raise ValueError(f"aircraft: expected 'f16' (the study's truth aircraft), got {aircraft!r}")
+            raise ValueError(
+                f"aircraft: expected 'f16' (the study's truth aircraft), got {aircraft!r}"
+            )
         jsbsim = _jsbsim()
         self._folder = tempfile.mkdtemp(prefix="truth_aircraft_")
         source = Path(jsbsim.__file__).parent / "aircraft" / aircraft
@@ -300,41 +304,64 @@ def trimmed_f16(condition: Condition, dt_s: float = 1.0 / (SAMPLE_HZ * SUBSTEPS)
     return fdm
 
 
+# the pilot's commands the designed inputs drive (normalised stick and pedals)
+COMMANDS = {
+    "stick": "fcs/elevator-cmd-norm",
+    "aileron": "fcs/aileron-cmd-norm",
+    "rudder": "fcs/rudder-cmd-norm",
+}
+
+
 @dataclass(frozen=True)
 class ManeuverDesign:
-    """A maneuver: elevator-stick multisine (band in Hz, peak in stick units) over
-    ``duration_s``, plus a pull-up (stick ramped to ``pull`` over 40 % of the time, held 20 %,
-    ramped back; negative stick pulls); ``held_out`` maneuvers are kept out of the fit."""
+    """A maneuver: orthogonal multisines (``flightid.design``, band in Hz) on the commands
+    named in ``amplitudes`` (peak, normalised command units) over ``duration_s``, plus a
+    pull-up in the first ``pull_s`` seconds (stick ramped to ``pull`` over 40 % of that time,
+    held 20 %, ramped back; negative stick pulls: a longer pull loops the aircraft into a
+    stall over the top); ``held_out`` maneuvers are kept out of the fit."""
 
     name: str
     duration_s: float
     band_hz: tuple[float, float]
-    amplitude: float
+    amplitudes: Mapping[str, float]
     pull: float = 0.0
+    pull_s: float = 10.0
     held_out: bool = False
 
 
 def maneuver_designs(quick: bool) -> tuple[ManeuverDesign, ...]:
-    """The maneuvers flown at every condition (quick: shorter)."""
+    """The maneuvers flown at every condition: a longitudinal multisine, a pull-up (to high
+    α; at high speed the g limit stops it earlier), in the full study a lateral multisine
+    (aileron and rudder, with a small stick multisine), and a combined maneuver that is held
+    out (quick: shorter, no lateral maneuver)."""
     T = 15.0 if quick else 30.0
-    return (
-        ManeuverDesign("multisine", T, (0.1, 1.5), 0.25),
-        ManeuverDesign("pull-up", T, (0.2, 1.2), 0.08, pull=-0.9),
-        ManeuverDesign("combined", 0.7 * T, (0.15, 1.2), 0.2, pull=-0.5, held_out=True),
-    )
+    designs = [
+        ManeuverDesign("multisine", T, (0.1, 1.5), {"stick": 0.25}),
+        ManeuverDesign("pull-up", T, (0.2, 1.2), {"stick": 0.08}, pull=-0.9),
+        ManeuverDesign("combined", 0.7 * T, (0.15, 1.2), {"stick": 0.2}, pull=-0.5, held_out=True),
+    ]
+    if not quick:
+        lateral = ManeuverDesign(
+            "lateral", T, (0.1, 1.5), {"stick": 0.1, "aileron": 0.12, "rudder": 0.2}
+        )
+        designs.insert(2, lateral)
+    return tuple(designs)
 
 
-def stick_command(design: ManeuverDesign, time_s: np.ndarray) -> np.ndarray:
-    """The elevator-stick command (added to the trim stick) of ``design`` at ``time_s``:
-    the multisine of ``flightid.design`` plus the pull-up ramp."""
+def command_signals(design: ManeuverDesign, time_s: np.ndarray) -> dict[str, np.ndarray]:
+    """The commands (added to the trim commands) of ``design`` at ``time_s``: the
+    multisines of ``flightid.design`` plus the pull-up ramp on the stick."""
     from flightid.design.multisine import design_multisine
 
-    multisine = design_multisine(["stick"], design.duration_s, design.band_hz, [design.amplitude])
-    command = multisine.signals(time_s)[:, 0]
-    fraction = time_s / design.duration_s
+    names = list(design.amplitudes)
+    multisine = design_multisine(names, design.duration_s, design.band_hz,
+                                 [design.amplitudes[n] for n in names])  # fmt: skip
+    signals = dict(zip(names, multisine.signals(time_s).T, strict=True))
+    fraction = time_s / design.pull_s
     # trapezoid: 0 → 1 over 0–40 %, 1 over 40–60 %, 1 → 0 over 60–100 %
     ramp = np.clip(np.minimum(fraction / 0.4, (1.0 - fraction) / 0.4), 0.0, 1.0)
-    return command + design.pull * ramp
+    signals["stick"] = signals.get("stick", 0.0) + design.pull * ramp
+    return signals
 
 
 # properties recorded per sample → (name, factor to SI)
@@ -363,16 +390,33 @@ _RECORDED = (
 )
 
 
-def _fly(fdm, commands: np.ndarray, trim_stick: float) -> tuple[dict, dict]:
-    """Fly ``commands`` (stick, one per 50 Hz sample) from trim; the recorded properties
-    (SI; forces still in N) and the in-flight coefficients per sample."""
-    rows = np.empty((commands.size, len(_RECORDED)))
-    flown = {c: np.empty(commands.size) for c in COEFFICIENTS}
-    for i, command in enumerate(commands):
+# the study's envelope: a recording ends where the aircraft leaves it (α in rad, q̄ in Pa)
+ENVELOPE = {"alpha_min": -10 * DEG, "alpha_max": 30 * DEG, "qbar_min": 2000.0}
+
+
+def _inside_envelope(fdm) -> bool:
+    alpha = fdm["aero/alpha-rad"]
+    qbar = fdm["aero/qbar-psf"] * PSF_PA
+    return ENVELOPE["alpha_min"] <= alpha <= ENVELOPE["alpha_max"] and qbar >= ENVELOPE["qbar_min"]
+
+
+def _fly(fdm, commands: Mapping[str, np.ndarray]) -> tuple[dict, dict]:
+    """Fly ``commands`` (added to the trim commands, one per 50 Hz sample) from trim; the
+    recorded properties (SI; forces still in N) and the in-flight coefficients per sample,
+    up to where the aircraft leaves ``ENVELOPE`` (the rest is not recorded)."""
+    trim = {name: fdm[COMMANDS[name]] for name in commands}
+    n = len(next(iter(commands.values())))
+    rows = np.empty((n, len(_RECORDED)))
+    flown = {c: np.empty(n) for c in COEFFICIENTS}
+    for i in range(n):
+        if not _inside_envelope(fdm):
+            rows, flown = rows[:i], {k: v[:i] for k, v in flown.items()}
+            break
         rows[i] = [fdm[prop] * factor for _, prop, factor in _RECORDED]
         for name, value in jsbsim_coefficients(fdm).items():
             flown[name][i] = value
-        fdm["fcs/elevator-cmd-norm"] = trim_stick + command
+        for name, command in commands.items():
+            fdm[COMMANDS[name]] = trim[name] + command[i]
         for _ in range(SUBSTEPS):
             fdm.run()
     return {name: rows[:, j] for j, (name, _, _) in enumerate(_RECORDED)}, flown
@@ -414,7 +458,8 @@ def fly_condition(
     for index, design in enumerate(designs):
         fdm = trimmed_f16(condition)
         time_s = np.arange(0.0, design.duration_s, 1.0 / SAMPLE_HZ)
-        true, flown = _fly(fdm, stick_command(design, time_s), fdm["fcs/elevator-cmd-norm"])
+        true, flown = _fly(fdm, command_signals(design, time_s))
+        time_s = time_s[: len(true["alpha"])]
         geometry = _mass_geometry(fdm)
         mass = geometry["mass_kg"]
         for axis in ("ax", "ay", "az"):
@@ -436,7 +481,9 @@ def _oracle_points(true: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return points
 
 
-def measure(true: Mapping[str, np.ndarray], rng: np.random.Generator | None) -> dict[str, np.ndarray]:
+def measure(
+    true: Mapping[str, np.ndarray], rng: np.random.Generator | None
+) -> dict[str, np.ndarray]:
     """What the instrumentation records: the true signals plus seeded white noise of σ
     ``NOISE`` (``rng`` None: noise-free); the rate derivatives by ``smooth_derivative`` of the
     measured rates; q̂ = q c̄ / 2V from the measured q and V (set by ``reconstruct``)."""
@@ -460,7 +507,9 @@ def measure(true: Mapping[str, np.ndarray], rng: np.random.Generator | None) -> 
     return measured
 
 
-def reconstruct(measured: dict[str, np.ndarray], geometry: Mapping[str, float]) -> dict[str, np.ndarray]:
+def reconstruct(
+    measured: dict[str, np.ndarray], geometry: Mapping[str, float]
+) -> dict[str, np.ndarray]:
     """C_L, C_D, C_Y, C_l, C_m, C_n from the measured motion by ``aero_coefficients``
     (moments about the centre of gravity), and the measured q̂ = q c̄ / 2V into ``measured``."""
     from flightid.data.coefficients import Engine, MassGeometry, aero_coefficients
@@ -598,12 +647,15 @@ def stand_in_fitter(signals, responses, variables, *, settings, maneuver_index, 
     from flightid.regression.least_squares import least_squares
 
     index = np.asarray(maneuver_index)
-    keep = np.concatenate([np.flatnonzero(index == m)[:: settings.decimate] for m in np.unique(index)])
+    keep = np.concatenate(
+        [np.flatnonzero(index == m)[:: settings.decimate] for m in np.unique(index)]
+    )
     X = np.column_stack([np.asarray(signals[v], dtype=float)[keep] for v in variables])
     exponents = _monomials([settings.orders[v] for v in variables], settings.max_order)
     scale = np.max(np.abs(X), axis=0)
     labels = tuple(
-        "*".join(f"{v}^{e}" if e > 1 else v for v, e in zip(variables, row, strict=True) if e) or "1"
+        "*".join(f"{v}^{e}" if e > 1 else v for v, e in zip(variables, row, strict=True) if e)
+        or "1"
         for row in exponents
     )
     low, high = X.min(axis=0), X.max(axis=0)
@@ -741,8 +793,10 @@ def fit_and_measure(
                 "held_out": interval_measures(held_pred[c], held[f"truth_{c}"]),
                 "grid": interval_measures(g, grid_truth[c].ravel()),
                 "beyond_flagged": float(np.asarray(g.outside)[beyond.ravel()].mean()),
-                "carpet": {key: np.asarray(getattr(g, key)).reshape(grid["alpha"].shape).tolist()
-                           for key in ("value", "lower", "upper", "outside")},  # fmt: skip
+                "carpet": {
+                    key: np.asarray(getattr(g, key)).reshape(grid["alpha"].shape).tolist()
+                    for key in ("value", "lower", "upper", "outside")
+                },  # fmt: skip
             }
             run[c]["carpet"]["truth"] = grid_truth[c].tolist()
         results["runs"][variance] = run
@@ -762,5 +816,185 @@ def noise_share(flights: Sequence[Flight]) -> dict[str, dict[str, float]]:
         error = np.concatenate([f.coefficients[c] - f.truth[c] for f in flights])
         truth = np.concatenate([f.truth[c] for f in flights])
         rms, spread = float(np.sqrt(np.mean(error**2))), float(np.std(truth))
-        out[c] = {"rms": rms, "truth_std": spread, "share": rms / spread if spread > 0 else float("nan")}
+        out[c] = {
+            "rms": rms,
+            "truth_std": spread,
+            "share": rms / spread if spread > 0 else float("nan"),
+        }
     return out
+
+
+# ---------------------------------------------------------------------- the study and output
+COVERAGE_GOAL = (0.90, 0.98)
+BEYOND_FLAGGED_GOAL = 0.90
+
+
+def fly_all(oracle: TruthOracle, quick: bool, seed: int = 29) -> list[Flight]:
+    """Every maneuver at every condition (quick: ``QUICK_CONDITIONS``, shorter maneuvers)."""
+    conditions = QUICK_CONDITIONS if quick else FULL_CONDITIONS
+    designs = maneuver_designs(quick)
+    return [
+        f for i, c in enumerate(conditions) for f in fly_condition(c, designs, oracle, seed + i)
+    ]
+
+
+def study(quick: bool = False, fitter: Callable | None = None, settings_type: type | None = None,
+          write_data: Path | None = None) -> dict:  # fmt: skip
+    """Fly, reconstruct, fit and measure (module docstring); the results of
+    ``fit_and_measure`` plus the reconstruction-noise share, sample counts and wall times."""
+    start = time.perf_counter()
+    with truth_oracle() as oracle:
+        flights = fly_all(oracle, quick)
+        flown = time.perf_counter()
+        if write_data is not None:
+            write_flights(flights, write_data)
+        results = fit_and_measure(
+            flights, oracle, quick, fitter=fitter, settings_type=settings_type
+        )
+    results["noise"] = noise_share(flights)
+    results["samples"] = {
+        "fit": int(sum(f.time_s.size for f in flights if not f.held_out)),
+        "held_out": int(sum(f.time_s.size for f in flights if f.held_out)),
+        "maneuvers": len(flights),
+        "conditions": len(QUICK_CONDITIONS if quick else FULL_CONDITIONS),
+    }
+    results["wall_s"] = {"flights": flown - start, "total": time.perf_counter() - start}
+    results["quick"] = quick
+    return results
+
+
+def checks(results: Mapping) -> list[tuple[bool, str]]:
+    """The study's targets as (passed, line): coverage of the truth by the 95 % prediction
+    interval inside the support on the held-out maneuvers within ``COVERAGE_GOAL`` per
+    coefficient (residual variance "global"), and ≥ 90 % of the grid points with α beyond
+    the data's largest + 5° flagged outside."""
+    lines = []
+    run = results["runs"]["global"]
+    low, high = COVERAGE_GOAL
+    for c in FIT_RESPONSES:
+        cover = run[c]["held_out"]["coverage_inside"]
+        lines.append((low <= cover <= high,
+                      f"{c}: held-out coverage inside the support {cover:.3f} in [{low:.2f}, {high:.2f}]"))  # fmt: skip
+    for c in FIT_RESPONSES:
+        share = run[c]["beyond_flagged"]
+        lines.append((share >= BEYOND_FLAGGED_GOAL,
+                      f"{c}: grid points with alpha > data max + 5 deg flagged outside {share:.3f} "
+                      f">= {BEYOND_FLAGGED_GOAL:.2f}"))  # fmt: skip
+    return lines
+
+
+def _number(x: float, digits: int = 3) -> str:
+    return "–" if not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def format_tables(results: Mapping) -> str:
+    """The numbers region: per residual variance and coefficient the held-out and grid
+    measures; the selected terms and PSE; the reconstruction-noise share."""
+    s = results["samples"]
+    lines = [
+        "<!-- numbers: globalmodel-jsbsim -->",
+        f"F-16 (JSBSim): {s['conditions']} trim conditions, {s['maneuvers']} maneuvers, "
+        f"{s['fit']} samples fitted at 50 Hz (decimated by {DECIMATE}), {s['held_out']} held out; "
+        f"data alpha up to {results['alpha_data_max_deg']:.1f} deg",
+        "",
+        "| residual variance | coefficient | terms | PSE | held-out coverage | held-out RMS | "
+        "held-out flagged | grid coverage | grid RMS inside | grid RMS outside | grid flagged | "
+        "beyond alpha max + 5 deg flagged |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for variance, run in results["runs"].items():
+        for c in FIT_RESPONSES:
+            r, h, g = run[c], run[c]["held_out"], run[c]["grid"]
+            lines.append(
+                f"| {variance} | {c} | {len(r['terms'])} | {r['pse']:.3e} | "
+                f"{_number(h['coverage_inside'])} | {_number(h['rms_inside'], 4)} | "
+                f"{_number(h['flagged'])} | {_number(g['coverage_inside'])} | "
+                f"{_number(g['rms_inside'], 4)} | {_number(g['rms_outside'], 4)} | "
+                f"{_number(g['flagged'])} | {_number(r['beyond_flagged'])} |"
+            )
+    lines += ["", "| coefficient | reconstruction RMS (measured − truth) | truth std | share |",
+              "|---|---|---|---|"]  # fmt: skip
+    for c, n in results["noise"].items():
+        if results["quick"] and c not in FIT_RESPONSES:
+            continue  # no lateral maneuvers: the lateral truth is zero
+        lines.append(f"| {c} | {n['rms']:.2e} | {n['truth_std']:.2e} | {n['share']:.3f} |")
+    lines.append("")
+    for c in FIT_RESPONSES:
+        lines.append(f"{c} terms (global): " + ", ".join(results["runs"]["global"][c]["terms"]))
+    lines.append("<!-- /numbers -->")
+    return "\n".join(lines)
+
+
+def carpets(results: Mapping) -> dict:
+    """The carpet data for the figures: the α grid (deg) × Mach values, per residual
+    variance and coefficient the prediction (value, lower, upper), the truth and the flag,
+    arrays (n_Mach, n_alpha); the fitted data (every 25th sample)."""
+    return {
+        "alpha_deg": results["grid"]["alpha_deg"],
+        "Mach": results["grid"]["Mach"],
+        "de_rad": results["grid"]["de_rad"],
+        "alpha_data_max_deg": results["alpha_data_max_deg"],
+        "coefficients": {
+            v: {c: run[c]["carpet"] for c in FIT_RESPONSES} for v, run in results["runs"].items()
+        },
+        "data": results["data"],
+    }
+
+
+# the columns of a written maneuver (SI)
+_CSV_COLUMNS = (
+    ("time_s", None), ("alpha_rad", "alpha"), ("beta_rad", "beta"), ("Mach", "Mach"),
+    ("V_m_s", "V"), ("p_rad_s", "p"), ("q_rad_s", "q"), ("r_rad_s", "r"),
+    ("ax_m_s2", "ax"), ("ay_m_s2", "ay"), ("az_m_s2", "az"), ("qbar_Pa", "qbar"),
+    ("de_rad", "de"), ("da_rad", "da"), ("dr_rad", "dr"), ("lef_rad", "lef"), ("thrust_N", "thrust"),
+)  # fmt: skip
+
+
+def write_flights(flights: Sequence[Flight], folder: Path) -> None:
+    """Each maneuver as CSV (the measured signals in SI, the reconstructed coefficients and
+    the per-sample truth ``truth_*``) and ``flights.json`` (conditions, maneuvers, files,
+    mass and geometry)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    index = []
+    for k, f in enumerate(flights):
+        name = f"{k:02d}_{f.condition.label.replace('/', '_')}_{f.maneuver}.csv"
+        columns = [f.time_s] + [f.measured[key] for _, key in _CSV_COLUMNS[1:]]
+        columns += [f.coefficients[c] for c in COEFFICIENTS] + [f.truth[c] for c in COEFFICIENTS]
+        header = (
+            [c for c, _ in _CSV_COLUMNS] + list(COEFFICIENTS) + [f"truth_{c}" for c in COEFFICIENTS]
+        )
+        np.savetxt(folder / name, np.column_stack(columns), delimiter=",", header=",".join(header),
+                   comments="", fmt="%.10g")  # fmt: skip
+        index.append({"file": name, "mach": f.condition.mach, "altitude_ft": f.condition.altitude_ft,
+                      "maneuver": f.maneuver, "held_out": f.held_out, "geometry": f.geometry})  # fmt: skip
+    (folder / "flights.json").write_text(json.dumps(index, indent=1), encoding="utf-8")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="6 conditions, shorter maneuvers")
+    parser.add_argument("--write-data", type=Path, help="write the maneuvers as CSV here")
+    parser.add_argument("--carpets", type=Path, help="write the carpet data (JSON) here")
+    parser.add_argument("--stand-in", action="store_true",
+                        help="fit with this module's fixed-polynomial stand-in")  # fmt: skip
+    args = parser.parse_args(argv)
+    fitter = stand_in_fitter if args.stand_in else None
+    results = study(args.quick, fitter=fitter, write_data=args.write_data)
+    print("<!-- guide: docs/globalmodel.md -->")
+    print(format_tables(results))
+    wall = results["wall_s"]
+    print(f"wall time: flights and truth {wall['flights']:.1f} s, total {wall['total']:.1f} s")
+    if args.carpets is not None:
+        args.carpets.parent.mkdir(parents=True, exist_ok=True)
+        from flightid.jsonout import dumps
+
+        args.carpets.write_text(dumps(carpets(results)), encoding="utf-8")
+    passed = checks(results)
+    for ok, line in passed:
+        print(("PASS " if ok else "FAIL ") + line)
+    return 0 if all(ok for ok, _ in passed) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
