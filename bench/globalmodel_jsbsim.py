@@ -521,8 +521,21 @@ def reconstruct(
     m = measured
     # q̂ = q c̄ / (2V)
     m["qhat"] = m["q"] * g["cbar_m"] / (2.0 * m["V"])
-    out = aero_coefficients(m["ax"], m["ay"], m["az"], m["p"], m["q"], m["r"], m["pdot"],
-                            m["qdot"], m["rdot"], m["qbar"], m["alpha"], mass, [engine])  # fmt: skip
+    out = aero_coefficients(
+        m["ax"],
+        m["ay"],
+        m["az"],
+        m["p"],
+        m["q"],
+        m["r"],
+        m["pdot"],
+        m["qdot"],
+        m["rdot"],
+        m["qbar"],
+        m["alpha"],
+        mass,
+        [engine],
+    )
     return {c: np.asarray(out[c]) for c in COEFFICIENTS}
 
 
@@ -591,8 +604,15 @@ class StandInCoefficient:
         # leverage h₀ = φᵀ (ΦᵀΦ)⁻¹ φ against the data's largest
         leverage = np.einsum("ij,jk,ik->i", phi, self.support.gram_inverse, phi)
         outside = (distance_ratio > 2.0) | (leverage > self.support.leverage_max)
-        return StandInPrediction(value, value - t * std_prediction, value + t * std_prediction,
-                                 np.sqrt(var_mean), std_prediction, outside, distance_ratio)  # fmt: skip
+        return StandInPrediction(
+            value,
+            value - t * std_prediction,
+            value + t * std_prediction,
+            np.sqrt(var_mean),
+            std_prediction,
+            outside,
+            distance_ratio,
+        )
 
 
 @dataclass(frozen=True)
@@ -800,11 +820,17 @@ def fit_and_measure(
             }
             run[c]["carpet"]["truth"] = grid_truth[c].tolist()
         results["runs"][variance] = run
-    results["grid"] = {"alpha_deg": (grid["alpha"][0] / DEG).tolist(), "Mach": grid["Mach"][:, 0].tolist(),
-                       "de_rad": grid["de"].tolist()}  # fmt: skip
+    results["grid"] = {
+        "alpha_deg": (grid["alpha"][0] / DEG).tolist(),
+        "Mach": grid["Mach"][:, 0].tolist(),
+        "de_rad": grid["de"].tolist(),
+    }
     thin = slice(None, None, 25)
-    results["data"] = {"alpha_deg": (train["alpha"][thin] / DEG).tolist(), "Mach": train["Mach"][thin].tolist(),
-                       **{c: train[c][thin].tolist() for c in FIT_RESPONSES}}  # fmt: skip
+    results["data"] = {
+        "alpha_deg": (train["alpha"][thin] / DEG).tolist(),
+        "Mach": train["Mach"][thin].tolist(),
+        **{c: train[c][thin].tolist() for c in FIT_RESPONSES},
+    }
     return results
 
 
@@ -873,8 +899,12 @@ def checks(results: Mapping) -> list[tuple[bool, str]]:
     low, high = COVERAGE_GOAL
     for c in FIT_RESPONSES:
         cover = run[c]["held_out"]["coverage_inside"]
-        lines.append((low <= cover <= high,
-                      f"{c}: held-out coverage inside the support {cover:.3f} in [{low:.2f}, {high:.2f}]"))  # fmt: skip
+        lines.append(
+            (
+                low <= cover <= high,
+                f"{c}: held-out coverage inside the support {cover:.3f} in [{low:.2f}, {high:.2f}]",
+            )
+        )
     for c in FIT_RESPONSES:
         share = run[c]["beyond_flagged"]
         lines.append((share >= BEYOND_FLAGGED_GOAL,
@@ -943,11 +973,24 @@ def carpets(results: Mapping) -> dict:
 
 # the columns of a written maneuver (SI)
 _CSV_COLUMNS = (
-    ("time_s", None), ("alpha_rad", "alpha"), ("beta_rad", "beta"), ("Mach", "Mach"),
-    ("V_m_s", "V"), ("p_rad_s", "p"), ("q_rad_s", "q"), ("r_rad_s", "r"),
-    ("ax_m_s2", "ax"), ("ay_m_s2", "ay"), ("az_m_s2", "az"), ("qbar_Pa", "qbar"),
-    ("de_rad", "de"), ("da_rad", "da"), ("dr_rad", "dr"), ("lef_rad", "lef"), ("thrust_N", "thrust"),
-)  # fmt: skip
+    ("time_s", None),
+    ("alpha_rad", "alpha"),
+    ("beta_rad", "beta"),
+    ("Mach", "Mach"),
+    ("V_m_s", "V"),
+    ("p_rad_s", "p"),
+    ("q_rad_s", "q"),
+    ("r_rad_s", "r"),
+    ("ax_m_s2", "ax"),
+    ("ay_m_s2", "ay"),
+    ("az_m_s2", "az"),
+    ("qbar_Pa", "qbar"),
+    ("de_rad", "de"),
+    ("da_rad", "da"),
+    ("dr_rad", "dr"),
+    ("lef_rad", "lef"),
+    ("thrust_N", "thrust"),
+)
 
 
 def write_flights(flights: Sequence[Flight], folder: Path) -> None:
@@ -964,10 +1007,24 @@ def write_flights(flights: Sequence[Flight], folder: Path) -> None:
         header = (
             [c for c, _ in _CSV_COLUMNS] + list(COEFFICIENTS) + [f"truth_{c}" for c in COEFFICIENTS]
         )
-        np.savetxt(folder / name, np.column_stack(columns), delimiter=",", header=",".join(header),
-                   comments="", fmt="%.10g")  # fmt: skip
-        index.append({"file": name, "mach": f.condition.mach, "altitude_ft": f.condition.altitude_ft,
-                      "maneuver": f.maneuver, "held_out": f.held_out, "geometry": f.geometry})  # fmt: skip
+        np.savetxt(
+            folder / name,
+            np.column_stack(columns),
+            delimiter=",",
+            header=",".join(header),
+            comments="",
+            fmt="%.10g",
+        )
+        index.append(
+            {
+                "file": name,
+                "mach": f.condition.mach,
+                "altitude_ft": f.condition.altitude_ft,
+                "maneuver": f.maneuver,
+                "held_out": f.held_out,
+                "geometry": f.geometry,
+            }
+        )
     (folder / "flights.json").write_text(json.dumps(index, indent=1), encoding="utf-8")
 
 
