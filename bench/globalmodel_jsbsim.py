@@ -318,7 +318,8 @@ class ManeuverDesign:
     named in ``amplitudes`` (peak, normalised command units) over ``duration_s``, plus a
     pull-up in the first ``pull_s`` seconds (stick ramped to ``pull`` over 40 % of that time,
     held 20 %, ramped back; negative stick pulls: a longer pull loops the aircraft into a
-    stall over the top); ``held_out`` maneuvers are kept out of the fit."""
+    stall over the top), plus 3-2-1-1 stick steps of height ``steps`` (unit 1 s, from 2 s,
+    repeated every 12 s); ``held_out`` maneuvers are kept out of the fit."""
 
     name: str
     duration_s: float
@@ -326,25 +327,33 @@ class ManeuverDesign:
     amplitudes: Mapping[str, float]
     pull: float = 0.0
     pull_s: float = 10.0
+    steps: float = 0.0
     held_out: bool = False
 
 
-def maneuver_designs(quick: bool) -> tuple[ManeuverDesign, ...]:
+def maneuver_designs(quick: bool, lateral: bool = False) -> tuple[ManeuverDesign, ...]:
     """The maneuvers flown at every condition: a longitudinal multisine, a pull-up (to high
-    α; at high speed the g limit stops it earlier), in the full study a lateral multisine
-    (aileron and rudder, with a small stick multisine), and a combined maneuver that is held
-    out (quick: shorter, no lateral maneuver)."""
+    α; at high speed the g limit stops it earlier), in the full study a 3-2-1-1 on a gentler
+    pull, and a combined maneuver that is held out (quick: shorter, no 3-2-1-1).
+
+    ``lateral=True`` adds a lateral multisine (aileron and rudder, a small stick multisine).
+    The study leaves it out: the F-16's flight-control system then moves
+    ``fcs/flaperon-mix-rad`` by about ±0.6 rad, which changes C_L by up to 0.2, a variable
+    outside the longitudinal models of C_L, C_D, C_m over (α, M, δh, q̂)."""
     T = 15.0 if quick else 30.0
     designs = [
         ManeuverDesign("multisine", T, (0.1, 1.5), {"stick": 0.25}),
         ManeuverDesign("pull-up", T, (0.2, 1.2), {"stick": 0.08}, pull=-0.9),
-        ManeuverDesign("combined", 0.7 * T, (0.15, 1.2), {"stick": 0.2}, pull=-0.5, held_out=True),
     ]
     if not quick:
-        lateral = ManeuverDesign(
-            "lateral", T, (0.1, 1.5), {"stick": 0.1, "aileron": 0.12, "rudder": 0.2}
-        )
-        designs.insert(2, lateral)
+        designs.append(ManeuverDesign("3-2-1-1", T, (0.2, 1.0), {"stick": 0.05}, pull=-0.4,
+                                      pull_s=T, steps=0.3))  # fmt: skip
+    if lateral:
+        designs.append(ManeuverDesign("lateral", T, (0.1, 1.5),
+                                      {"stick": 0.1, "aileron": 0.12, "rudder": 0.2}))  # fmt: skip
+    designs.append(
+        ManeuverDesign("combined", 0.7 * T, (0.15, 1.2), {"stick": 0.2}, pull=-0.5, held_out=True)
+    )
     return tuple(designs)
 
 
@@ -361,6 +370,13 @@ def command_signals(design: ManeuverDesign, time_s: np.ndarray) -> dict[str, np.
     # trapezoid: 0 → 1 over 0–40 %, 1 over 40–60 %, 1 → 0 over 60–100 %
     ramp = np.clip(np.minimum(fraction / 0.4, (1.0 - fraction) / 0.4), 0.0, 1.0)
     signals["stick"] = signals.get("stick", 0.0) + design.pull * ramp
+    if design.steps:
+        from flightid.design.signals import three_two_one_one
+
+        for start_s in np.arange(2.0, design.duration_s - 7.0, 12.0):
+            signals["stick"] = signals["stick"] + three_two_one_one(
+                time_s, start_s, 1.0, design.steps
+            )
     return signals
 
 
@@ -773,6 +789,39 @@ def _fitter_and_settings(fitter, settings_type):
     return fitter, settings_type or StandInSettings
 
 
+def mean_band_coverage(prediction, truth: np.ndarray) -> float:
+    """Share of the truth inside the mean band ŷ ± t σ_mean where the model says it is inside
+    its support; t is the interval's own quantile, (upper − ŷ) / σ_prediction."""
+    value = np.asarray(prediction.value)
+    t = (np.asarray(prediction.upper) - value) / np.asarray(prediction.std_prediction)
+    half = t * np.asarray(prediction.std_mean)
+    inside = ~np.asarray(prediction.outside, dtype=bool)
+    covered = np.abs(value - truth) <= half
+    return float(covered[inside].mean()) if inside.any() else float("nan")
+
+
+def _coefficient_measures(model, c: str, predictions: Mapping, data: Mapping) -> dict:
+    """One coefficient's measures (``fit_and_measure``)."""
+    held, grid = predictions["held"][c], predictions["grid"][c]
+    outside = np.asarray(grid.outside, dtype=bool)
+    shape = data["grid"]["alpha"].shape
+    measured = interval_measures(predictions["held_measured"][c], data["held_measured"][c])
+    carpet = {k: np.asarray(getattr(grid, k)).reshape(shape).tolist()
+              for k in ("value", "lower", "upper", "outside")}  # fmt: skip
+    carpet["truth"] = data["grid_truth"][c].tolist()
+    return {
+        "terms": list(model.coefficients[c].terms),
+        "pse": float(model.coefficients[c].pse),
+        "held_out": interval_measures(held, data["held"][f"truth_{c}"]),
+        "held_out_measured_coverage": measured["coverage_inside"],
+        "held_out_mean_band_coverage": mean_band_coverage(held, data["held"][f"truth_{c}"]),
+        "grid": interval_measures(grid, data["grid_truth"][c].ravel()),
+        "beyond_flagged": float(outside[data["beyond"].ravel()].mean()),
+        "below_flagged": float(outside[data["below"].ravel()].mean()),
+        "carpet": carpet,
+    }
+
+
 def fit_and_measure(
     flights: Sequence[Flight],
     truth_oracle: TruthOracle,
@@ -783,18 +832,27 @@ def fit_and_measure(
     """Fit C_L, C_D, C_m over (α, M, δh, q̂) to the reconstructed coefficients of the flights
     not held out (``fitter``: default ``flightid.globalmodel.fit_global_model``), then measure
     (``interval_measures``) on the held-out maneuvers (at their true states against their
-    per-sample truth) and on the grid (against ``truth_oracle``), once per residual variance
+    per-sample truth; also the interval's coverage of the reconstructed coefficient at the
+    measured states, what a prediction interval promises, and the mean band's coverage of
+    the truth) and on the grid (against ``truth_oracle``), once per residual variance
     ("global"; the full study also "local"). Returns the measures, the selected terms, PSE,
-    the grid's carpets and the extrapolation check."""
+    the grid's carpets and the extrapolation checks (α more than 5° above or below the data)."""
     fit, settings_type = _fitter_and_settings(fitter, settings_type)
     train = _samples([f for f in flights if not f.held_out], "measured")
     held = _samples([f for f in flights if f.held_out], "true")
-    schedule = trim_schedule(train["alpha"], train["de"])
-    grid = grid_points(quick, schedule)
-    grid_truth = truth_oracle({k: grid[k] for k in ("alpha", "Mach", "de", "qhat")})
-    alpha_max = float(train["alpha"].max())
-    beyond = grid["alpha"] > alpha_max + 5 * DEG
-    results: dict = {"alpha_data_max_deg": alpha_max / DEG, "runs": {}}
+    held_measured = _samples([f for f in flights if f.held_out], "measured")
+    grid = grid_points(quick, trim_schedule(train["alpha"], train["de"]))
+    alpha_min, alpha_max = float(train["alpha"].min()), float(train["alpha"].max())
+    data = {
+        "held": held,
+        "held_measured": held_measured,
+        "grid": grid,
+        "grid_truth": truth_oracle({k: grid[k] for k in FIT_VARIABLES}),
+        "beyond": grid["alpha"] > alpha_max + 5 * DEG,
+        "below": grid["alpha"] < alpha_min - 5 * DEG,
+    }
+    results: dict = {"alpha_data_max_deg": alpha_max / DEG, "alpha_data_min_deg": alpha_min / DEG,
+                     "runs": {}}  # fmt: skip
     for variance in ("global",) if quick else ("global", "local"):
         settings = settings_type(orders=dict(ORDERS), max_order=MAX_ORDER, decimate=DECIMATE,
                                  residual_variance=variance)  # fmt: skip
@@ -802,24 +860,14 @@ def fit_and_measure(
                     responses={c: c for c in FIT_RESPONSES}, variables=list(FIT_VARIABLES),
                     settings=settings, maneuver_index=train["maneuver"], dt=1.0 / SAMPLE_HZ,
                     units={"alpha": "rad", "Mach": "1", "de": "rad", "qhat": "1"})  # fmt: skip
-        held_pred = model.predict({k: held[k] for k in FIT_VARIABLES})
-        grid_pred = model.predict({k: grid[k].ravel() for k in FIT_VARIABLES})
-        run = {}
-        for c in FIT_RESPONSES:
-            g = grid_pred[c]
-            run[c] = {
-                "terms": list(model.coefficients[c].terms),
-                "pse": float(model.coefficients[c].pse),
-                "held_out": interval_measures(held_pred[c], held[f"truth_{c}"]),
-                "grid": interval_measures(g, grid_truth[c].ravel()),
-                "beyond_flagged": float(np.asarray(g.outside)[beyond.ravel()].mean()),
-                "carpet": {
-                    key: np.asarray(getattr(g, key)).reshape(grid["alpha"].shape).tolist()
-                    for key in ("value", "lower", "upper", "outside")
-                },  # fmt: skip
-            }
-            run[c]["carpet"]["truth"] = grid_truth[c].tolist()
-        results["runs"][variance] = run
+        predictions = {
+            "held": model.predict({k: held[k] for k in FIT_VARIABLES}),
+            "held_measured": model.predict({k: held_measured[k] for k in FIT_VARIABLES}),
+            "grid": model.predict({k: grid[k].ravel() for k in FIT_VARIABLES}),
+        }
+        results["runs"][variance] = {
+            c: _coefficient_measures(model, c, predictions, data) for c in FIT_RESPONSES
+        }
     results["grid"] = {
         "alpha_deg": (grid["alpha"][0] / DEG).tolist(),
         "Mach": grid["Mach"][:, 0].tolist(),
@@ -925,28 +973,43 @@ def format_tables(results: Mapping) -> str:
         "<!-- numbers: globalmodel-jsbsim -->",
         f"F-16 (JSBSim): {s['conditions']} trim conditions, {s['maneuvers']} maneuvers, "
         f"{s['fit']} samples fitted at 50 Hz (decimated by {DECIMATE}), {s['held_out']} held out; "
-        f"data alpha up to {results['alpha_data_max_deg']:.1f} deg",
+        f"data alpha {results['alpha_data_min_deg']:.1f} to "
+        f"{results['alpha_data_max_deg']:.1f} deg",
         "",
-        "| residual variance | coefficient | terms | PSE | held-out coverage | held-out RMS | "
-        "held-out flagged | grid coverage | grid RMS inside | grid RMS outside | grid flagged | "
-        "beyond alpha max + 5 deg flagged |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| residual variance | coefficient | terms | PSE | held-out PI covers truth | "
+        "PI covers measured | mean band covers truth | held-out RMS | held-out flagged |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for variance, run in results["runs"].items():
         for c in FIT_RESPONSES:
-            r, h, g = run[c], run[c]["held_out"], run[c]["grid"]
+            r, h = run[c], run[c]["held_out"]
             lines.append(
                 f"| {variance} | {c} | {len(r['terms'])} | {r['pse']:.3e} | "
-                f"{_number(h['coverage_inside'])} | {_number(h['rms_inside'], 4)} | "
-                f"{_number(h['flagged'])} | {_number(g['coverage_inside'])} | "
+                f"{_number(h['coverage_inside'])} | {_number(r['held_out_measured_coverage'])} | "
+                f"{_number(r['held_out_mean_band_coverage'])} | {_number(h['rms_inside'], 4)} | "
+                f"{_number(h['flagged'])} |"
+            )
+    lines += [
+        "",
+        "| residual variance | coefficient | grid PI covers truth | grid RMS inside | "
+        "grid RMS outside | grid flagged | alpha > max + 5 deg flagged | "
+        "alpha < min - 5 deg flagged |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for variance, run in results["runs"].items():
+        for c in FIT_RESPONSES:
+            r, g = run[c], run[c]["grid"]
+            lines.append(
+                f"| {variance} | {c} | {_number(g['coverage_inside'])} | "
                 f"{_number(g['rms_inside'], 4)} | {_number(g['rms_outside'], 4)} | "
-                f"{_number(g['flagged'])} | {_number(r['beyond_flagged'])} |"
+                f"{_number(g['flagged'])} | {_number(r['beyond_flagged'])} | "
+                f"{_number(r['below_flagged'])} |"
             )
     lines += ["", "| coefficient | reconstruction RMS (measured − truth) | truth std | share |",
               "|---|---|---|---|"]  # fmt: skip
     for c, n in results["noise"].items():
-        if results["quick"] and c not in FIT_RESPONSES:
-            continue  # no lateral maneuvers: the lateral truth is zero
+        if c not in FIT_RESPONSES:
+            continue  # no lateral maneuvers: the lateral truth is about zero
         lines.append(f"| {c} | {n['rms']:.2e} | {n['truth_std']:.2e} | {n['share']:.3f} |")
     lines.append("")
     for c in FIT_RESPONSES:
@@ -964,6 +1027,7 @@ def carpets(results: Mapping) -> dict:
         "Mach": results["grid"]["Mach"],
         "de_rad": results["grid"]["de_rad"],
         "alpha_data_max_deg": results["alpha_data_max_deg"],
+        "alpha_data_min_deg": results["alpha_data_min_deg"],
         "coefficients": {
             v: {c: run[c]["carpet"] for c in FIT_RESPONSES} for v, run in results["runs"].items()
         },

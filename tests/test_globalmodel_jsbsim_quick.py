@@ -42,7 +42,7 @@ def test_the_prediction_interval_covers_the_held_out_truth(results, coefficient)
 def test_the_error_inside_the_support_is_small(results, coefficient):
     held = results["runs"]["global"][coefficient]["held_out"]
     spread = results["noise"][coefficient]["truth_std"]
-    # the RMS error of the held-out prediction within 25 % of the coefficient's spread over the flights
+    # the held-out RMS error within 25 % of the coefficient's spread over the flights
     assert held["rms_inside"] < 0.25 * spread
 
 
