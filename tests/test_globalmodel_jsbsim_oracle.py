@@ -5,6 +5,7 @@ recorded motion against the truth, noise-free and with the noise first-order err
 propagation predicts; the trims; and the study's measures on hand-built predictions."""
 
 import importlib.util
+import json
 import math
 import sys
 from pathlib import Path
@@ -222,3 +223,48 @@ def test_the_stand_in_fitter_is_least_squares_and_flags_extrapolation(study):
     assert np.all(prediction.lower < prediction.value) and np.all(
         prediction.value < prediction.upper
     )
+
+
+def _docs_numbers():
+    path = Path(__file__).resolve().parents[1] / "docs" / "docs_numbers.py"
+    spec = importlib.util.spec_from_file_location("docs_numbers_for_study", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_quick_study_runs_end_to_end_with_the_stand_in(study, oracle, tmp_path, capsys):
+    """The command line with the stand-in fitter: the guide line first, one numbers region
+    the docs' parser reads, a PASS/FAIL line per target, the carpets (the truth there is the
+    oracle's at the grid point) and the written maneuvers (reconstructed coefficients beside
+    the truth)."""
+    carpets, data = tmp_path / "carpets.json", tmp_path / "data"
+    code = study.main(
+        ["--quick", "--stand-in", "--carpets", str(carpets), "--write-data", str(data)]
+    )
+    out = capsys.readouterr().out
+    assert out.splitlines()[0] == "<!-- guide: docs/globalmodel.md -->"
+    regions = _docs_numbers().regions(out)
+    assert list(regions) == ["globalmodel-jsbsim"]
+    verdicts = [line for line in out.splitlines() if line.startswith(("PASS ", "FAIL "))]
+    assert len(verdicts) == 6
+    assert code == (0 if all(v.startswith("PASS") for v in verdicts) else 1)
+    document = json.loads(carpets.read_text(encoding="utf-8"))
+    alpha_deg, mach = document["alpha_deg"], document["Mach"]
+    cl = document["coefficients"]["global"]["CL"]
+    assert np.shape(cl["value"]) == (len(mach), len(alpha_deg))
+    i, j = 2, 30
+    point = {"alpha": math.radians(alpha_deg[j]), "Mach": mach[i],
+             "de": document["de_rad"][i][j], "qhat": 0.0}  # fmt: skip
+    assert cl["truth"][i][j] == pytest.approx(float(oracle(point)["CL"]), abs=1e-12)
+    # the stand-in's cubic far beyond the data: every such grid point flagged
+    beyond = np.asarray(alpha_deg) > document["alpha_data_max_deg"] + 5
+    assert np.all(np.asarray(cl["outside"])[:, beyond])
+    index = json.loads((data / "flights.json").read_text(encoding="utf-8"))
+    assert len(index) == 18 and sum(f["held_out"] for f in index) == 6
+    table = np.genfromtxt(data / index[0]["file"], delimiter=",", names=True)
+    assert np.ptp(table["truth_CL"]) > 0.05
+    # the written coefficients are the reconstruction from noisy motion: near the truth
+    # column (the study's noise gives an RMS of about 0.003), never equal to it
+    rms = np.sqrt(np.mean((table["CL"] - table["truth_CL"]) ** 2))
+    assert 1e-4 < rms < 0.01
