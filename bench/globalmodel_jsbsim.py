@@ -62,6 +62,8 @@ from pathlib import Path
 
 import numpy as np
 
+from flightid.errors import EstimationError, InputError
+
 # unit conversions (exact by definition)
 FT_M = 0.3048
 IN_M = 0.0254
@@ -90,6 +92,17 @@ SURFACES = {
     "flaperon": "fcs/flaperon-mix-rad",
     "speedbrake": "fcs/speedbrake-pos-rad",
 }
+
+
+class StudyInputError(InputError):
+    """A request the study cannot serve (an aircraft other than the F-16, an unknown point
+    variable)."""
+
+
+class TrimError(EstimationError):
+    """JSBSim could not trim (or load) the truth aircraft at a condition."""
+
+
 # properties the stripped copy declares (the flight-control system defined them)
 _DECLARED = ("fcs/lef-pos-rad", "fcs/flaperon-mix-rad", "fcs/aileron-pos-rad")
 
@@ -153,7 +166,7 @@ class TruthOracle:
 
     def __init__(self, aircraft: str = "f16") -> None:
         if aircraft != "f16":
-            raise ValueError(
+            raise StudyInputError(
                 f"aircraft: expected 'f16' (the study's truth aircraft), got {aircraft!r}"
             )
         jsbsim = _jsbsim()
@@ -164,7 +177,7 @@ class TruthOracle:
         strip_flight_controls(source / f"{aircraft}.xml", target / f"{aircraft}.xml")
         self.fdm = _executive(str(Path(self._folder) / "aircraft"))
         if not self.fdm.load_model(aircraft):
-            raise RuntimeError(f"JSBSim could not load the stripped {aircraft} copy")
+            raise TrimError(f"JSBSim could not load the stripped {aircraft} copy")
         self.fdm.disable_output()
         self.fdm["gear/gear-pos-norm"] = 0.0
         self.S_m2 = self.fdm["metrics/Sw-sqft"] * FT_M**2
@@ -185,10 +198,13 @@ class TruthOracle:
         given = {k: np.asarray(v, dtype=float) for k, v in points.items()}
         unknown = set(given) - set(names) - set(SURFACES)
         if unknown or "alpha" not in given or "Mach" not in given:
-            raise ValueError(
+            raise StudyInputError(
                 f"points: expected alpha, Mach and optionally {names[1:]} and {tuple(SURFACES)}, "
                 f"got {sorted(given)}"
             )
+        for name, value in given.items():
+            if not np.all(np.isfinite(value)):
+                raise StudyInputError(f"points[{name!r}]: expected finite numbers, got {value!r}")
         arrays = np.broadcast_arrays(*given.values())
         shape = arrays[0].shape
         flat = {k: a.ravel() for k, a in zip(given, arrays, strict=True)}
@@ -285,7 +301,7 @@ class Flight:
 def trimmed_f16(condition: Condition, dt_s: float = 1.0 / (SAMPLE_HZ * SUBSTEPS)):
     """The shipped F-16 (with its flight-control system) trimmed by JSBSim in level flight
     at ``condition``: gear up, fuel frozen (constant mass and centre of gravity), engine
-    running. Raises RuntimeError naming the condition when the trim fails."""
+    running. Raises ``TrimError`` naming the condition when the trim fails."""
     fdm = _executive()
     fdm.load_model("f16")
     fdm.disable_output()
@@ -300,7 +316,7 @@ def trimmed_f16(condition: Condition, dt_s: float = 1.0 / (SAMPLE_HZ * SUBSTEPS)
     try:
         fdm["simulation/do_simple_trim"] = 1
     except Exception as error:  # JSBSim's TrimFailureException
-        raise RuntimeError(f"trim failed at {condition.label}: {error}") from error
+        raise TrimError(f"trim failed at {condition.label}: {error}") from error
     return fdm
 
 

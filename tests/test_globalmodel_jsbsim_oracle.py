@@ -99,8 +99,12 @@ def test_the_oracle_responds_to_every_input(study, oracle):
         assert as_hat[c] == pytest.approx(in_rad_s[c], rel=1e-12, abs=1e-15)
     grid = oracle({"alpha": np.zeros((2, 3)), "Mach": np.full((2, 3), 0.6)})
     assert grid["CL"].shape == (2, 3)
-    with pytest.raises(ValueError, match="alpha, Mach"):
+    with pytest.raises(study.StudyInputError, match="alpha, Mach"):
         oracle({"alpha": 0.1, "Mach": 0.5, "elevator": 0.1})
+    with pytest.raises(study.StudyInputError, match="'de'.*finite"):
+        oracle({"alpha": 0.1, "Mach": 0.5, "de": np.nan})
+    with pytest.raises(study.StudyInputError, match="f16"):
+        study.truth_oracle("c172x")
 
 
 def test_noise_free_reconstruction_equals_the_truth(study, flights):
