@@ -21,9 +21,11 @@ rad, rates in rad/s, lengths in m, dynamic pressure in Pa, Mach dimensionless; p
 q̂ = q c̄/2V, r̂ = r b/2V with V the true airspeed.
 
 Flights: per condition (Mach × altitude) the trimmed aircraft (gear up, fuel frozen) flies
-designed elevator-stick inputs (a multisine of ``flightid.design``, a slow pull-up with a small
-multisine on top, and a combined maneuver held out from the fit), simulated at 150 Hz and
-recorded at 50 Hz. Measurement noise (seeded) is added to what a flight-test instrumentation
+designed elevator-stick inputs (a multisine of ``flightid.design``, a pull-up with a small
+multisine on top, in the full study a 3-2-1-1 on a gentle pull, and a combined maneuver held
+out from the fit), simulated at 150 Hz and recorded at 50 Hz until the aircraft leaves the
+study's envelope (``ENVELOPE``: α −10…30°, q̄ ≥ 2000 Pa). Lateral maneuvers are left out
+(``maneuver_designs``: the flaperon mix they move is not a variable of the models). Measurement noise (seeded) is added to what a flight-test instrumentation
 would record; the coefficients are reconstructed from the noisy motion with
 ``aero_coefficients`` (specific forces, rates, rate derivatives by ``smooth_derivative``, q̄,
 thrust, mass and geometry read from JSBSim), as a user would; the per-sample truth is the
