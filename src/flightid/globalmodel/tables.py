@@ -1128,8 +1128,11 @@ def choose_breakpoints(
         signals: {name: series} with every variable and ``times`` signal.
         counts: breakpoint counts to try (each ≥ 2).
         others: further tables fitted with it (fixed breakpoints).
-        times, degree: of the new table (``TableComponent``).
-        smoothing, min_weight, maneuver_index: as ``fit_table_model``.
+        times: the new table's multiplying signal (``TableComponent``).
+        degree: the new table's degree (``TableComponent``).
+        smoothing: as ``fit_table_model``.
+        min_weight: as ``fit_table_model``.
+        maneuver_index: as ``fit_table_model``.
         sigma2_max: σ²_max of PSE.
     """
     counts = tuple(int(c) for c in counts)
