@@ -197,7 +197,9 @@ def test_export_json_records_the_support_box_and_the_extrapolation(model, aircra
     for k, variable in enumerate(entry["variables"]):
         assert variable["low"] == norm.low[k] and variable["high"] == norm.high[k]
     mach = next(v for v in entry["variables"] if v["name"] == "Mach")
-    assert "velocities/mach" in mach["jsbsim"]
+    assert "velocities/mach" in mach["jsbsim"] and mach["jsbsim_unit"] == "1"
+    alpha = next(v for v in entry["variables"] if v["name"] == "alpha")
+    assert alpha["jsbsim_unit"] == "rad"
     assert entry["extrapolation"] == EXTRAPOLATION_NOTE and "extrapolate" in EXTRAPOLATION_NOTE
     assert entry["coefficients"]["CL"] == dict(
         zip(model["CL"].parameters, model["CL"].terms, strict=True)
@@ -296,6 +298,17 @@ def test_flightid_export_jsbsim_on_a_global_model_run_folder(envelope, capsys): 
                  "--airplane", str(airplane)]) != 0  # fmt: skip
     assert main(["export", str(run_dir), "--format", "jsbsim", "--out", str(out),
                  "--airplane", str(airplane), "--overwrite"]) == 0  # fmt: skip
+    # --control maps a variable to another property; a malformed one is named
+    assert main(["export", str(run_dir), "--format", "jsbsim", "--out", str(out),
+                 "--airplane", str(airplane), "--overwrite", "--control", "de"]) != 0  # fmt: skip
+    assert "--control: expected NAME=PROPERTY" in capsys.readouterr().err
+    assert main(["export", str(run_dir), "--format", "jsbsim", "--out", str(out),
+                 "--airplane", str(airplane), "--overwrite",
+                 "--control", "de=fcs/my-elevator-rad"]) == 0  # fmt: skip
+    assert json.loads((out / "export.json").read_text())["controls"] == {
+        "de": "fcs/my-elevator-rad"
+    }
+    assert "fcs/my-elevator-rad" in (out / "aerodynamics" / "nominal.xml").read_text()
 
 
 def test_the_airplane_file_must_hold_an_airplane(envelope, capsys):  # noqa: F811

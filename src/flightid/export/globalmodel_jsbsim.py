@@ -19,8 +19,13 @@ Axes. The coefficients are those of flightid's airplane models (RP-1153 2.14–2
 * C_l, C_m, C_n: body-axis moments about the c.g. (JSBSim's AERORP is put at the c.g.),
   L = q̄ S b C_l, M = q̄ S c̄ C_m, N = q̄ S b C_n.
 
-Data measured as wind-axis lift and drag (turned by β too) are the same C_L; C_D differs by
-C_D,stab = C_D,wind cos β − C_Y,wind sin β and must be formed so before fitting.
+Coefficients measured in wind axes (the stability axes turned by β about z) have the same
+C_L; drag and side force are turned: with C_D,w the drag along −x_w and C_Y,w the side force
+along y_w,
+
+    C_D = C_D,w cos β + C_Y,w sin β,    C_Y = −C_D,w sin β + C_Y,w cos β,
+
+which the data must be given as before fitting.
 
 Variables. Each variable of the model becomes the JSBSim expression of its signal
 (``_jsbsim_terms.SignalMap``): alpha, beta (aero/alpha-rad, aero/beta-rad), Mach
@@ -28,7 +33,9 @@ Variables. Each variable of the model becomes the JSBSim expression of its signa
 rhat = r b/2V (V the true airspeed), theta, phi, V, u, v, w, the controls (``controls``:
 de, da, dr by default, in rad) and Vrel, dVrel (with ``reference_speed``). A variable with
 a declared unit (``Normalisation.units``) must be in the unit of its expression (rad, rad/s,
-m/s, non-dimensional); a variable in degrees, say, is refused rather than written wrongly.
+m/s, non-dimensional "1"); a variable in degrees, say, is refused rather than written
+wrongly. A variable without a declared unit is taken to be in that unit (``export.json``
+lists it as ``jsbsim_unit``).
 
 Support. ``export.json`` gains an entry ``global_model``: the variables with the data's
 low/high (the box the model was fitted on) and the JSBSim expression each reads, the axis
@@ -164,6 +171,7 @@ def _support_summary(model, signals: SignalMap) -> dict:
                 "low": float(norm.low[k]),
                 "high": float(norm.high[k]),
                 "jsbsim": expression,
+                "jsbsim_unit": _expected_unit(name, signals.controls, signals.thrust_input),
             }
         )
     return {
