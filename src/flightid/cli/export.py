@@ -11,6 +11,10 @@ formats of ``EXPORT_FORMATS``:
     mat         PATH.mat: the same for MATLAB (scipy.io.savemat)
     python      PATH.py: a stand-alone module with f, h, the estimated values and simulate()
                 (flightid.export.python_module)
+    jsbsim      folder PATH: a JSBSim aircraft of a built-in airplane model
+                (flightid.export.jsbsim), or of the global model of a run folder holding
+                global_model.json (a [[stages]] kind = "global_model" run;
+                flightid.export.globalmodel_jsbsim) with the airplane of --airplane FILE.toml
 
 The linear formats linearize at the initial state of the first estimation maneuver and the
 mean of each input over it, unless ``--at`` names another maneuver (its number, from 1, or
@@ -30,6 +34,9 @@ import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+
+# the model file a global-model stage writes into the run folder (cases.globalmodel_case)
+GLOBAL_MODEL_FILE = "global_model.json"
 
 
 @dataclass(frozen=True)
@@ -113,6 +120,36 @@ def _estimated_parameters(run):
     )
 
 
+def _check_jsbsim_out(out: Path, args: argparse.Namespace) -> None:
+    """A non-empty ``--out`` folder is replaced only with --overwrite, and only when it is a
+    JSBSim aircraft flightid exported (it holds export.json)."""
+    from flightid.export import ExportError
+
+    if out.exists() and any(out.iterdir()):
+        if not args.overwrite:
+            raise ExportError(f"--out {out}: the folder exists and is not empty; give a new one")
+        if not (out / "export.json").is_file():
+            raise ExportError(
+                f"--out {out}: --overwrite replaces only a JSBSim aircraft flightid exported "
+                "(a folder holding its export.json); this folder has none"
+            )
+
+
+def _controls(args: argparse.Namespace) -> dict[str, str]:
+    """``--control NAME=PROPERTY`` options as {name: property}."""
+    from flightid.export import ExportError
+
+    controls = {}
+    for text in args.control or ():
+        name, _, prop = text.partition("=")
+        if not name.strip() or not prop.strip():
+            raise ExportError(
+                f"--control: expected NAME=PROPERTY (de=fcs/elevator-pos-rad), got {text!r}"
+            )
+        controls[name.strip()] = prop.strip()
+    return controls
+
+
 def _write_jsbsim(run, out: Path, args: argparse.Namespace) -> list[Path]:
     from flightid.aircraft.aero import AeroModel
     from flightid.aircraft.library import airplane_from_table
@@ -126,14 +163,13 @@ def _write_jsbsim(run, out: Path, args: argparse.Namespace) -> list[Path]:
             "longitudinal, lateral, six_dof or wind_axis_longitudinal, with [model.airplane] and "
             f"[model.aero]); the case {run.case.path} has neither table"
         )
-    if out.exists() and any(out.iterdir()):
-        if not args.overwrite:
-            raise ExportError(f"--out {out}: the folder exists and is not empty; give a new one")
-        if not (out / "export.json").is_file():
-            raise ExportError(
-                f"--out {out}: --overwrite replaces only a JSBSim aircraft flightid exported "
-                "(a folder holding its export.json); this folder has none"
-            )
+    if args.airplane is not None:
+        raise ExportError(
+            "--airplane: only for a global-model run folder; the airplane of an output-error "
+            f"run is its case's [model.airplane] ({run.case.path}), which the model was "
+            "estimated with"
+        )
+    _check_jsbsim_out(out, args)
     aircraft = write_jsbsim(
         _estimated_parameters(run),
         airplane_from_table(spec["airplane"]),
@@ -143,7 +179,61 @@ def _write_jsbsim(run, out: Path, args: argparse.Namespace) -> list[Path]:
         rate_speed=spec.get("rate_speed", "V"),
         draws=args.draws,
         seed=args.seed,
-        dynamic_pressure=args.dynamic_pressure,
+        controls=_controls(args),
+        dynamic_pressure=args.dynamic_pressure or "airplane",
+        overwrite=args.overwrite,
+    )
+    return [Path(aircraft.folder)]
+
+
+def _airplane_file(path: str):
+    """The ``Airplane`` of ``--airplane FILE``: its ``[airplane]`` table, or a case file's
+    ``[model.airplane]`` (``flightid.aircraft.airplane_from_table``)."""
+    import tomllib
+
+    from flightid.aircraft.library import airplane_from_table
+    from flightid.export import ExportError
+
+    file = Path(path).expanduser()
+    try:
+        document = tomllib.loads(file.read_text(encoding="utf-8").removeprefix("\ufeff"))
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ExportError(
+            f"--airplane {file}: expected a TOML file, cannot read it ({exc})"
+        ) from None
+    model = document.get("model")
+    if isinstance(model, dict) and isinstance(model.get("airplane"), dict):
+        return airplane_from_table(model["airplane"])
+    if isinstance(document.get("airplane"), dict):
+        return airplane_from_table(document["airplane"])
+    raise ExportError(
+        f"--airplane {file}: expected an [airplane] table (Airplane fields, SI units, or "
+        'library = "navion") or a case file\'s [model.airplane]; the file has neither'
+    )
+
+
+def _write_jsbsim_global(run_dir: Path, out: Path, args: argparse.Namespace) -> list[Path]:
+    """``--format jsbsim`` of a run folder holding a global model (``global_model.json``)."""
+    from flightid.export import ExportError
+    from flightid.export.globalmodel_jsbsim import write_jsbsim_global
+    from flightid.globalmodel import load_global_model
+
+    if args.airplane is None:
+        raise ExportError(
+            f"--format jsbsim: {run_dir / GLOBAL_MODEL_FILE} holds a global model, whose case "
+            "has no airplane; expected --airplane FILE.toml with an [airplane] table (S, b, "
+            "cbar, mass, inertia; SI units) or a case file with [model.airplane]"
+        )
+    airplane = _airplane_file(args.airplane)
+    _check_jsbsim_out(out, args)
+    aircraft = write_jsbsim_global(
+        load_global_model(run_dir / GLOBAL_MODEL_FILE),
+        airplane,
+        out,
+        controls=_controls(args),
+        dynamic_pressure=args.dynamic_pressure or "atmosphere",
+        draws=args.draws,
+        seed=args.seed,
         overwrite=args.overwrite,
     )
     return [Path(aircraft.folder)]
@@ -162,7 +252,8 @@ EXPORT_FORMATS: dict[str, ExportFormat] = {
     ),
     "jsbsim": ExportFormat(
         "folder PATH: a JSBSim aircraft (NAME.xml, aerodynamics/nominal.xml, --draws "
-        "alternative aerodynamics from the covariance); built-in airplane models only",
+        "alternative aerodynamics from the covariance); built-in airplane models, and global "
+        "models (a run folder with global_model.json; needs --airplane)",
         _write_jsbsim,
     ),
 }
@@ -268,9 +359,27 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--dynamic-pressure",
         choices=("airplane", "atmosphere"),
-        default="airplane",
+        default=None,
         help="jsbsim: q̄ = ½ρV² with the case's constant air density, as in the identified "
-        "model (airplane, default), or JSBSim's atmosphere at the flown altitude (atmosphere)",
+        "model (airplane, the default of an output-error run), or JSBSim's atmosphere at the "
+        "flown altitude (atmosphere, the default of a global model)",
+    )
+    parser.add_argument(
+        "--airplane",
+        default=None,
+        metavar="FILE.toml",
+        help="jsbsim, global model: the airplane (S, b, cbar, mass, inertia): a TOML file "
+        'with an [airplane] table of Airplane fields in SI units (library = "navion" '
+        "starts from a published one), or a case file with [model.airplane]",
+    )
+    parser.add_argument(
+        "--control",
+        action="append",
+        default=None,
+        metavar="NAME=PROPERTY",
+        help="jsbsim: the JSBSim property (rad) of a control variable, added to de, da, dr → "
+        "fcs/elevator-pos-rad, fcs/left-aileron-pos-rad, fcs/rudder-pos-rad (repeat the "
+        "option for several)",
     )
     parser.add_argument(
         "--overwrite",
@@ -289,8 +398,19 @@ def run(args: argparse.Namespace) -> int:
     # imported here: `flightid --help` must not load numpy/scipy/numba
     from flightid.cases.load_run import load_run
 
-    loaded = load_run(args.run_dir, args.data_dir)
-    written = EXPORT_FORMATS[args.format].write(loaded, Path(args.out).expanduser(), args)
+    run_dir = Path(args.run_dir).expanduser()
+    out = Path(args.out).expanduser()
+    if (run_dir / GLOBAL_MODEL_FILE).is_file():
+        if args.format != "jsbsim":
+            from flightid.export import ExportError
+
+            raise ExportError(
+                f"--format {args.format}: {run_dir / GLOBAL_MODEL_FILE} holds a global model, "
+                "which exports as --format jsbsim only"
+            )
+        written = _write_jsbsim_global(run_dir, out, args)
+    else:
+        written = EXPORT_FORMATS[args.format].write(load_run(run_dir, args.data_dir), out, args)
     for path in written:
         print(f"written: {path}")
     return 0

@@ -12,6 +12,7 @@ those expressions. JSBSim works in ft, slug, lbf: the factors below convert.
     phat, rhat     = {p,r} · (b/2) / velocities/vt-fps   (with V0: the constant b/2V0)
     qhat           = q · (c̄/2) / velocities/vt-fps       (with V0: c̄/2V0)
     theta, phi     = attitude/theta-rad, attitude/phi-rad
+    Mach           = velocities/mach      (V over the speed of sound of JSBSim's atmosphere)
     Vrel, dVrel    = V/V0, V/V0 − 1
     alphadot_hat   = aero/alphadot-rad_sec · c̄/2V   (rule ``ALPHADOT_RULE``)
     betadot_hat    = aero/betadot-rad_sec · b/2V    (rule ``BETADOT_RULE``)
@@ -149,6 +150,7 @@ class SignalMap:
             "r": "velocities/r-aero-rad_sec",
             "theta": "attitude/theta-rad",
             "phi": "attitude/phi-rad",
+            "Mach": "velocities/mach",
         }
         if signal in simple:
             return _property(simple[signal])
@@ -217,8 +219,8 @@ class SignalMap:
                 f"coefficient {coefficient!r}, term {label!r}: the signal {name!r} has no "
                 f"JSBSim counterpart; map a control with controls={{{name!r}: "
                 "'fcs/…-pos-rad'}, or leave the term out (signals with a counterpart: "
-                "V u v w alpha beta p q r phat qhat rhat theta phi Vrel dVrel alphadot_hat "
-                "betadot_hat, the controls and the thrust input)"
+                "V u v w alpha beta p q r phat qhat rhat theta phi Mach Vrel dVrel "
+                "alphadot_hat betadot_hat, the controls and the thrust input)"
             ) from None
         if isinstance(key, Spline):
             # (x − k)₊ = max(x − k, 0)

@@ -519,6 +519,32 @@ def write_jsbsim(
         JSBSimExportError: a term or airplane quantity without a JSBSim counterpart, a
             missing parameter value, bad options, or a non-empty folder.
     """
+    return write_aircraft(
+        estimate_or_model, airplane, path_dir, aero=aero, draws=draws, seed=seed,
+        reference_speed=reference_speed, rate_speed=rate_speed, controls=controls,
+        dynamic_pressure=dynamic_pressure, overwrite=overwrite,
+    )  # fmt: skip
+
+
+def write_aircraft(
+    estimate_or_model,
+    airplane,
+    path_dir: str | Path,
+    *,
+    aero,
+    draws: int = 0,
+    seed: int | None = 0,
+    reference_speed: float | None = None,
+    rate_speed: str = "V",
+    controls: Mapping[str, str] | None = None,
+    dynamic_pressure: str = "atmosphere",
+    overwrite: bool = False,
+    notes: tuple[str, ...] = (),
+    summary: Mapping[str, object] | None = None,
+) -> JSBSimAircraft:
+    """``write_jsbsim`` with ``notes`` (lines added to the aircraft file's header) and
+    ``summary`` (entries added to ``export.json``), for writers of other model kinds
+    (``globalmodel_jsbsim``) that go through the same aircraft."""
     _check_airplane(airplane)
     if controls is not None and not isinstance(controls, Mapping):
         raise InputTypeError(
@@ -558,6 +584,8 @@ def write_jsbsim(
     unmodelled = tuple(a for a in _AXES if not _AXIS_COEFFICIENTS[a] & set(aero.coefficients))
     if unmodelled:
         _sub(header, "note", f"no aerodynamic model on the axes {', '.join(unmodelled)}")
+    for note in notes:
+        _sub(header, "note", note)
     _metrics(root, airplane)
     _mass_balance(root, airplane)
     _ground_reactions(root, airplane)
@@ -572,11 +600,15 @@ def write_jsbsim(
         {n: float(values[n]) for n in aero.parameter_names}, drawn, tuple(free),
         tuple(sorted(signals.rules)), used, airplane.thrust_input, airplane.g, unmodelled,
     )  # fmt: skip
-    _write_summary(result, airplane, dynamic_pressure, reference_speed, rate_speed, seed)
+    _write_summary(
+        result, airplane, dynamic_pressure, reference_speed, rate_speed, seed, summary or {}
+    )
     return result
 
 
-def _write_summary(result: JSBSimAircraft, airplane, dynamic_pressure, v0, rate_speed, seed):
+def _write_summary(
+    result: JSBSimAircraft, airplane, dynamic_pressure, v0, rate_speed, seed, extra: Mapping
+):
     summary = {
         "aircraft": result.aircraft_file.name,
         "aerodynamics": [str(p.relative_to(result.folder)) for p in result.aerodynamics_files],
@@ -589,6 +621,7 @@ def _write_summary(result: JSBSimAircraft, airplane, dynamic_pressure, v0, rate_
         "rate_speed": rate_speed,
         "rules": list(result.rules),
         "unmodelled_axes": list(result.unmodelled_axes),
+        **extra,
     }
     (result.folder / "export.json").write_text(json.dumps(summary, indent=2) + "\n")
     if len(result.draws):

@@ -1,0 +1,270 @@
+"""Write a global aerodynamic model (``flightid.globalmodel.GlobalModel``) as a JSBSim
+aircraft, so that the identified envelope can be flown.
+
+Each coefficient of a global model is a polynomial in the term language
+(``flightid.model.terms``: products of powers of the variables, splines ``(x − k)₊``), so the
+model goes through the writer of identified airplane models (``flightid.export.jsbsim``):
+``model.aero_model()`` with ``model.parameter_values()`` become the functions
+``flightid/coefficient/<C>`` of ``aerodynamics/nominal.xml``, summed into the six JSBSim axes
+with the airplane's S, b, c̄ and q̄. The aircraft folder is that of ``write_jsbsim`` (its
+docstring): ``NAME.xml``, ``aerodynamics/nominal.xml`` (and ``draw_0001.xml`` … with
+``draws``), ``planet_flat.xml``, ``export.json``.
+
+Axes. The coefficients are those of flightid's airplane models (RP-1153 2.14–2.15):
+
+* C_L, C_D: lift and drag in stability axes (the body axes turned by α about y, no β):
+  X = q̄ S (C_L sin α − C_D cos α), Z = q̄ S (−C_L cos α − C_D sin α);
+* C_X, C_Z (if modelled instead): body axes;
+* C_Y: body-axis side force, Y = q̄ S C_Y;
+* C_l, C_m, C_n: body-axis moments about the c.g. (JSBSim's AERORP is put at the c.g.),
+  L = q̄ S b C_l, M = q̄ S c̄ C_m, N = q̄ S b C_n.
+
+Coefficients measured in wind axes (the stability axes turned by β about z) have the same
+C_L; drag and side force are turned: with C_D,w the drag along −x_w and C_Y,w the side force
+along y_w,
+
+    C_D = C_D,w cos β + C_Y,w sin β,    C_Y = −C_D,w sin β + C_Y,w cos β,
+
+which the data must be given as before fitting.
+
+Variables. Each variable of the model becomes the JSBSim expression of its signal
+(``_jsbsim_terms.SignalMap``): alpha, beta (aero/alpha-rad, aero/beta-rad), Mach
+(velocities/mach), p, q, r, the non-dimensional rates phat = p b/2V, qhat = q c̄/2V,
+rhat = r b/2V (V the true airspeed), theta, phi, V, u, v, w, the controls (``controls``:
+de, da, dr by default, in rad) and Vrel, dVrel (with ``reference_speed``). A variable with
+a declared unit (``Normalisation.units``) must be in the unit of its expression (rad, rad/s,
+m/s, non-dimensional "1"); a variable in degrees, say, is refused rather than written
+wrongly. A variable without a declared unit is taken to be in that unit (``export.json``
+lists it as ``jsbsim_unit``).
+
+Support. ``export.json`` gains an entry ``global_model``: the variables with the data's
+low/high (the box the model was fitted on) and the JSBSim expression each reads, the axis
+convention and the note that the polynomial is evaluated as written everywhere: outside the
+data's support it extrapolates, and JSBSim does not flag it (``GlobalModel.predict(points)``
+says where a point is outside; the box itself has empty corners the data never visited).
+
+    model = load_global_model("run/global_model.json")
+    aircraft = write_jsbsim_global(model, airplane_from_table({"library": "navion"}),
+                                   "out/Envelope", controls={"de": "fcs/elevator-pos-rad"})
+    flown = fly_jsbsim(aircraft, t, {"de": de, "da": da, "dr": dr}, {"u": 60.0})
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from flightid.errors import InputTypeError, describe
+from flightid.export._jsbsim_terms import DEFAULT_CONTROLS, FT_M, JSBSimExportError, SignalMap
+from flightid.export.jsbsim import JSBSimAircraft, _check_airplane, write_aircraft
+
+__all__ = ["AXES_NOTE", "EXTRAPOLATION_NOTE", "write_jsbsim_global"]
+
+AXES_NOTE = (
+    "CL, CD: stability axes (body axes turned by alpha, no beta): X = qbar S (CL sin alpha - "
+    "CD cos alpha), Z = qbar S (-CL cos alpha - CD sin alpha); CX, CZ, CY: body axes; Cl, Cm, "
+    "Cn: body-axis moments about the c.g. (AERORP at the c.g.)"
+)
+EXTRAPOLATION_NOTE = (
+    "the polynomial coefficients are evaluated as written at every state: outside the data "
+    "support (the box low..high of each variable, and empty regions inside it) they "
+    "extrapolate, and JSBSim does not flag it"
+)
+# the unit of each signal's JSBSim expression (flightid's signal units); "1": none
+_RADIAN_SIGNALS = ("alpha", "beta", "theta", "phi")
+_RATE_SIGNALS = ("p", "q", "r")
+_SPEED_SIGNALS = ("V", "u", "v", "w")
+_DIMENSIONLESS = {"", "-", "1"}
+
+
+def _expected_unit(signal: str, controls: Mapping[str, str], thrust_input) -> str | None:
+    """The unit the JSBSim expression of ``signal`` delivers ("1": non-dimensional), None
+    for a signal without one (refused later by ``SignalMap``)."""
+    if signal in _RADIAN_SIGNALS or signal in controls:
+        return "rad"
+    if signal in _RATE_SIGNALS:
+        return "rad/s"
+    if signal in _SPEED_SIGNALS:
+        return "m/s"
+    if signal == thrust_input:
+        return "N"
+    if signal in ("Mach", "phat", "qhat", "rhat", "Vrel", "dVrel", "alphadot_hat", "betadot_hat"):
+        return "1"
+    return None
+
+
+def _unit_matches(unit: str, expected: str) -> bool:
+    """A declared unit equal to the expected one (``flightid.data.units.same_unit``)."""
+    from flightid.data.units import UnitError, parse_unit, same_unit
+
+    try:
+        if expected == "1":
+            factor, dimension = parse_unit(unit)
+            return abs(factor - 1.0) <= 1e-12 and not any(dimension)
+        return same_unit(unit, expected)
+    except UnitError:
+        return False
+
+
+def _check_units(model, signals: tuple[str, ...], controls, thrust_input) -> None:
+    """Every variable the terms use, with a declared unit, is in its expression's unit."""
+    norm = model.normalisation
+    declared = dict(zip(norm.names, norm.units, strict=True))
+    wrong = []
+    for signal in signals:
+        unit = declared.get(signal, "")
+        expected = _expected_unit(signal, controls, thrust_input)
+        if unit in _DIMENSIONLESS and expected in (None, "1"):
+            continue
+        if expected is not None and unit and not _unit_matches(unit, expected):
+            wrong.append(f"{signal} in {unit!r} (JSBSim gives {expected!r})")
+    if wrong:
+        raise JSBSimExportError(
+            "model: variables in units other than those the JSBSim aircraft delivers: "
+            f"{', '.join(wrong)}; fit the model on the variables in those units"
+        )
+
+
+def _estimate(model) -> SimpleNamespace:
+    """The values and the block-diagonal covariance of every coefficient's θ̂ (the form
+    ``write_jsbsim`` takes from an ``Estimate``): coefficients are fitted separately, so
+    their estimates are uncorrelated with each other."""
+    names, values, blocks = [], [], []
+    for coefficient in model.coefficients.values():
+        names.extend(coefficient.parameters)
+        values.extend(np.asarray(coefficient.estimates, dtype=float))
+        blocks.append(np.asarray(coefficient.covariance, dtype=float))
+    covariance = np.zeros((len(names), len(names)))
+    start = 0
+    for block in blocks:
+        stop = start + block.shape[0]
+        covariance[start:stop, start:stop] = block
+        start = stop
+    return SimpleNamespace(
+        names=tuple(names),
+        values=np.array(values, dtype=float),
+        free=(True,) * len(names),
+        covariance=covariance,
+    )
+
+
+def _support_summary(model, signals: SignalMap) -> dict:
+    """The ``global_model`` entry of export.json: variables with the data's box and the
+    JSBSim expression each reads, coefficients with their terms, axes, the extrapolation
+    note."""
+    import xml.etree.ElementTree as ET
+
+    norm = model.normalisation
+    variables = []
+    for k, name in enumerate(norm.names):
+        try:
+            expression = ET.tostring(signals.expression(name), encoding="unicode")
+        except (KeyError, JSBSimExportError):
+            expression = None  # a variable no selected term uses may have none
+        variables.append(
+            {
+                "name": name,
+                "unit": norm.units[k],
+                "low": float(norm.low[k]),
+                "high": float(norm.high[k]),
+                "jsbsim": expression,
+                "jsbsim_unit": _expected_unit(name, signals.controls, signals.thrust_input),
+            }
+        )
+    return {
+        "global_model": {
+            "variables": variables,
+            "coefficients": {
+                name: dict(zip(c.parameters, c.terms, strict=True))
+                for name, c in model.coefficients.items()
+            },
+            "maneuvers": len(model.sources),
+            "axes": AXES_NOTE,
+            "extrapolation": EXTRAPOLATION_NOTE,
+        }
+    }
+
+
+def _check_model(model) -> None:
+    from flightid.aircraft.aero import COEFFICIENTS
+    from flightid.globalmodel.model import GlobalModel
+
+    if not isinstance(model, GlobalModel):
+        raise InputTypeError(f"model: expected a GlobalModel, got {describe(model)}")
+    unknown = [c for c in model.coefficients if c not in COEFFICIENTS]
+    if unknown:
+        raise JSBSimExportError(
+            f"model: the coefficients {unknown} have no JSBSim axis; expected names from "
+            f"{list(COEFFICIENTS)}"
+        )
+    if not model.coefficients:
+        raise JSBSimExportError("model: expected at least one coefficient, got none")
+
+
+def write_jsbsim_global(
+    model,
+    airplane,
+    path_dir: str | Path,
+    *,
+    controls: Mapping[str, str] | None = None,
+    dynamic_pressure: str = "atmosphere",
+    reference_speed: float | None = None,
+    draws: int = 0,
+    seed: int | None = 0,
+    overwrite: bool = False,
+) -> JSBSimAircraft:
+    """Write the global model as a JSBSim aircraft folder (module docstring).
+
+    Args:
+        model: the ``GlobalModel`` (coefficients named CL, CD, CY, Cl, Cm, Cn, or CX, CZ).
+        airplane: the ``flightid.aircraft.Airplane`` (SI units): S, b, c̄, mass, inertia.
+        path_dir: the aircraft folder to create; its name is the aircraft name.
+        controls: variable name → JSBSim property (rad), added to / replacing
+            de, da, dr → fcs/elevator-pos-rad, fcs/left-aileron-pos-rad, fcs/rudder-pos-rad.
+        dynamic_pressure: "atmosphere" (JSBSim's q̄) or "airplane" (½ ρ V², the
+            airplane's ρ).
+        reference_speed: V0, m/s, for Vrel and dVrel terms.
+        draws: K ≥ 0 draws of θ̂ from each coefficient's default covariance
+            (``aerodynamics/draw_0001.xml`` …).
+        seed: seed of the draws.
+        overwrite: write into an existing non-empty folder.
+
+    Returns:
+        ``JSBSimAircraft``: the files written and the values.
+
+    Raises:
+        JSBSimExportError: a coefficient with no JSBSim axis, a variable with no JSBSim
+            counterpart or in another unit, bad options, or a non-empty folder.
+    """
+    _check_model(model)
+    _check_airplane(airplane)
+    if controls is not None and not isinstance(controls, Mapping):
+        raise InputTypeError(
+            f"controls: expected a mapping {{variable: JSBSim property}}, got {describe(controls)}"
+        )
+    aero = model.aero_model()
+    mapping = {**DEFAULT_CONTROLS, **dict(controls or {})}
+    _check_units(model, aero.signals, mapping, airplane.thrust_input)
+    span_ft = None if airplane.b is None else airplane.b / FT_M
+    signals = SignalMap(
+        span_ft, airplane.cbar / FT_M, reference_speed, "V", mapping, airplane.thrust_input
+    )
+    notes = (f"global model: {EXTRAPOLATION_NOTE}", f"axes: {AXES_NOTE}")
+    return write_aircraft(
+        _estimate(model),
+        airplane,
+        path_dir,
+        aero=aero,
+        draws=draws,
+        seed=seed,
+        reference_speed=reference_speed,
+        rate_speed="V",
+        controls=controls,
+        dynamic_pressure=dynamic_pressure,
+        overwrite=overwrite,
+        notes=notes,
+        summary=_support_summary(model, signals),
+    )
