@@ -181,3 +181,15 @@ def test_validate_fits_nothing(envelope, capsys, monkeypatch):
     assert main(["validate", str(_case(envelope))]) == 0
     out = capsys.readouterr().out
     assert "global_model 'envelope': 2 coefficient(s) over alpha, Mach, de, 2400 samples" in out
+
+
+def test_the_page_and_estimates_csv_hold_the_global_model(envelope):
+    out = envelope / "out"
+    assert main(["run", str(_case(envelope)), "--out", str(out), "--quiet"]) == 0
+    rows = (out / "estimates.csv").read_text().splitlines()
+    names = [row.split(",")[0] for row in rows[1:]]
+    assert names[:1] == ["CL_0"] and "Cm_de" in names and len(names) == 5 + 3
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "global model test: global model" in page and "fitted: 1 global model(s)" in page
+    # the correlation matrix of each coefficient; no empty residual-analysis section
+    assert "CL (global model)" in page and "Residual analysis" not in page

@@ -677,9 +677,14 @@ def write_stages_files(
                 )
             )
     for stage, model in getattr(run, "global_models", ()):
-        from flightid.report.globalmodel_reports import global_model_sections
+        from flightid.report import globalmodel_reports as global_report
 
-        fits += global_model_sections(stage, model, directory, figures)
+        rows += global_report.global_model_rows(model)
+        correlation.append(
+            f"<h3>Stage {stage.index}: {html.escape(stage.name)} ({stage.kind})</h3>"
+            + global_report.global_model_correlations(model)
+        )
+        fits += global_report.global_model_sections(stage, model, directory, figures)
     write_estimates_csv(rows, directory / ("estimates.csv" if alone else "stage_estimates.csv"))
     _write_csv(
         directory / "stage_time_histories.csv",
@@ -688,7 +693,7 @@ def write_stages_files(
     )
     case = run.case
     page = Page(
-        title=f"{case.title}: regression stages",
+        title=f"{case.title}: " + ("regression stages" if run.regressions else "global model"),
         provenance=provenance_rows(
             case.path,
             [spec.file for spec in case.maneuvers],
@@ -698,15 +703,21 @@ def write_stages_files(
         status=_status(
             True,
             "fitted",
-            f"{len(run.regressions)} regression stage(s)"
-            + (f", {len(run.global_models)} global model(s)" if run.global_models else "")
+            ", ".join(
+                f"{count} {what}"
+                for count, what in (
+                    (len(run.regressions), "regression stage(s)"),
+                    (len(getattr(run, "global_models", ())), "global model(s)"),
+                )
+                if count
+            )
             + ("" if alone else "; the output-error stage's report is report.html"),
         ),
         estimates_html=estimates_section(
             rows,
             note="Regression σ assume white residuals (Cramér–Rao) unless the residuals are "
-            "coloured, where the default σ is the coloured-residual one (see the residual "
-            "analysis).",
+            "coloured, where the default σ is the coloured-residual one"
+            + (" (see the residual analysis)." if run.regressions else "."),
         ),
         correlation_html="".join(correlation),
         residuals_heading="Residual analysis",

@@ -26,10 +26,22 @@ from pathlib import Path
 import numpy as np
 
 from flightid.report import svg_axes as ax
-from flightid.report.page import image, table
+from flightid.report.page import (
+    EstimateRow,
+    correlation_from_covariance,
+    correlation_section,
+    image,
+    table,
+)
 from flightid.report.svg_axes import Panel, PanelText, axis_label
 
-__all__ = ["carpet_svg", "global_model_sections", "write_global_model_files"]
+__all__ = [
+    "carpet_svg",
+    "global_model_correlations",
+    "global_model_rows",
+    "global_model_sections",
+    "write_global_model_files",
+]
 
 MODEL_FILE = "global_model.json"
 TERMS_FILE = "global_model_terms.csv"
@@ -172,7 +184,7 @@ def _terms_table(coefficient) -> str:
                 f"{row['value']:.6g}",
                 f"{row['std']:.3g}",
                 f"{row['std_cr']:.3g}",
-                "" if share is None else f"{100 * share:.2f} %",
+                "–" if share is None or not np.isfinite(share) else f"{100 * share:.2f} %",
             ]
         )
     headers = ["parameter", "term", "value", "σ (default)", "CR σ", "cost share"]
@@ -226,3 +238,38 @@ def variables_table(model) -> str:
         for v in model.normalisation.to_dict()
     ]
     return table(["variable", "unit", "low", "high"], rows)
+
+
+def global_model_rows(model) -> list[EstimateRow]:
+    """Every selected term of every coefficient as a row of the estimates table and of
+    estimates.csv (the parameter's name, unit, value, default σ and Cramér–Rao σ)."""
+    rows = []
+    for coefficient in model.coefficients.values():
+        for j, name in enumerate(coefficient.parameters):
+            rows.append(
+                EstimateRow(
+                    name=name,
+                    unit=coefficient.units[j] if coefficient.units else "",
+                    value=float(coefficient.estimates[j]),
+                    std=float(coefficient.std[j]),
+                    std_cr=float(coefficient.std_cr[j]),
+                    std_kind=coefficient.std_kind,
+                )
+            )
+    return rows
+
+
+def global_model_correlations(model) -> str:
+    """The correlation matrix of each coefficient's parameters (from the default
+    covariance), one table per coefficient with more than one term."""
+    parts = []
+    for name, coefficient in model.coefficients.items():
+        if len(coefficient.parameters) < 2:
+            continue
+        parts.append(f"<h3>{html.escape(name)} (global model)</h3>")
+        parts.append(
+            correlation_section(
+                list(coefficient.parameters), correlation_from_covariance(coefficient.covariance)
+            )
+        )
+    return "".join(parts)

@@ -479,7 +479,8 @@ def render_page(page: Page) -> str:
         parts.append("<h2>Run</h2>" + table(["item", "value"], page.run_facts, table_class="facts"))
     parts.append("<h2>Estimates</h2>" + page.estimates_html)
     parts.append("<h2>Correlation matrix [–]</h2>" + page.correlation_html)
-    parts.append(f"<h2>{html.escape(page.residuals_heading)}</h2>" + page.residuals_html)
+    if page.residuals_html:  # a section without content is left out
+        parts.append(f"<h2>{html.escape(page.residuals_heading)}</h2>" + page.residuals_html)
     for heading, fragment in page.fits:
         parts.append(f"<h2>{html.escape(heading)}</h2>" + fragment)
     parts.append("<h2>Files</h2>" + page.files_html)
