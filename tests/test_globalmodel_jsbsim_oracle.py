@@ -196,6 +196,30 @@ def test_checks_fail_outside_the_goals(study):
     assert passed == [True, False, True, True, True, False]
 
 
+def test_function_interval_coverage_by_hand(study):
+    truth = np.array([0.0, 0.0, 0.0, 1.0])
+    value = np.array([0.1, 0.3, -0.05, 3.0])
+    prediction = _prediction(value, 1.0, [0, 0, 0, 1])
+    # a prediction without the function interval (the model before it had one): NaN
+    assert math.isnan(study.function_interval_coverage(prediction, truth))
+    # half-width 0.2 about the value: errors 0.1 and −0.05 covered, 0.3 not; the fourth
+    # point is outside the support and not counted
+    prediction.function_lower, prediction.function_upper = value - 0.2, value + 0.2
+    assert study.function_interval_coverage(prediction, truth) == pytest.approx(2 / 3)
+
+
+def test_checks_use_the_function_interval_where_there_is_one(study):
+    def run(pi, function):
+        return {"held_out": {"coverage_inside": pi}, "held_out_function_coverage": function,
+                "beyond_flagged": 1.0}  # fmt: skip
+
+    results = {"runs": {"global": {"CL": run(1.0, 0.95), "CD": run(0.95, float("nan")),
+                                   "Cm": run(0.95, 0.85)}}}  # fmt: skip
+    checked = study.checks(results)
+    assert [ok for ok, _ in checked[:3]] == [True, True, False]
+    assert "function interval" in checked[0][1] and "prediction interval" in checked[1][1]
+
+
 def test_the_stand_in_fitter_is_least_squares_and_flags_extrapolation(study):
     """The stand-in (the study's plumbing until the package lands): its value is the
     numpy least-squares fit of the same monomials; points far beyond the data are flagged."""
