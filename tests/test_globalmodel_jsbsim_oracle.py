@@ -220,6 +220,19 @@ def test_checks_use_the_function_interval_where_there_is_one(study):
     assert "function interval" in checked[0][1] and "prediction interval" in checked[1][1]
 
 
+def test_flagged_shares_and_the_table_of_settings_tried(study):
+    outside = np.array([True, False, True, True])
+    assert study._flagged_share(outside, np.array([1, 1, 0, 1], dtype=bool)) == pytest.approx(2 / 3)
+    assert math.isnan(study._flagged_share(outside, np.zeros(4, dtype=bool)))
+    row = {"choice": "x", "coefficient": "CL", "terms": 3, "pse": 1e-4, "held_out_rms": 0.002,
+           "pi_covers_truth": 0.99, "pi_covers_measured": 0.95,
+           "function_covers_truth": float("nan"), "grid_rms_inside": 0.01}  # fmt: skip
+    table = study.format_explored([row, {**row, "function_covers_truth": 0.93}])
+    lines = table.splitlines()
+    assert len(lines) == 4 and lines[2].count("|") == lines[0].count("|") == 10
+    assert "| n/a |" in lines[2] and "| 0.930 |" in lines[3]
+
+
 def test_the_stand_in_fitter_is_least_squares_and_flags_extrapolation(study):
     """The stand-in (the study's plumbing until the package lands): its value is the
     numpy least-squares fit of the same monomials; points far beyond the data are flagged."""
@@ -292,6 +305,8 @@ def test_the_quick_study_runs_end_to_end_with_the_stand_in(study, oracle, tmp_pa
     assert len(index) == 18 and sum(f["held_out"] for f in index) == 6
     table = np.genfromtxt(data / index[0]["file"], delimiter=",", names=True)
     assert np.ptp(table["truth_CL"]) > 0.05
+    # written at 10 Hz (every 5th sample of the 50 Hz recording)
+    np.testing.assert_allclose(np.diff(table["time_s"]), 0.1, atol=1e-9)
     # the written coefficients are the reconstruction from noisy motion: near the truth
     # column (the study's noise gives an RMS of about 0.003), never equal to it
     rms = np.sqrt(np.mean((table["CL"] - table["truth_CL"]) ** 2))
