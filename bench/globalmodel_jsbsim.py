@@ -1022,7 +1022,7 @@ def fit_and_measure(
 
 
 def _choice_record(choice: FitChoice) -> dict:
-    knots = None if not choice.knots else {k: [float(x) for x in v] for k, v in choice.knots.items()}
+    knots = {k: [float(x) for x in v] for k, v in (choice.knots or {}).items()} or None
     return {"name": choice.name, "variables": list(choice.variables),
             "orders": {v: choice.orders[v] for v in choice.variables},
             "max_order": choice.max_order, "decimate": choice.decimate,
