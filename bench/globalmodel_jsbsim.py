@@ -25,26 +25,34 @@ designed elevator-stick inputs (a multisine of ``flightid.design``, a pull-up wi
 multisine on top, in the full study a 3-2-1-1 on a gentle pull, and a combined maneuver held
 out from the fit), simulated at 150 Hz and recorded at 50 Hz until the aircraft leaves the
 study's envelope (``ENVELOPE``: α −10…30°, q̄ ≥ 2000 Pa). Lateral maneuvers are left out
-(``maneuver_designs``: the flaperon mix they move is not a variable of the models). Measurement noise (seeded) is added to what a flight-test instrumentation
-would record; the coefficients are reconstructed from the noisy motion with
-``aero_coefficients`` (specific forces, rates, rate derivatives by ``smooth_derivative``, q̄,
-thrust, mass and geometry read from JSBSim), as a user would; the per-sample truth is the
-oracle at the true states.
+(``maneuver_designs``: the flaperon mix they move is not a variable of the models).
+Measurement noise (seeded) is added to what a flight-test instrumentation would record; the
+coefficients are reconstructed from the noisy motion with ``aero_coefficients`` (specific
+forces, rates, rate derivatives by ``smooth_derivative``, q̄, thrust, mass and geometry read
+from JSBSim), as a user would; the per-sample truth is the oracle at the true states.
 
-Measures (``fit_and_measure``): a global model of C_L, C_D, C_m over (α, M, δh, q̂) fitted to
-the reconstructed coefficients of all but one maneuver per condition; on the held-out maneuvers
-and on a grid (α from below the data to well beyond it, Mach steps, δh at the data's trim
-schedule, q̂ = 0): the share of the truth inside the 95 % prediction interval where the model
-says it is inside its support, the RMS error inside the support, the share flagged outside,
-and the RMS error inside vs outside the flag.
+Measures (``fit_and_measure``): a global model of C_L, C_D, C_m over (α, M, δh, q̂, lef) with
+the settings ``STUDY_CHOICE`` (its comment gives the reasons) fitted to the reconstructed
+coefficients of all but one maneuver per condition; on the held-out maneuvers and on a grid
+(α from below the data to well beyond it, Mach steps, δh at the data's trim schedule, q̂ = 0,
+lef as the flight controls set it): the share of the truth inside the 95 % interval of the
+coefficient itself (``function_lower`` … ``function_upper``, where the model gives it; "n/a"
+where not) and inside the 95 % prediction interval, where the model says it is inside its
+support; the prediction interval's share of the reconstructed (measured) coefficient; the RMS
+error inside the support, the share flagged outside, the RMS error inside vs outside the
+flag; the shares of grid points flagged with α more than 5° above or below the data and with
+Mach more than 0.05 above it. ``--explore`` adds the table of the settings tried
+(``EXPLORED_CHOICES``).
 
 Usage::
 
     PYTHONPATH=src python bench/globalmodel_jsbsim.py [--quick] [--write-data DIR]
-        [--carpets PATH] [--stand-in]
+        [--carpets PATH] [--explore] [--stand-in]
 
 It prints ``<!-- guide: docs/globalmodel.md -->``, the table between the numbers markers,
-and PASS/FAIL lines. ``--stand-in`` fits with the fixed-polynomial stand-in of this module
+and PASS/FAIL lines. ``--write-data`` writes the maneuvers as CSV at 10 Hz (the shipped
+example ``examples/data/globalmodel_f16`` is ``--quick --write-data``). ``--stand-in`` fits
+with the fixed-polynomial stand-in of this module
 instead of ``flightid.globalmodel`` (a check of the study's plumbing, not of the method).
 """
 
@@ -584,6 +592,9 @@ class StandInSettings:
     max_order: int = 3
     decimate: int = 5
     residual_variance: str = "global"
+    sigma2_max: str = "response"  # no term selection in the stand-in: not used
+    knots: Mapping | None = None  # the stand-in offers monomials only: not used
+    cross_with: tuple[str, ...] = ()  # not used
 
 
 @dataclass(frozen=True)
@@ -733,21 +744,93 @@ def stand_in_fitter(signals, responses, variables, *, settings, maneuver_index, 
 
 
 # ------------------------------------------------------------------------------ the measures
-ORDERS = {"alpha": 4, "Mach": 2, "de": 2, "qhat": 1}
-MAX_ORDER = 3
-DECIMATE = 5
+@dataclass(frozen=True)
+class FitChoice:
+    """The settings of the study's global models: the variables (``lef`` the leading-edge
+    flap, rad), the highest power per variable and in total, the decimation per maneuver and
+    PSE's σ²_max (``GlobalModelSettings``)."""
+
+    name: str
+    variables: tuple[str, ...] = FIT_VARIABLES
+    orders: Mapping[str, int] = field(
+        default_factory=lambda: {"alpha": 4, "Mach": 2, "de": 2, "qhat": 1, "lef": 1}
+    )
+    max_order: int = 3
+    decimate: int = 5
+    sigma2_max: str = "response"
+    knots: Mapping[str, Sequence[float]] | None = None
+    cross_with: tuple[str, ...] = ()
+
+    def settings(self, settings_type: type, residual_variance: str):
+        orders = {v: self.orders[v] for v in self.variables}
+        extra = {} if self.sigma2_max == "response" else {"sigma2_max": self.sigma2_max}
+        if self.knots:
+            extra.update(knots=dict(self.knots), cross_with=self.cross_with)
+        return settings_type(orders=orders, max_order=self.max_order, decimate=self.decimate,
+                             residual_variance=residual_variance, **extra)  # fmt: skip
+
+
+_ORDERS_4 = {"alpha": 4, "Mach": 2, "de": 2, "qhat": 1, "lef": 1}
+_ORDERS_5 = {"alpha": 5, "Mach": 2, "de": 2, "qhat": 1, "lef": 1}
+_WITH_LEF = (*FIT_VARIABLES, "lef")
+
+# The study's settings, chosen for reasons of the data and the truth, not by the coverage:
+# * the leading-edge flap ``lef`` is a variable: the truth's tables depend on it and the
+#   flight controls move it in steps with α (0 → 0.262 rad at 5°, → 0.436 rad at 15°), which
+#   no polynomial in (α, M, δh, q̂) can follow;
+# * σ²_max = "full": "response" takes the variance of C_L over the whole envelope (σ ≈ 0.35,
+#   about 10⁴ times the reconstruction noise's variance) as PSE's penalty scale, so that the
+#   selection stops with a training residual several times the reconstruction noise;
+#   "full" (s² of the fit on every candidate) is the noise-plus-lack-of-fit floor the data
+#   can resolve;
+# * α to the 5th power and total order 4: C_L(α) bends towards the stall, and with total
+#   order 3 the α⁴ of the orders is never offered;
+# * decimation 5 (10 Hz, 0.1 s): about the residuals' correlation time; more samples add no
+#   information (the coloured-residual covariance accounts for the correlation), fewer thin
+#   the support's reference set (in the full study the α-below flag drops to 0 at 10).
+STUDY_CHOICE = FitChoice("+lef, full, alpha^5, order 4", _WITH_LEF, _ORDERS_5, max_order=4,
+                         sigma2_max="full")  # fmt: skip
+
+# the settings tried (``--explore``), the study's last
+EXPLORED_CHOICES = (
+    FitChoice("alpha, M, de, qhat (earlier)", FIT_VARIABLES, _ORDERS_4),
+    FitChoice("+ full", FIT_VARIABLES, _ORDERS_4, sigma2_max="full"),
+    FitChoice("decimate 1", FIT_VARIABLES, _ORDERS_4, decimate=1),
+    FitChoice("decimate 10", FIT_VARIABLES, _ORDERS_4, decimate=10),
+    FitChoice("alpha^5, order 4", FIT_VARIABLES, _ORDERS_5, max_order=4),
+    FitChoice("full, alpha^5, order 4", FIT_VARIABLES, _ORDERS_5, max_order=4, sigma2_max="full"),
+    FitChoice("+lef", _WITH_LEF, _ORDERS_4),
+    FitChoice("+lef, full", _WITH_LEF, _ORDERS_4, sigma2_max="full"),
+    FitChoice("+lef, full, decimate 1", _WITH_LEF, _ORDERS_4, decimate=1, sigma2_max="full"),
+    # piecewise linear in α (ramps (α − κ)₊ at −5°…20° every 5°, each also times M, δh, q̂,
+    # lef): the truth's tables are linear between breakpoints 5° apart; the study does not
+    # use it, since it places the knots by knowledge of the truth a user would not have
+    FitChoice(
+        "+lef, full, alpha ramps every 5 deg",
+        _WITH_LEF,
+        {"alpha": 1, "Mach": 2, "de": 2, "qhat": 1, "lef": 1},
+        sigma2_max="full",
+        knots={"alpha": tuple(np.arange(-5.0, 20.5, 5.0) * DEG)},
+        cross_with=("Mach", "de", "qhat", "lef"),
+    ),  # fmt: skip
+    STUDY_CHOICE,
+)
+
+
+POINT_VARIABLES = (*FIT_VARIABLES, "lef")
 
 
 def _samples(flights: Sequence[Flight], which: str) -> dict[str, np.ndarray]:
-    """The fit variables, coefficients, truth and maneuver index of ``flights`` stacked:
-    ``which="measured"`` the variables as measured and the reconstructed coefficients (what
-    the fit sees), ``"true"`` the true variables (where the held-out truth is)."""
-    out: dict[str, list] = {k: [] for k in (*FIT_VARIABLES, *FIT_RESPONSES, "maneuver")}
+    """The candidate variables (``POINT_VARIABLES``), coefficients, truth and maneuver index
+    of ``flights`` stacked: ``which="measured"`` the variables as measured and the
+    reconstructed coefficients (what the fit sees), ``"true"`` the true variables (where the
+    held-out truth is)."""
+    out: dict[str, list] = {k: [] for k in (*POINT_VARIABLES, *FIT_RESPONSES, "maneuver")}
     out.update({f"truth_{c}": [] for c in FIT_RESPONSES})
     for index, flight in enumerate(flights):
         source = flight.measured if which == "measured" else flight.true
         qhat = source["q"] * flight.geometry["cbar_m"] / (2.0 * source["V"])  # q̂ = q c̄ / 2V
-        for name in FIT_VARIABLES:
+        for name in POINT_VARIABLES:
             out[name].append(qhat if name == "qhat" else source[name])
         for c in FIT_RESPONSES:
             out[c].append(flight.coefficients[c])
@@ -792,11 +875,13 @@ def trim_schedule(alpha: np.ndarray, de: np.ndarray, bin_rad: float = 2 * DEG):
 
 def grid_points(quick: bool, schedule) -> dict[str, np.ndarray]:
     """The grid of the carpets and the extrapolation check: α from −10° to 40° in 1° steps ×
-    Mach 0.3…1.0 (steps 0.05; quick 0.1), δh at the data's trim schedule, q̂ = 0."""
+    Mach 0.3…1.0 (steps 0.05; quick 0.1), δh at the data's trim schedule, q̂ = 0, the
+    leading-edge flap where the flight controls put it (``lef_schedule``)."""
     alpha = np.arange(-10.0, 40.5, 1.0) * DEG
     mach = np.round(np.arange(0.3, 1.001, 0.1 if quick else 0.05), 2)
     A, M = np.meshgrid(alpha, mach)  # (n_mach, n_alpha)
-    return {"alpha": A, "Mach": M, "de": schedule(A), "qhat": np.zeros_like(A)}
+    return {"alpha": A, "Mach": M, "de": schedule(A), "qhat": np.zeros_like(A),
+            "lef": lef_schedule(A, M)}  # fmt: skip
 
 
 def _fitter_and_settings(fitter, settings_type):
@@ -818,24 +903,49 @@ def mean_band_coverage(prediction, truth: np.ndarray) -> float:
     return float(covered[inside].mean()) if inside.any() else float("nan")
 
 
+def function_interval_coverage(prediction, truth: np.ndarray) -> float:
+    """Share of the truth inside the interval of the coefficient itself
+    (``function_lower`` … ``function_upper``: the mean band widened by the model-error
+    variance, without the measurement noise) where the model says it is inside its support;
+    NaN where the prediction has no such interval."""
+    lower = getattr(prediction, "function_lower", None)
+    upper = getattr(prediction, "function_upper", None)
+    if lower is None or upper is None:
+        return float("nan")
+    inside = ~np.asarray(prediction.outside, dtype=bool)
+    covered = (np.asarray(lower) <= truth) & (truth <= np.asarray(upper))
+    return float(covered[inside].mean()) if inside.any() else float("nan")
+
+
+def _flagged_share(outside: np.ndarray, mask: np.ndarray) -> float:
+    """Share of the points under ``mask`` flagged outside (NaN where there are none)."""
+    mask = np.asarray(mask).ravel()
+    return float(outside[mask].mean()) if mask.any() else float("nan")
+
+
 def _coefficient_measures(model, c: str, predictions: Mapping, data: Mapping) -> dict:
     """One coefficient's measures (``fit_and_measure``)."""
     held, grid = predictions["held"][c], predictions["grid"][c]
     outside = np.asarray(grid.outside, dtype=bool)
     shape = data["grid"]["alpha"].shape
+    held_truth, grid_truth = data["held"][f"truth_{c}"], data["grid_truth"][c].ravel()
     measured = interval_measures(predictions["held_measured"][c], data["held_measured"][c])
-    carpet = {k: np.asarray(getattr(grid, k)).reshape(shape).tolist()
-              for k in ("value", "lower", "upper", "outside")}  # fmt: skip
+    keys = ["value", "lower", "upper", "outside"]
+    keys += [k for k in ("function_lower", "function_upper") if hasattr(grid, k)]
+    carpet = {k: np.asarray(getattr(grid, k)).reshape(shape).tolist() for k in keys}
     carpet["truth"] = data["grid_truth"][c].tolist()
     return {
         "terms": list(model.coefficients[c].terms),
         "pse": float(model.coefficients[c].pse),
-        "held_out": interval_measures(held, data["held"][f"truth_{c}"]),
+        "held_out": interval_measures(held, held_truth),
         "held_out_measured_coverage": measured["coverage_inside"],
-        "held_out_mean_band_coverage": mean_band_coverage(held, data["held"][f"truth_{c}"]),
-        "grid": interval_measures(grid, data["grid_truth"][c].ravel()),
-        "beyond_flagged": float(outside[data["beyond"].ravel()].mean()),
-        "below_flagged": float(outside[data["below"].ravel()].mean()),
+        "held_out_mean_band_coverage": mean_band_coverage(held, held_truth),
+        "held_out_function_coverage": function_interval_coverage(held, held_truth),
+        "grid": interval_measures(grid, grid_truth),
+        "grid_function_coverage": function_interval_coverage(grid, grid_truth),
+        "beyond_flagged": _flagged_share(outside, data["beyond"]),
+        "below_flagged": _flagged_share(outside, data["below"]),
+        "mach_beyond_flagged": _flagged_share(outside, data["mach_beyond"]),
         "carpet": carpet,
     }
 
@@ -846,42 +956,52 @@ def fit_and_measure(
     quick: bool,
     fitter: Callable | None = None,
     settings_type: type | None = None,
+    choice: FitChoice = STUDY_CHOICE,
+    variances: Sequence[str] | None = None,
 ) -> dict:
-    """Fit C_L, C_D, C_m over (α, M, δh, q̂) to the reconstructed coefficients of the flights
-    not held out (``fitter``: default ``flightid.globalmodel.fit_global_model``), then measure
-    (``interval_measures``) on the held-out maneuvers (at their true states against their
-    per-sample truth; also the interval's coverage of the reconstructed coefficient at the
-    measured states, what a prediction interval promises, and the mean band's coverage of
-    the truth) and on the grid (against ``truth_oracle``), once per residual variance
-    ("global"; the full study also "local"). Returns the measures, the selected terms, PSE,
-    the grid's carpets and the extrapolation checks (α more than 5° above or below the data)."""
+    """Fit C_L, C_D, C_m over ``choice.variables`` to the reconstructed coefficients of the
+    flights not held out (``fitter``: default ``flightid.globalmodel.fit_global_model``),
+    then measure (``interval_measures``) on the held-out maneuvers (at their true states
+    against their per-sample truth; also the interval's coverage of the reconstructed
+    coefficient at the measured states, what a prediction interval promises, and the mean
+    band's and the function interval's coverage of the truth) and on the grid (against
+    ``truth_oracle``), once per residual variance (``variances``; default "global", the full
+    study also "local"). Returns the measures, the selected terms, PSE, the grid's carpets
+    and the extrapolation checks (α more than 5° above or below the data, Mach more than
+    0.05 above it)."""
     fit, settings_type = _fitter_and_settings(fitter, settings_type)
+    variables = choice.variables
     train = _samples([f for f in flights if not f.held_out], "measured")
     held = _samples([f for f in flights if f.held_out], "true")
     held_measured = _samples([f for f in flights if f.held_out], "measured")
     grid = grid_points(quick, trim_schedule(train["alpha"], train["de"]))
     alpha_min, alpha_max = float(train["alpha"].min()), float(train["alpha"].max())
+    mach_max = float(train["Mach"].max())
     data = {
         "held": held,
         "held_measured": held_measured,
         "grid": grid,
-        "grid_truth": truth_oracle({k: grid[k] for k in FIT_VARIABLES}),
+        "grid_truth": truth_oracle({k: grid[k] for k in POINT_VARIABLES}),
         "beyond": grid["alpha"] > alpha_max + 5 * DEG,
         "below": grid["alpha"] < alpha_min - 5 * DEG,
+        "mach_beyond": grid["Mach"] > mach_max + 0.05,
     }
     results: dict = {"alpha_data_max_deg": alpha_max / DEG, "alpha_data_min_deg": alpha_min / DEG,
+                     "mach_data_max": mach_max, "choice": _choice_record(choice),
                      "runs": {}}  # fmt: skip
-    for variance in ("global",) if quick else ("global", "local"):
-        settings = settings_type(orders=dict(ORDERS), max_order=MAX_ORDER, decimate=DECIMATE,
-                                 residual_variance=variance)  # fmt: skip
-        model = fit({k: train[k] for k in (*FIT_VARIABLES, *FIT_RESPONSES)},
-                    responses={c: c for c in FIT_RESPONSES}, variables=list(FIT_VARIABLES),
-                    settings=settings, maneuver_index=train["maneuver"], dt=1.0 / SAMPLE_HZ,
-                    units={"alpha": "rad", "Mach": "1", "de": "rad", "qhat": "1"})  # fmt: skip
+    if variances is None:
+        variances = ("global",) if quick else ("global", "local")
+    units = {"alpha": "rad", "Mach": "1", "de": "rad", "qhat": "1", "lef": "rad"}
+    for variance in variances:
+        model = fit({k: train[k] for k in (*variables, *FIT_RESPONSES)},
+                    responses={c: c for c in FIT_RESPONSES}, variables=list(variables),
+                    settings=choice.settings(settings_type, variance),
+                    maneuver_index=train["maneuver"], dt=1.0 / SAMPLE_HZ,
+                    units={v: units[v] for v in variables})  # fmt: skip
         predictions = {
-            "held": model.predict({k: held[k] for k in FIT_VARIABLES}),
-            "held_measured": model.predict({k: held_measured[k] for k in FIT_VARIABLES}),
-            "grid": model.predict({k: grid[k].ravel() for k in FIT_VARIABLES}),
+            "held": model.predict({k: held[k] for k in variables}),
+            "held_measured": model.predict({k: held_measured[k] for k in variables}),
+            "grid": model.predict({k: grid[k].ravel() for k in variables}),
         }
         results["runs"][variance] = {
             c: _coefficient_measures(model, c, predictions, data) for c in FIT_RESPONSES
@@ -890,6 +1010,7 @@ def fit_and_measure(
         "alpha_deg": (grid["alpha"][0] / DEG).tolist(),
         "Mach": grid["Mach"][:, 0].tolist(),
         "de_rad": grid["de"].tolist(),
+        "lef_rad": grid["lef"].tolist(),
     }
     thin = slice(None, None, 25)
     results["data"] = {
@@ -898,6 +1019,15 @@ def fit_and_measure(
         **{c: train[c][thin].tolist() for c in FIT_RESPONSES},
     }
     return results
+
+
+def _choice_record(choice: FitChoice) -> dict:
+    knots = {k: [float(x) for x in v] for k, v in (choice.knots or {}).items()} or None
+    return {"name": choice.name, "variables": list(choice.variables),
+            "orders": {v: choice.orders[v] for v in choice.variables},
+            "max_order": choice.max_order, "decimate": choice.decimate,
+            "sigma2_max": choice.sigma2_max, "knots": knots,
+            "cross_with": list(choice.cross_with)}  # fmt: skip
 
 
 def noise_share(flights: Sequence[Flight]) -> dict[str, dict[str, float]]:
@@ -931,9 +1061,10 @@ def fly_all(oracle: TruthOracle, quick: bool, seed: int = 29) -> list[Flight]:
 
 
 def study(quick: bool = False, fitter: Callable | None = None, settings_type: type | None = None,
-          write_data: Path | None = None) -> dict:  # fmt: skip
+          write_data: Path | None = None, explore: bool = False) -> dict:  # fmt: skip
     """Fly, reconstruct, fit and measure (module docstring); the results of
-    ``fit_and_measure`` plus the reconstruction-noise share, sample counts and wall times."""
+    ``fit_and_measure`` with ``STUDY_CHOICE`` plus the reconstruction-noise share, sample
+    counts and wall times; ``explore``: also the rows of ``explore_choices``."""
     start = time.perf_counter()
     with truth_oracle() as oracle:
         flights = fly_all(oracle, quick)
@@ -943,6 +1074,8 @@ def study(quick: bool = False, fitter: Callable | None = None, settings_type: ty
         results = fit_and_measure(
             flights, oracle, quick, fitter=fitter, settings_type=settings_type
         )
+        if explore:
+            results["explored"] = explore_choices(flights, oracle, quick, fitter, settings_type)
     results["noise"] = noise_share(flights)
     results["samples"] = {
         "fit": int(sum(f.time_s.size for f in flights if not f.held_out)),
@@ -955,22 +1088,71 @@ def study(quick: bool = False, fitter: Callable | None = None, settings_type: ty
     return results
 
 
-def checks(results: Mapping) -> list[tuple[bool, str]]:
-    """The study's targets as (passed, line): coverage of the truth by the 95 % prediction
-    interval inside the support on the held-out maneuvers within ``COVERAGE_GOAL`` per
-    coefficient (residual variance "global"), and ≥ 90 % of the grid points with α beyond
-    the data's largest + 5° flagged outside."""
-    lines = []
-    run = results["runs"]["global"]
-    low, high = COVERAGE_GOAL
-    for c in FIT_RESPONSES:
-        cover = run[c]["held_out"]["coverage_inside"]
+def explore_choices(
+    flights: Sequence[Flight],
+    oracle: TruthOracle,
+    quick: bool,
+    fitter: Callable | None = None,
+    settings_type: type | None = None,
+    choices: Sequence[FitChoice] = EXPLORED_CHOICES,
+) -> list[dict]:
+    """One row per setting and coefficient (residual variance "global"): terms, PSE, the
+    held-out RMS error and interval coverages, the grid RMS error inside the support."""
+    rows = []
+    for choice in choices:
+        results = fit_and_measure(flights, oracle, quick, fitter, settings_type, choice=choice,
+                                  variances=("global",))  # fmt: skip
+        for c in FIT_RESPONSES:
+            r = results["runs"]["global"][c]
+            rows.append({
+                "choice": choice.name, "coefficient": c, "terms": len(r["terms"]),
+                "pse": r["pse"], "held_out_rms": r["held_out"]["rms_inside"],
+                "pi_covers_truth": r["held_out"]["coverage_inside"],
+                "pi_covers_measured": r["held_out_measured_coverage"],
+                "function_covers_truth": r["held_out_function_coverage"],
+                "grid_rms_inside": r["grid"]["rms_inside"],
+            })  # fmt: skip
+    return rows
+
+
+def format_explored(rows: Sequence[Mapping]) -> str:
+    """The table of the settings tried (``explore_choices``)."""
+    lines = [
+        "| settings | coefficient | terms | PSE | held-out RMS | PI covers truth | "
+        "PI covers measured | function interval covers truth | grid RMS inside |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
         lines.append(
-            (
-                low <= cover <= high,
-                f"{c}: held-out coverage inside the support {cover:.3f} in [{low:.2f}, {high:.2f}]",
-            )
+            f"| {r['choice']} | {r['coefficient']} | {r['terms']} | {r['pse']:.3e} | "
+            f"{_number(r['held_out_rms'], 4)} | {_number(r['pi_covers_truth'])} | "
+            f"{_number(r['pi_covers_measured'])} | {_na(r['function_covers_truth'])} | "
+            f"{_number(r['grid_rms_inside'], 4)} |"
         )
+    return "\n".join(lines)
+
+
+def _coverage_check(c: str, r: Mapping) -> tuple[bool, str]:
+    """The coverage goal on the function interval where the model has one, else on the
+    prediction interval."""
+    low, high = COVERAGE_GOAL
+    cover = r.get("held_out_function_coverage", float("nan"))
+    what = "function interval"
+    if not np.isfinite(cover):
+        cover, what = r["held_out"]["coverage_inside"], "prediction interval"
+    ok = bool(low <= cover <= high)
+    return ok, (f"{c}: held-out truth inside the 95 % {what} (inside the support) {cover:.3f} "
+                f"in [{low:.2f}, {high:.2f}]")  # fmt: skip
+
+
+def checks(results: Mapping) -> list[tuple[bool, str]]:
+    """The study's targets as (passed, line): coverage of the held-out truth inside the
+    support within ``COVERAGE_GOAL`` per coefficient (residual variance "global"), by the
+    95 % interval of the coefficient itself (``function_lower`` … ``function_upper``) where
+    the model gives one, else by the prediction interval; and ≥ 90 % of the grid points with
+    α beyond the data's largest + 5° flagged outside."""
+    run = results["runs"]["global"]
+    lines = [_coverage_check(c, run[c]) for c in FIT_RESPONSES]
     for c in FIT_RESPONSES:
         share = run[c]["beyond_flagged"]
         lines.append((share >= BEYOND_FLAGGED_GOAL,
@@ -983,45 +1165,62 @@ def _number(x: float, digits: int = 3) -> str:
     return "–" if not np.isfinite(x) else f"{x:.{digits}f}"
 
 
+def _na(x: float, digits: int = 3) -> str:
+    """A measure the fitted model may not offer (the function interval): "n/a" if NaN."""
+    return "n/a" if not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def _settings_line(choice: Mapping) -> str:
+    orders = ", ".join(f"{k} {v}" for k, v in choice["orders"].items())
+    return (f"settings: variables {', '.join(choice['variables'])}; orders {orders}; "
+            f"max_order {choice['max_order']}; sigma2_max {choice['sigma2_max']}; "
+            f"decimate {choice['decimate']}")  # fmt: skip
+
+
 def format_tables(results: Mapping) -> str:
-    """The numbers region: per residual variance and coefficient the held-out and grid
-    measures; the selected terms and PSE; the reconstruction-noise share."""
+    """The numbers region: the settings; per residual variance and coefficient the held-out
+    and grid measures; the selected terms and PSE; the reconstruction-noise share."""
     s = results["samples"]
     lines = [
         "<!-- numbers: globalmodel-jsbsim -->",
         f"F-16 (JSBSim): {s['conditions']} trim conditions, {s['maneuvers']} maneuvers, "
-        f"{s['fit']} samples fitted at 50 Hz (decimated by {DECIMATE}), {s['held_out']} held out; "
-        f"data alpha {results['alpha_data_min_deg']:.1f} to "
-        f"{results['alpha_data_max_deg']:.1f} deg",
+        f"{s['fit']} samples fitted at 50 Hz (decimated by {results['choice']['decimate']}), "
+        f"{s['held_out']} held out; data alpha {results['alpha_data_min_deg']:.1f} to "
+        f"{results['alpha_data_max_deg']:.1f} deg, Mach up to {results['mach_data_max']:.2f}",
+        _settings_line(results["choice"]),
         "",
-        "| residual variance | coefficient | terms | PSE | held-out PI covers truth | "
-        "PI covers measured | mean band covers truth | held-out RMS | held-out flagged |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| residual variance | coefficient | terms | PSE | held-out function interval covers "
+        "truth | PI covers truth | PI covers measured | mean band covers truth | "
+        "held-out RMS | held-out flagged |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for variance, run in results["runs"].items():
         for c in FIT_RESPONSES:
             r, h = run[c], run[c]["held_out"]
             lines.append(
                 f"| {variance} | {c} | {len(r['terms'])} | {r['pse']:.3e} | "
-                f"{_number(h['coverage_inside'])} | {_number(r['held_out_measured_coverage'])} | "
+                f"{_na(r['held_out_function_coverage'])} | {_number(h['coverage_inside'])} | "
+                f"{_number(r['held_out_measured_coverage'])} | "
                 f"{_number(r['held_out_mean_band_coverage'])} | {_number(h['rms_inside'], 4)} | "
                 f"{_number(h['flagged'])} |"
             )
     lines += [
         "",
-        "| residual variance | coefficient | grid PI covers truth | grid RMS inside | "
-        "grid RMS outside | grid flagged | alpha > max + 5 deg flagged | "
-        "alpha < min - 5 deg flagged |",
-        "|---|---|---|---|---|---|---|---|",
+        "| residual variance | coefficient | grid function interval covers truth | "
+        "grid PI covers truth | grid RMS inside | grid RMS outside | grid flagged | "
+        "alpha > max + 5 deg flagged | alpha < min - 5 deg flagged | "
+        "Mach > max + 0.05 flagged |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for variance, run in results["runs"].items():
         for c in FIT_RESPONSES:
             r, g = run[c], run[c]["grid"]
             lines.append(
-                f"| {variance} | {c} | {_number(g['coverage_inside'])} | "
+                f"| {variance} | {c} | {_na(r['grid_function_coverage'])} | "
+                f"{_number(g['coverage_inside'])} | "
                 f"{_number(g['rms_inside'], 4)} | {_number(g['rms_outside'], 4)} | "
                 f"{_number(g['flagged'])} | {_number(r['beyond_flagged'])} | "
-                f"{_number(r['below_flagged'])} |"
+                f"{_number(r['below_flagged'])} | {_number(r['mach_beyond_flagged'])} |"
             )
     lines += ["", "| coefficient | reconstruction RMS (measured − truth) | truth std | share |",
               "|---|---|---|---|"]  # fmt: skip
@@ -1037,13 +1236,16 @@ def format_tables(results: Mapping) -> str:
 
 
 def carpets(results: Mapping) -> dict:
-    """The carpet data for the figures: the α grid (deg) × Mach values, per residual
-    variance and coefficient the prediction (value, lower, upper), the truth and the flag,
-    arrays (n_Mach, n_alpha); the fitted data (every 25th sample)."""
+    """The carpet data for the figures: the α grid (deg) × Mach values (δh and lef along
+    the grid, the study's settings), per residual variance and coefficient the prediction
+    (value, lower, upper; function_lower, function_upper where the model gives them), the
+    truth and the flag, arrays (n_Mach, n_alpha); the fitted data (every 25th sample)."""
     return {
         "alpha_deg": results["grid"]["alpha_deg"],
         "Mach": results["grid"]["Mach"],
         "de_rad": results["grid"]["de_rad"],
+        "lef_rad": results["grid"]["lef_rad"],
+        "settings": results["choice"],
         "alpha_data_max_deg": results["alpha_data_max_deg"],
         "alpha_data_min_deg": results["alpha_data_min_deg"],
         "coefficients": {
@@ -1053,75 +1255,69 @@ def carpets(results: Mapping) -> dict:
     }
 
 
-# the columns of a written maneuver (SI)
+# the columns of a written maneuver (SI): name, key of the measured signals
 _CSV_COLUMNS = (
-    ("time_s", None),
     ("alpha_rad", "alpha"),
-    ("beta_rad", "beta"),
     ("Mach", "Mach"),
     ("V_m_s", "V"),
-    ("p_rad_s", "p"),
     ("q_rad_s", "q"),
-    ("r_rad_s", "r"),
-    ("ax_m_s2", "ax"),
-    ("ay_m_s2", "ay"),
-    ("az_m_s2", "az"),
-    ("qbar_Pa", "qbar"),
+    ("qhat", "qhat"),
     ("de_rad", "de"),
-    ("da_rad", "da"),
-    ("dr_rad", "dr"),
     ("lef_rad", "lef"),
-    ("thrust_N", "thrust"),
+    ("qbar_Pa", "qbar"),
 )
+WRITE_HZ = 10.0  # the written maneuvers' sample rate
+
+
+def maneuver_file_name(index: int, flight: Flight) -> str:
+    """``NN_M040_10kft_multisine.csv``: the maneuver's number, trim Mach × 100, altitude."""
+    c = flight.condition
+    altitude = f"{c.altitude_ft / 1000:.0f}kft"
+    return f"{index:02d}_M{round(100 * c.mach):03d}_{altitude}_{flight.maneuver}.csv"
 
 
 def write_flights(flights: Sequence[Flight], folder: Path) -> None:
-    """Each maneuver as CSV (the measured signals in SI, the reconstructed coefficients and
-    the per-sample truth ``truth_*``) and ``flights.json`` (conditions, maneuvers, files,
-    mass and geometry)."""
+    """Each maneuver as CSV at ``WRITE_HZ`` (every 5th sample; the measured signals in SI
+    with q̂ = q c̄ / 2V, the reconstructed C_L, C_D, C_m and the per-sample truth
+    ``truth_*``) and ``flights.json`` (conditions, maneuvers, files, mass and geometry)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    step = round(SAMPLE_HZ / WRITE_HZ)
+    header = ["time_s", *(c for c, _ in _CSV_COLUMNS), *FIT_RESPONSES,
+              *(f"truth_{c}" for c in FIT_RESPONSES)]  # fmt: skip
     index = []
     for k, f in enumerate(flights):
-        name = f"{k:02d}_{f.condition.label.replace('/', '_')}_{f.maneuver}.csv"
-        columns = [f.time_s] + [f.measured[key] for _, key in _CSV_COLUMNS[1:]]
-        columns += [f.coefficients[c] for c in COEFFICIENTS] + [f.truth[c] for c in COEFFICIENTS]
-        header = (
-            [c for c, _ in _CSV_COLUMNS] + list(COEFFICIENTS) + [f"truth_{c}" for c in COEFFICIENTS]
-        )
-        np.savetxt(
-            folder / name,
-            np.column_stack(columns),
-            delimiter=",",
-            header=",".join(header),
-            comments="",
-            fmt="%.10g",
-        )
-        index.append(
-            {
-                "file": name,
-                "mach": f.condition.mach,
-                "altitude_ft": f.condition.altitude_ft,
-                "maneuver": f.maneuver,
-                "held_out": f.held_out,
-                "geometry": f.geometry,
-            }
-        )
-    (folder / "flights.json").write_text(json.dumps(index, indent=1), encoding="utf-8")
+        name = maneuver_file_name(k, f)
+        columns = [f.time_s] + [f.measured[key] for _, key in _CSV_COLUMNS]
+        columns += [f.coefficients[c] for c in FIT_RESPONSES]
+        columns += [f.truth[c] for c in FIT_RESPONSES]
+        np.savetxt(folder / name, np.column_stack(columns)[::step], delimiter=",",
+                   header=",".join(header), comments="", fmt="%.6g")  # fmt: skip
+        index.append({"file": name, "mach": f.condition.mach,
+                      "altitude_ft": f.condition.altitude_ft, "maneuver": f.maneuver,
+                      "held_out": f.held_out, "sample_hz": WRITE_HZ,
+                      "geometry": f.geometry})  # fmt: skip
+    (folder / "flights.json").write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="6 conditions, shorter maneuvers")
-    parser.add_argument("--write-data", type=Path, help="write the maneuvers as CSV here")
+    parser.add_argument("--write-data", type=Path,
+                        help="write the maneuvers as CSV (10 Hz) here")  # fmt: skip
+    parser.add_argument("--explore", action="store_true",
+                        help="also print the table of the settings tried")  # fmt: skip
     parser.add_argument("--carpets", type=Path, help="write the carpet data (JSON) here")
     parser.add_argument("--stand-in", action="store_true",
                         help="fit with this module's fixed-polynomial stand-in")  # fmt: skip
     args = parser.parse_args(argv)
     fitter = stand_in_fitter if args.stand_in else None
-    results = study(args.quick, fitter=fitter, write_data=args.write_data)
+    results = study(args.quick, fitter=fitter, write_data=args.write_data, explore=args.explore)
     print("<!-- guide: docs/globalmodel.md -->")
     print(format_tables(results))
+    if args.explore:
+        print("\nsettings tried (residual variance global):")
+        print(format_explored(results["explored"]))
     wall = results["wall_s"]
     print(f"wall time: flights and truth {wall['flights']:.1f} s, total {wall['total']:.1f} s")
     if args.carpets is not None:

@@ -106,6 +106,8 @@ def test_files_without_stages_are_one_output_error_run():
             assert [s.kind for s in case.stages] == ["stepwise", "output_error", "prediction"]
         elif path.stem.startswith("unstab_sp_equation_error_"):
             assert [s.kind for s in case.stages] == ["regression"]
+        elif path.stem == "globalmodel_f16":
+            assert [s.kind for s in case.stages] == ["global_model"]
         else:
             assert case.stages == () and not case.staged, path.name
 

@@ -196,6 +196,43 @@ def test_checks_fail_outside_the_goals(study):
     assert passed == [True, False, True, True, True, False]
 
 
+def test_function_interval_coverage_by_hand(study):
+    truth = np.array([0.0, 0.0, 0.0, 1.0])
+    value = np.array([0.1, 0.3, -0.05, 3.0])
+    prediction = _prediction(value, 1.0, [0, 0, 0, 1])
+    # a prediction without the function interval (the model before it had one): NaN
+    assert math.isnan(study.function_interval_coverage(prediction, truth))
+    # half-width 0.2 about the value: errors 0.1 and −0.05 covered, 0.3 not; the fourth
+    # point is outside the support and not counted
+    prediction.function_lower, prediction.function_upper = value - 0.2, value + 0.2
+    assert study.function_interval_coverage(prediction, truth) == pytest.approx(2 / 3)
+
+
+def test_checks_use_the_function_interval_where_there_is_one(study):
+    def run(pi, function):
+        return {"held_out": {"coverage_inside": pi}, "held_out_function_coverage": function,
+                "beyond_flagged": 1.0}  # fmt: skip
+
+    results = {"runs": {"global": {"CL": run(1.0, 0.95), "CD": run(0.95, float("nan")),
+                                   "Cm": run(0.95, 0.85)}}}  # fmt: skip
+    checked = study.checks(results)
+    assert [ok for ok, _ in checked[:3]] == [True, True, False]
+    assert "function interval" in checked[0][1] and "prediction interval" in checked[1][1]
+
+
+def test_flagged_shares_and_the_table_of_settings_tried(study):
+    outside = np.array([True, False, True, True])
+    assert study._flagged_share(outside, np.array([1, 1, 0, 1], dtype=bool)) == pytest.approx(2 / 3)
+    assert math.isnan(study._flagged_share(outside, np.zeros(4, dtype=bool)))
+    row = {"choice": "x", "coefficient": "CL", "terms": 3, "pse": 1e-4, "held_out_rms": 0.002,
+           "pi_covers_truth": 0.99, "pi_covers_measured": 0.95,
+           "function_covers_truth": float("nan"), "grid_rms_inside": 0.01}  # fmt: skip
+    table = study.format_explored([row, {**row, "function_covers_truth": 0.93}])
+    lines = table.splitlines()
+    assert len(lines) == 4 and lines[2].count("|") == lines[0].count("|") == 10
+    assert "| n/a |" in lines[2] and "| 0.930 |" in lines[3]
+
+
 def test_the_stand_in_fitter_is_least_squares_and_flags_extrapolation(study):
     """The stand-in (the study's plumbing until the package lands): its value is the
     numpy least-squares fit of the same monomials; points far beyond the data are flagged."""
@@ -268,6 +305,8 @@ def test_the_quick_study_runs_end_to_end_with_the_stand_in(study, oracle, tmp_pa
     assert len(index) == 18 and sum(f["held_out"] for f in index) == 6
     table = np.genfromtxt(data / index[0]["file"], delimiter=",", names=True)
     assert np.ptp(table["truth_CL"]) > 0.05
+    # written at 10 Hz (every 5th sample of the 50 Hz recording)
+    np.testing.assert_allclose(np.diff(table["time_s"]), 0.1, atol=1e-9)
     # the written coefficients are the reconstruction from noisy motion: near the truth
     # column (the study's noise gives an RMS of about 0.003), never equal to it
     rms = np.sqrt(np.mean((table["CL"] - table["truth_CL"]) ** 2))
