@@ -6,7 +6,7 @@ candidates (``candidates``), select the terms by multivariate orthogonal functio
 coloured-residual covariance by maneuver, σ_cr, R², PSE), and attach what predictions need:
 the effective sample size, the leverage bound, the data support, the measurement-noise and
 model-error variances of the function interval (``noise_variance``, ``model_error_variance``)
-and, for ``residual_variance="local"``, the residual reference (``model``).
+and, for ``residual_variance="local"``, the residual and noise reference (``model``).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ __all__ = [
     "effective_sample_size",
     "decimated_indices",
     "difference_noise_variance",
+    "half_squared_differences",
     "model_error_variance",
 ]
 
@@ -99,6 +100,25 @@ def difference_noise_variance(
         return float("nan"), 0
     # σ²_noise = Σ (Δr)² / (2 · number of differences)
     return float(np.sum(differences**2) / (2.0 * differences.size)), int(differences.size)
+
+
+def half_squared_differences(
+    residuals: np.ndarray, maneuver_index: np.ndarray, fill: float = float("nan")
+) -> np.ndarray:
+    """Per sample (N,) the half squared difference (r_{i+1} − r_i)²/2 to the next sample of
+    its maneuver (to the previous one for a maneuver's last sample): each sample's share of
+    ``difference_noise_variance``, averaged over neighbours for the local noise variance.
+    ``fill`` where a maneuver has a single sample."""
+    residuals = np.asarray(residuals, dtype=float)
+    maneuver_index = np.asarray(maneuver_index)
+    out = np.full(residuals.size, float(fill))
+    same = maneuver_index[1:] == maneuver_index[:-1]
+    # (r_{i+1} − r_i)² / 2 between neighbours of one maneuver
+    half = 0.5 * np.diff(residuals) ** 2
+    pairs = np.flatnonzero(same)
+    out[pairs + 1] = half[pairs]  # the later sample of each pair: to its previous one
+    out[pairs] = half[pairs]  # the earlier one: to its next (overrides where both exist)
+    return out
 
 
 def model_error_variance(
@@ -331,6 +351,7 @@ def _fit_coefficient(
     noise_variance, error_variance = model_error_variance(
         residuals_all, maneuver_index, len(selected)
     )
+    noise_shares = half_squared_differences(residuals_all, maneuver_index, noise_variance)[rows]
     n_p = len(selected)
     n_eff = effective_sample_size(np.asarray(fit.residuals), fit.coloured_lag, index, n_p)
     xtx_inv = _xtx_inverse(Phi)
@@ -377,6 +398,7 @@ def _fit_coefficient(
         local_k=int(min(local_k, z.size)),
         local_reference=V if local else np.zeros((0, len(variables))),
         local_squared_residuals=np.asarray(fit.residuals) ** 2 if local else np.zeros(0),
+        local_noise_variances=noise_shares if local else np.zeros(0),
         support=support,
         settings=settings,
         path_table=tuple(path.to_dict()),

@@ -14,15 +14,21 @@ regressors φ₀ (the selected terms at x₀):
 and the interval of the coefficient itself, what a simulator or a control law needs (the
 function interval: model error counts, measurement noise does not):
 
-    σ²_model(x₀) = max(s² − σ²_noise, 0) (``"global"``) or, for ``"local"``,
-                   max(σ²_e(x₀) − σ²_noise, 0), at most σ²_e(x₀)
-    function     = ŷ₀ ± t_{dof,(1+c)/2} · sqrt(Var_mean + σ²_model(x₀))
+    σ²_model     = max(s² − σ²_noise, 0)                        (``"global"``)
+    σ²_model(x₀) = max(σ²_e(x₀) − σ²_noise(x₀), σ²_model)       (``"local"``)
+    function     = ŷ₀ ± t_{dof,(1+c)/2} · sqrt(Var_mean + min(σ²_model(x₀), σ²_e(x₀)))
+
+with, for ``"local"``, σ²_noise(x₀) the mean half squared difference (below) of the same
+local_k nearest samples as σ²_e(x₀): the noise of reconstructed coefficients changes over
+the envelope with the dynamic pressure. The local difference rests on local_k samples only
+and is noisy where the noise dominates the model error, so it widens the interval where
+the model error is locally larger than its average σ²_model and never narrows it below.
 
 σ²_noise, the measurement-noise variance, comes from the residuals' sample-to-sample
-differences within each maneuver on every sample (before decimation), model free: for
-white noise Var(Δr) = 2σ², while model error varies slowly along a trajectory and cancels
-in the differences (``flightid.globalmodel.fit.difference_noise_variance``). Noise coloured
-at the sample rate gives a low σ²_noise and so a wider function interval (conservative).
+differences within each maneuver on every sample (before decimation), model free: for white
+noise Var(Δr) = 2σ², while model error varies slowly along a trajectory and cancels in the
+differences (``flightid.globalmodel.fit.difference_noise_variance``). Noise coloured at the
+sample rate gives a low σ²_noise and so a wider function interval (conservative).
 The model error counts only where s² − σ²_noise is significant against its own scatter
 (``fit.model_error_variance``); otherwise σ²_model = 0 and the function interval is the
 mean band. Without a σ²_noise (no maneuver with two samples, or a model saved without it)
@@ -243,8 +249,9 @@ class CoefficientModel(ResultSurface):
         model_error_variance: σ²_model = max(s² − σ²_noise, 0), 0 where not significant
             (module docstring; NaN: not estimated).
         residual_variance: ``"global"`` or ``"local"``; local_k its neighbours.
-        local_reference, local_squared_residuals: fitted samples in support coordinates and
-            their squared residuals (``"local"`` only, else empty).
+        local_reference, local_squared_residuals, local_noise_variances: fitted samples in
+            support coordinates, their squared residuals and their half squared residual
+            differences (r_{i+1} − r_i)²/2 (``"local"`` only, else empty).
         support: the data support.
         settings: the settings it was fitted with.
         path_table: the MOF path (n_terms, term, mse, pse per step).
@@ -286,6 +293,7 @@ class CoefficientModel(ResultSurface):
     settings: GlobalModelSettings
     noise_variance: float = float("nan")
     model_error_variance: float = float("nan")
+    local_noise_variances: np.ndarray = field(default_factory=lambda: np.zeros(0))
     path_table: tuple[dict, ...] = ()
     cost_share: tuple[float, ...] = ()
     n_candidates: int = 0
@@ -328,24 +336,29 @@ class CoefficientModel(ResultSurface):
             )
         return X
 
+    def _local_neighbours(self, V: np.ndarray) -> np.ndarray:
+        """Indices (n, k) of the local_k fitted samples nearest to points V."""
+        from scipy.spatial import cKDTree
+
+        k = min(self.local_k, self.local_reference.shape[0])
+        _, index = cKDTree(self.local_reference).query(V, k=k)
+        return index.reshape(V.shape[0], -1)
+
     def residual_variance_at(self, V: np.ndarray) -> np.ndarray:
         """σ²_e at points in support coordinates (n,) (module docstring)."""
         n = V.shape[0]
         if self.residual_variance == "global":
             return np.full(n, self.s2)
-        from scipy.spatial import cKDTree
-
-        k = min(self.local_k, self.local_reference.shape[0])
-        _, index = cKDTree(self.local_reference).query(V, k=k)
-        index = index.reshape(n, -1)
+        index = self._local_neighbours(V)
         n_p = len(self.terms)
         # σ²_e = mean of the k nearest squared residuals × N/(N − n_p)
         return self.local_squared_residuals[index].mean(axis=1) * (
             self.n_samples / (self.n_samples - n_p)
         )
 
-    def model_error_variance_at(self, sigma2_e: np.ndarray) -> np.ndarray:
-        """σ²_model at points whose σ²_e is ``sigma2_e`` (n,) (module docstring)."""
+    def model_error_variance_at(self, V: np.ndarray, sigma2_e: np.ndarray) -> np.ndarray:
+        """σ²_model at points V (support coordinates) whose σ²_e is ``sigma2_e`` (n,)
+        (module docstring)."""
         if not (np.isfinite(self.noise_variance) and np.isfinite(self.model_error_variance)):
             # no σ²_noise: all of σ²_e counts (the function interval is the prediction interval)
             return np.array(sigma2_e, dtype=float)
@@ -354,8 +367,12 @@ class CoefficientModel(ResultSurface):
         if self.residual_variance == "global":
             model_error = np.full_like(sigma2_e, self.model_error_variance)
         else:
-            # σ²_model(x₀) = max(σ²_e(x₀) − σ²_noise, 0)
-            model_error = np.maximum(sigma2_e - self.noise_variance, 0.0)
+            noise = self.noise_variance
+            if self.local_noise_variances.size == self.local_reference.shape[0] > 0:
+                # σ²_noise(x₀) = mean of the k nearest half squared differences
+                noise = self.local_noise_variances[self._local_neighbours(V)].mean(axis=1)
+            # σ²_model(x₀) = max(σ²_e(x₀) − σ²_noise(x₀), σ²_model (global))
+            model_error = np.maximum(sigma2_e - noise, self.model_error_variance)
         return np.minimum(model_error, sigma2_e)
 
     def predict(self, points: Mapping[str, object], level: float | None = None) -> Prediction:
@@ -372,7 +389,7 @@ class CoefficientModel(ResultSurface):
         V = self.normalisation.support_coordinates(X)
         sigma2_e = self.residual_variance_at(V)
         std_prediction = np.sqrt(var_mean + sigma2_e)
-        std_function = np.sqrt(var_mean + self.model_error_variance_at(sigma2_e))
+        std_function = np.sqrt(var_mean + self.model_error_variance_at(V, sigma2_e))
         # q = t_{dof,(1+c)/2}
         q = float(stats.t.ppf(0.5 * (1.0 + level), self.dof))
         leverage_ratio = leverages(phi, self.xtx_inv) / self.leverage_max
@@ -481,6 +498,7 @@ class CoefficientModel(ResultSurface):
             "support": self.support.to_dict(),
             "local_reference": self.local_reference.tolist(),
             "local_squared_residuals": self.local_squared_residuals.tolist(),
+            "local_noise_variances": self.local_noise_variances.tolist(),
             "settings": self.settings.to_dict(),
         }
 
@@ -519,6 +537,7 @@ class CoefficientModel(ResultSurface):
             local_k=int(entry["local_k"]),
             local_reference=np.array(entry["local_reference"], dtype=float).reshape(-1, m),
             local_squared_residuals=np.array(entry["local_squared_residuals"], dtype=float),
+            local_noise_variances=np.array(entry.get("local_noise_variances", []), dtype=float),
             support=Support.from_dict(entry["support"]),
             settings=GlobalModelSettings.from_dict(entry["settings"]),
             path_table=tuple(dict(e) for e in entry.get("path", ())),
