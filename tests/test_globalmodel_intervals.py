@@ -441,3 +441,33 @@ def test_local_function_interval_leaves_out_noise_that_grows_over_the_space():
     # out of the function interval (the noise variance of the neighbours, not a global one)
     assert np.all(coverage >= 0.9), coverage
     assert ratio[2] < 0.5, ratio
+
+
+def test_the_carpet_shades_the_function_interval_inside_the_prediction_interval():
+    import xml.etree.ElementTree as ET
+
+    from flightid.report.globalmodel_reports import _terms_table, carpet_svg
+
+    _, _, model = _misspecified_run(5)
+    cm = model["z"]
+    svg = ET.fromstring(carpet_svg(cm))
+    bands: dict[str, dict[float, np.ndarray]] = {}
+    for polygon in svg.iter("{http://www.w3.org/2000/svg}polygon"):
+        xy = np.array([p.split(",") for p in polygon.get("points").split()], dtype=float)
+        bands.setdefault(polygon.get("fill"), {})[float(polygon.get("fill-opacity"))] = xy
+    assert len(bands) == 4  # one pair per curve
+    for pair in bands.values():
+        (light, lighter), (dark, darker) = sorted(pair.items())
+        assert light < dark
+        # the darker band lies within the lighter one at every x (pixels: y down)
+        half = darker.shape[0] // 2
+        assert lighter.shape == darker.shape
+        np.testing.assert_array_equal(darker[:, 0], lighter[:, 0])
+        assert np.all(darker[:half, 1] >= lighter[:half, 1])  # upper edge below
+        assert np.all(darker[half:, 1] <= lighter[half:, 1])  # lower edge above
+        assert np.any(darker[:half, 1] > lighter[:half, 1] + 1)  # visibly narrower
+    text = "".join(svg.itertext())
+    assert "function interval" in text and "prediction interval" in text
+    facts = _terms_table(cm)
+    assert f"σ_noise = {np.sqrt(cm.noise_variance):.4g}" in facts
+    assert f"σ_model = {np.sqrt(cm.model_error_variance):.4g}" in facts
