@@ -29,10 +29,12 @@ differences within each maneuver on every sample (before decimation), model free
 noise Var(Δr) = 2σ², while model error varies slowly along a trajectory and cancels in the
 differences (``flightid.globalmodel.fit.difference_noise_variance``). Noise coloured at the
 sample rate gives a low σ²_noise and so a wider function interval (conservative).
-The model error counts only where s² − σ²_noise is significant against its own scatter
-(``fit.model_error_variance``); otherwise σ²_model = 0 and the function interval is the
-mean band. Without a σ²_noise (no maneuver with two samples, or a model saved without it)
-σ²_model = σ²_e: the function interval is the prediction interval.
+s² and σ²_noise for σ²_model are both taken over every sample (the selected model's residuals
+before decimation; without decimation this s² is the fit's). The model error counts only
+where s² − σ²_noise is significant against its own scatter (``fit.model_error_variance``);
+otherwise σ²_model = 0 and the function interval is the mean band. Without a σ²_noise (no
+maneuver with two samples, or a model saved without it) σ²_model = σ²_e: the function
+interval is the prediction interval.
 
 ``std_mean`` = sqrt(Var_mean) (the band of the model's mean), ``std_function`` =
 sqrt(Var_mean + σ²_model) and ``std_prediction`` = sqrt(Var_mean + σ²_e) are all returned.
