@@ -1,7 +1,8 @@
 """The data-support flag of global-model predictions: held-out data inside, the empty corner of
 an L-shaped data set outside (reference: scipy.spatial.Delaunay of the two arms and the exact
-distance to the L), the leverage of an extrapolated cubic (reference: numpy.linalg.pinv), and
-independence of the variables' units."""
+distance to the L), the leverage of an extrapolated cubic (reference: numpy.linalg.pinv),
+independence of the variables' units, and the range criterion: α below the data's lowest and
+Mach above its highest, which neither the k-NN distance nor the leverage catches."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from flightid.globalmodel import GlobalModelSettings, fit_global_model
-from flightid.globalmodel.support import Support, thinned_indices
+from flightid.globalmodel import GlobalModelError, GlobalModelSettings, fit_global_model
+from flightid.globalmodel.support import Support, beyond_range, thinned_indices
 
 
 def _maneuvers(seed=0, n_maneuvers=6, duration_s=20.0, dt=0.02):
@@ -52,7 +53,7 @@ def test_held_out_half_of_the_data_is_inside():
     # a point between the Mach levels 0.4 and 0.9 flown, at mid α, is outside: no data there
     between = model.predict({"alpha": 0.15, "Mach": [0.35, 0.65], "de": 0.0})["CL"]
     assert between.outside.tolist() == [False, True]
-    assert between.reason[1] in ("distance", "both")
+    assert "distance" in between.reason[1].split("+")
 
 
 def _segment_distance(P, a, b):
@@ -118,7 +119,7 @@ def test_leverage_of_an_extrapolated_cubic():
     expected = np.einsum("ij,jk,ik->i", phi0, inverse, phi0) / h_max
     np.testing.assert_allclose(prediction.leverage_ratio, expected, rtol=1e-8)
     assert prediction.leverage_ratio[2] > 1.0 and prediction.outside[2]
-    assert prediction.reason[2] in ("leverage", "both")
+    assert "leverage" in prediction.reason[2].split("+")
     assert np.all(prediction.leverage_ratio[:2] < 1.0) and not prediction.outside[:2].any()
 
 
@@ -162,3 +163,96 @@ def test_d_ref_is_the_quantile_of_the_reference_knn_distance():
     assert support.d_ref == pytest.approx(np.quantile(third, 0.9), rel=1e-12)
     far, _, outside, reason = support.measure(np.array([[5.0, 5.0], [0.0, 0.0]]), np.zeros(2))
     assert outside.tolist() == [True, False] and reason == ("distance", "")
+    _, _, outside, reason = support.measure(
+        np.array([[5.0, 5.0], [0.0, 0.0]]), np.array([2.0, 0.0]), np.array([True, True])
+    )
+    assert outside.tolist() == [True, True]
+    assert reason == ("range+distance+leverage", "range")
+
+
+MACH_LEVELS = (0.3, 0.45, 0.6, 0.75, 0.9)
+
+
+def _envelope_maneuvers(seed=0, duration_s=20.0, dt=0.02):
+    """(alpha, Mach, qhat, de) trajectories, two maneuvers at each Mach level of
+    ``MACH_LEVELS``; CL linear in α (its model extrapolates smoothly)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration_s, dt)
+    parts = {k: [] for k in ("alpha", "Mach", "qhat", "de")}
+    for k in range(2 * len(MACH_LEVELS)):
+        phase = rng.uniform(0, 2 * np.pi, 4)
+        alpha = 0.08 + 0.1 * np.sin(0.9 * t + phase[0]) + 0.03 * np.sin(2.9 * t + phase[1])
+        parts["alpha"].append(alpha)
+        parts["Mach"].append(MACH_LEVELS[k % 5] + 0.01 * np.sin(0.15 * t + phase[2]))
+        parts["qhat"].append(0.01 * np.cos(0.9 * t + phase[0]) + 0.004 * np.cos(2.9 * t + phase[1]))
+        parts["de"].append(-0.3 * alpha + 0.05 * np.sin(1.3 * t + phase[3]))
+    signals = {key: np.concatenate(v) for key, v in parts.items()}
+    a, m, q, d = (signals[k] for k in ("alpha", "Mach", "qhat", "de"))
+    noise = 0.003 * rng.normal(size=a.size)
+    signals["CL"] = 0.1 + 4.5 * a + 1.5 * a * m + 6 * q + 0.5 * d + noise
+    return signals, np.repeat(np.arange(2 * len(MACH_LEVELS)), t.size), dt
+
+
+ENVELOPE = ("alpha", "Mach", "qhat", "de")
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_points_beyond_the_data_range_are_outside(seed):
+    signals, index, dt = _envelope_maneuvers(seed)
+    model = fit_global_model(
+        signals,
+        ["CL"],
+        list(ENVELOPE),
+        settings=GlobalModelSettings(max_order=2, decimate=5),
+        maneuver_index=index,
+        dt=dt,
+    )
+    cl = model["CL"]
+    low, high = signals["alpha"].min(), signals["alpha"].max()
+    # α below the data's lowest by a quarter of its range, at every Mach level flown
+    below = low - 0.25 * (high - low)
+    p = cl.predict({"alpha": below, "Mach": MACH_LEVELS, "qhat": 0.0, "de": -0.3 * below})
+    assert p.outside.all()
+    # neither the k-NN distance nor the leverage catches it: only the range does
+    assert p.reason == ("range",) * 5
+    # Mach 1.0 above the data's 0.91 at α inside the data's range
+    alpha = np.linspace(0.0, 0.16, 5)
+    p = cl.predict({"alpha": alpha, "Mach": 1.0, "qhat": 0.0, "de": -0.3 * alpha})
+    assert p.outside.all() and p.reason == ("range",) * 5
+    # held-out maneuvers over the same box: inside
+    held, _, _ = _envelope_maneuvers(seed + 10)
+    p = cl.predict({k: held[k] for k in ENVELOPE})
+    assert np.mean(~p.outside) >= 0.98
+    assert not any("range" in reason for reason in p.reason)
+
+
+def test_the_margin_of_the_range():
+    signals, index, dt = _envelope_maneuvers(2)
+    settings = GlobalModelSettings(max_order=1, support_margin=0.3)
+    model = fit_global_model(
+        signals, ["CL"], list(ENVELOPE), settings=settings, maneuver_index=index, dt=dt
+    )
+    low, high = signals["alpha"].min(), signals["alpha"].max()
+    below = low - 0.25 * (high - low)
+    p = model["CL"].predict({"alpha": below, "Mach": 0.6, "qhat": 0.0, "de": -0.3 * below})
+    # within the 30 % margin: not out of range
+    assert "range" not in p.reason[0]
+    with pytest.raises(GlobalModelError, match="support_margin"):
+        GlobalModelSettings(support_margin=-0.1)
+
+
+def test_beyond_range_closed_form():
+    low, high = np.array([0.0, 2.0, 5.0]), np.array([10.0, 4.0, 5.0])
+    X = np.array(
+        [
+            [-0.19, 2.0, 5.0],  # 1.9 % of the range below: inside the 2 % margin
+            [-0.21, 2.0, 5.0],  # 2.1 % below: outside
+            [5.0, 4.039, 5.0],  # 1.95 % above
+            [5.0, 4.041, 5.0],  # 2.05 % above
+            [5.0, 3.0, 5.0 + 1e-9],  # a variable the data held constant: no margin
+            [10.0, 2.0, 5.0],  # on the edges
+        ]
+    )
+    expected = [False, True, False, True, True, False]
+    assert beyond_range(X, low, high, 0.02).tolist() == expected
+    assert not beyond_range(X[:4], low, high, 0.05).any()

@@ -4,8 +4,9 @@ For each coefficient: keep every ``decimate``-th sample of each maneuver, build 
 candidates (``candidates``), select the terms by multivariate orthogonal functions and PSE
 (``mof``), refit the selected raw terms by ``flightid.regression.least_squares`` (θ̂, the
 coloured-residual covariance by maneuver, σ_cr, R², PSE), and attach what predictions need:
-the effective sample size, the leverage bound, the data support and, for
-``residual_variance="local"``, the residual reference (``model``).
+the effective sample size, the leverage bound, the data support, the measurement-noise and
+model-error variances of the function interval (``noise_variance``, ``model_error_variance``)
+and, for ``residual_variance="local"``, the residual and noise reference (``model``).
 """
 
 from __future__ import annotations
@@ -23,10 +24,20 @@ from flightid.globalmodel.support import Support, leverages
 from flightid.globalmodel.variables import GlobalModelError, Normalisation, check_series
 from flightid.model.terms import Abs, Spline, Term, TermError, evaluate_terms, parse_term
 
-__all__ = ["fit_global_model", "effective_sample_size", "decimated_indices"]
+__all__ = [
+    "fit_global_model",
+    "effective_sample_size",
+    "decimated_indices",
+    "difference_noise_variance",
+    "half_squared_differences",
+    "model_error_variance",
+]
 
 # N_eff is kept at least this many samples above the parameter count
 _MIN_DOF = 5
+# one-sided 5 % quantile of the standard normal: the model-error variance counts when it
+# exceeds this many of its standard errors under white residuals
+MODEL_ERROR_Z = 1.6449
 
 
 def decimated_indices(maneuver_index: np.ndarray, decimate: int) -> np.ndarray:
@@ -58,6 +69,85 @@ def effective_sample_size(
     inflation = 1.0 + 2.0 * float(np.sum(rho))
     n_eff = n / inflation if inflation > 0 else float(n)
     return float(min(max(n_eff, n_parameters + _MIN_DOF), n))
+
+
+def difference_noise_variance(
+    residuals: np.ndarray, maneuver_index: np.ndarray
+) -> tuple[float, int]:
+    """The measurement-noise variance from the residuals' sample-to-sample differences, and
+    the number of differences it rests on.
+
+    For white noise e, Var(e_{i+1} − e_i) = 2σ²; model error varies slowly along a trajectory
+    and cancels in the differences. So, over the samples in time order within each maneuver
+    (a difference is taken only between neighbours of the same maneuver),
+
+        σ²_noise = Σ_k Σ_i (r_{k,i+1} − r_{k,i})² / (2 Σ_k (n_k − 1)).
+
+    Assumptions: the noise is white at the sample rate and the samples are in time order.
+    Noise correlated from sample to sample (filtered or smoothed signals) gives a smaller
+    difference variance, so σ²_noise comes out low and the model-error variance and the
+    function interval high (conservative). Samples in no time order (scattered points) make
+    the differences as large as the residuals: model error then counts as noise.
+
+    Returns:
+        (σ²_noise, number of differences); (NaN, 0) when no maneuver has two samples.
+    """
+    residuals = np.asarray(residuals, dtype=float)
+    maneuver_index = np.asarray(maneuver_index)
+    same = maneuver_index[1:] == maneuver_index[:-1]
+    differences = np.diff(residuals)[same]
+    if differences.size == 0:
+        return float("nan"), 0
+    # σ²_noise = Σ (Δr)² / (2 · number of differences)
+    return float(np.sum(differences**2) / (2.0 * differences.size)), int(differences.size)
+
+
+def half_squared_differences(
+    residuals: np.ndarray, maneuver_index: np.ndarray, fill: float = float("nan")
+) -> np.ndarray:
+    """Per sample (N,) the half squared difference (r_{i+1} − r_i)²/2 to the next sample of
+    its maneuver (to the previous one for a maneuver's last sample): each sample's share of
+    ``difference_noise_variance``, averaged over neighbours for the local noise variance.
+    ``fill`` where a maneuver has a single sample."""
+    residuals = np.asarray(residuals, dtype=float)
+    maneuver_index = np.asarray(maneuver_index)
+    out = np.full(residuals.size, float(fill))
+    same = maneuver_index[1:] == maneuver_index[:-1]
+    # (r_{i+1} − r_i)² / 2 between neighbours of one maneuver
+    half = 0.5 * np.diff(residuals) ** 2
+    pairs = np.flatnonzero(same)
+    out[pairs + 1] = half[pairs]  # the later sample of each pair: to its previous one
+    out[pairs] = half[pairs]  # the earlier one: to its next (overrides where both exist)
+    return out
+
+
+def model_error_variance(
+    residuals: np.ndarray, maneuver_index: np.ndarray, n_parameters: int
+) -> tuple[float, float]:
+    """(σ²_noise, σ²_model) of a fit's residuals r (time order per maneuver).
+
+    σ²_model = max(s² − σ²_noise, 0) with s² = Σ r² / (N − n_p) and σ²_noise from the
+    differences (``difference_noise_variance``). s² − σ²_noise is, up to end effects, the
+    residuals' lag-one autocovariance, whose standard error under white residuals is
+    σ²_noise / sqrt(number of differences). It is counted only where it exceeds
+    ``MODEL_ERROR_Z`` (1.645) standard errors (one-sided test at 5 %), else σ²_model = 0:
+    flooring the noisy difference at 0 alone would leave a positive bias of about
+    0.4 σ²/sqrt(N), which for a correct model is larger than the variance of the mean itself.
+
+    Returns:
+        (σ²_noise, σ²_model); (NaN, NaN) when σ²_noise cannot be estimated (no maneuver with
+        two samples).
+    """
+    residuals = np.asarray(residuals, dtype=float)
+    noise, n_differences = difference_noise_variance(residuals, maneuver_index)
+    if n_differences == 0 or residuals.size <= n_parameters:
+        return float("nan"), float("nan")
+    # s² = Σ r² / (N − n_p)
+    s2 = float(np.sum(residuals**2) / (residuals.size - n_parameters))
+    excess = s2 - noise
+    # standard error of s² − σ²_noise under white residuals: σ²_noise / sqrt(n_differences)
+    standard_error = noise / np.sqrt(n_differences)
+    return noise, (excess if excess > MODEL_ERROR_Z * standard_error else 0.0)
 
 
 def _xtx_inverse(Phi: np.ndarray) -> np.ndarray:
@@ -255,6 +345,13 @@ def _fit_coefficient(
         units=parameter_units,
         maneuver_index=index,
     )
+    # the residuals of the selected model on every sample (before decimation), in time order
+    all_signals = {v: X_all[:, k] for k, v in enumerate(variables)}
+    residuals_all = z_all - evaluate_terms(selected, all_signals) @ np.asarray(fit.estimates)
+    noise_variance, error_variance = model_error_variance(
+        residuals_all, maneuver_index, len(selected)
+    )
+    noise_shares = half_squared_differences(residuals_all, maneuver_index, noise_variance)[rows]
     n_p = len(selected)
     n_eff = effective_sample_size(np.asarray(fit.residuals), fit.coloured_lag, index, n_p)
     xtx_inv = _xtx_inverse(Phi)
@@ -295,10 +392,13 @@ def _fit_coefficient(
         sigma2_max=float(path.sigma2_max),
         rms_fit=float(np.sqrt(fit.rss / z.size)),
         leverage_max=float(np.max(leverages(Phi, xtx_inv))),
+        noise_variance=noise_variance,
+        model_error_variance=error_variance,
         residual_variance=settings.residual_variance,
         local_k=int(min(local_k, z.size)),
         local_reference=V if local else np.zeros((0, len(variables))),
         local_squared_residuals=np.asarray(fit.residuals) ** 2 if local else np.zeros(0),
+        local_noise_variances=noise_shares if local else np.zeros(0),
         support=support,
         settings=settings,
         path_table=tuple(path.to_dict()),

@@ -11,9 +11,35 @@ regressors φ₀ (the selected terms at x₀):
                  local_k fitted samples nearest to x₀ (support coordinates) × N/(N − n_p)
     interval   = ŷ₀ ± t_{dof,(1+c)/2} · sqrt(Var_mean + σ²_e(x₀))   (a new observation)
 
-``std_mean`` = sqrt(Var_mean) (the band of the model's mean) and ``std_prediction`` =
-sqrt(Var_mean + σ²_e) are both returned. The t quantile's degrees of freedom are
-dof = N_eff − n_p with the effective sample size of autocorrelated residuals
+and the interval of the coefficient itself, what a simulator or a control law needs (the
+function interval: model error counts, measurement noise does not):
+
+    σ²_model     = max(s² − σ²_noise, 0)                        (``"global"``)
+    σ²_model(x₀) = max(σ²_e(x₀) − σ²_noise(x₀), σ²_model)       (``"local"``)
+    function     = ŷ₀ ± t_{dof,(1+c)/2} · sqrt(Var_mean + min(σ²_model(x₀), σ²_e(x₀)))
+
+with, for ``"local"``, σ²_noise(x₀) the mean half squared difference (below) of the same
+local_k nearest samples as σ²_e(x₀): the noise of reconstructed coefficients changes over
+the envelope with the dynamic pressure. The local difference rests on local_k samples only
+and is noisy where the noise dominates the model error, so it widens the interval where
+the model error is locally larger than its average σ²_model and never narrows it below.
+
+σ²_noise, the measurement-noise variance, comes from the residuals' sample-to-sample
+differences within each maneuver on every sample (before decimation), model free: for white
+noise Var(Δr) = 2σ², while model error varies slowly along a trajectory and cancels in the
+differences (``flightid.globalmodel.fit.difference_noise_variance``). Noise coloured at the
+sample rate gives a low σ²_noise and so a wider function interval (conservative).
+s² and σ²_noise for σ²_model are both taken over every sample (the selected model's residuals
+before decimation; without decimation this s² is the fit's). The model error counts only
+where s² − σ²_noise is significant against its own scatter (``fit.model_error_variance``);
+otherwise σ²_model = 0 and the function interval is the mean band. Without a σ²_noise (no
+maneuver with two samples, or a model saved without it) σ²_model = σ²_e: the function
+interval is the prediction interval.
+
+``std_mean`` = sqrt(Var_mean) (the band of the model's mean), ``std_function`` =
+sqrt(Var_mean + σ²_model) and ``std_prediction`` = sqrt(Var_mean + σ²_e) are all returned.
+The t quantile's degrees of freedom are dof = N_eff − n_p with the effective sample size of
+autocorrelated residuals
 
     N_eff = N / (1 + 2 Σ_{k=1}^{L} ρ̂(k)),   clamped to [n_p + 5, N],
 
@@ -26,8 +52,8 @@ Each prediction also says whether x₀ is inside the data's support
 
 A model written by ``to_dict`` / ``write`` predicts the same after ``from_dict`` /
 ``load_global_model``, without the data: it keeps θ̂, the covariances, (ΦᵀΦ)⁻¹, the scales,
-the support reference set and, for ``"local"``, the fitted samples' coordinates and squared
-residuals.
+the support reference set, σ²_noise and σ²_model and, for ``"local"``, the fitted samples'
+coordinates and squared residuals.
 """
 
 from __future__ import annotations
@@ -41,7 +67,7 @@ import numpy as np
 
 from flightid.globalmodel.mof import MofPath
 from flightid.globalmodel.settings import GlobalModelSettings
-from flightid.globalmodel.support import Support, leverages
+from flightid.globalmodel.support import Support, beyond_range, leverages
 from flightid.globalmodel.variables import GlobalModelError, Normalisation, points_matrix
 from flightid.model.terms import Term, evaluate_terms, parse_term
 from flightid.numbers import format_with_sigma
@@ -110,13 +136,16 @@ class Prediction(ResultSurface):
         value: ŷ.
         std_mean: σ of the model's mean at the point (coloured-residual covariance).
         std_prediction: σ of a new observation, sqrt(std_mean² + σ²_e).
-        lower, upper: ŷ ∓ t·std_prediction at ``level``.
+        lower, upper: ŷ ∓ t·std_prediction at ``level`` (a new measurement).
+        std_function: σ of the coefficient itself, sqrt(std_mean² + σ²_model).
+        function_lower, function_upper: ŷ ∓ t·std_function (the function interval).
         level: the interval level c.
         dof: degrees of freedom of the t quantile, N_eff − n_p.
         distance_ratio: k-NN distance to the data / the data's own (``support``).
         leverage_ratio: h₀ / max h_ii of the fit.
         outside: the point is outside the data's support.
-        reason: ``""``, ``"distance"``, ``"leverage"`` or ``"both"`` per point.
+        reason: per point the support criteria that fired, ``"range"``, ``"distance"``,
+            ``"leverage"`` joined by ``+`` (``""`` inside; ``flightid.globalmodel.support``).
     """
 
     response: str
@@ -132,6 +161,9 @@ class Prediction(ResultSurface):
     leverage_ratio: np.ndarray
     outside: np.ndarray
     reason: tuple[str, ...]
+    std_function: np.ndarray
+    function_lower: np.ndarray
+    function_upper: np.ndarray
 
     @property
     def quantile(self) -> float:
@@ -145,6 +177,10 @@ class Prediction(ResultSurface):
         half = self.quantile * self.std_mean
         return np.column_stack([self.value - half, self.value + half])
 
+    def function_interval(self) -> np.ndarray:
+        """(n, 2) interval of the coefficient itself: ŷ ∓ t·std_function."""
+        return np.column_stack([self.function_lower, self.function_upper])
+
     def _columns(self) -> dict[str, list]:
         columns = {name: np.asarray(v).tolist() for name, v in self.points.items()}
         columns.update(
@@ -153,6 +189,9 @@ class Prediction(ResultSurface):
             upper=self.upper.tolist(),
             std_mean=self.std_mean.tolist(),
             std_prediction=self.std_prediction.tolist(),
+            function_lower=self.function_lower.tolist(),
+            function_upper=self.function_upper.tolist(),
+            std_function=self.std_function.tolist(),
             distance_ratio=self.distance_ratio.tolist(),
             leverage_ratio=self.leverage_ratio.tolist(),
             outside=[bool(x) for x in self.outside],
@@ -207,9 +246,14 @@ class CoefficientModel(ResultSurface):
         residuals_white: the whiteness verdict of the fit.
         r2, pse, sigma2_max, rms_fit: the fit's R², PSE, PSE's σ²_max and RMS residual.
         leverage_max: max h_ii of the fitted samples.
+        noise_variance: σ²_noise, the measurement-noise variance from the residuals'
+            sample-to-sample differences (NaN: not estimated).
+        model_error_variance: σ²_model = max(s² − σ²_noise, 0), 0 where not significant
+            (module docstring; NaN: not estimated).
         residual_variance: ``"global"`` or ``"local"``; local_k its neighbours.
-        local_reference, local_squared_residuals: fitted samples in support coordinates and
-            their squared residuals (``"local"`` only, else empty).
+        local_reference, local_squared_residuals, local_noise_variances: fitted samples in
+            support coordinates, their squared residuals and their half squared residual
+            differences (r_{i+1} − r_i)²/2 (``"local"`` only, else empty).
         support: the data support.
         settings: the settings it was fitted with.
         path_table: the MOF path (n_terms, term, mse, pse per step).
@@ -249,6 +293,9 @@ class CoefficientModel(ResultSurface):
     local_squared_residuals: np.ndarray
     support: Support
     settings: GlobalModelSettings
+    noise_variance: float = float("nan")
+    model_error_variance: float = float("nan")
+    local_noise_variances: np.ndarray = field(default_factory=lambda: np.zeros(0))
     path_table: tuple[dict, ...] = ()
     cost_share: tuple[float, ...] = ()
     n_candidates: int = 0
@@ -291,21 +338,44 @@ class CoefficientModel(ResultSurface):
             )
         return X
 
+    def _local_neighbours(self, V: np.ndarray) -> np.ndarray:
+        """Indices (n, k) of the local_k fitted samples nearest to points V."""
+        from scipy.spatial import cKDTree
+
+        k = min(self.local_k, self.local_reference.shape[0])
+        _, index = cKDTree(self.local_reference).query(V, k=k)
+        return index.reshape(V.shape[0], -1)
+
     def residual_variance_at(self, V: np.ndarray) -> np.ndarray:
         """σ²_e at points in support coordinates (n,) (module docstring)."""
         n = V.shape[0]
         if self.residual_variance == "global":
             return np.full(n, self.s2)
-        from scipy.spatial import cKDTree
-
-        k = min(self.local_k, self.local_reference.shape[0])
-        _, index = cKDTree(self.local_reference).query(V, k=k)
-        index = index.reshape(n, -1)
+        index = self._local_neighbours(V)
         n_p = len(self.terms)
         # σ²_e = mean of the k nearest squared residuals × N/(N − n_p)
         return self.local_squared_residuals[index].mean(axis=1) * (
             self.n_samples / (self.n_samples - n_p)
         )
+
+    def model_error_variance_at(self, V: np.ndarray, sigma2_e: np.ndarray) -> np.ndarray:
+        """σ²_model at points V (support coordinates) whose σ²_e is ``sigma2_e`` (n,)
+        (module docstring)."""
+        if not (np.isfinite(self.noise_variance) and np.isfinite(self.model_error_variance)):
+            # no σ²_noise: all of σ²_e counts (the function interval is the prediction interval)
+            return np.array(sigma2_e, dtype=float)
+        if self.model_error_variance <= 0.0:
+            return np.zeros_like(sigma2_e)
+        if self.residual_variance == "global":
+            model_error = np.full_like(sigma2_e, self.model_error_variance)
+        else:
+            noise = self.noise_variance
+            if self.local_noise_variances.size == self.local_reference.shape[0] > 0:
+                # σ²_noise(x₀) = mean of the k nearest half squared differences
+                noise = self.local_noise_variances[self._local_neighbours(V)].mean(axis=1)
+            # σ²_model(x₀) = max(σ²_e(x₀) − σ²_noise(x₀), σ²_model (global))
+            model_error = np.maximum(sigma2_e - noise, self.model_error_variance)
+        return np.minimum(model_error, sigma2_e)
 
     def predict(self, points: Mapping[str, object], level: float | None = None) -> Prediction:
         """The coefficient at ``points`` with its intervals and support (module docstring)."""
@@ -319,11 +389,17 @@ class CoefficientModel(ResultSurface):
         # Var_mean = φ₀ᵀ C φ₀
         var_mean = np.maximum(np.einsum("ij,jk,ik->i", phi, self.covariance, phi), 0.0)
         V = self.normalisation.support_coordinates(X)
-        std_prediction = np.sqrt(var_mean + self.residual_variance_at(V))
+        sigma2_e = self.residual_variance_at(V)
+        std_prediction = np.sqrt(var_mean + sigma2_e)
+        std_function = np.sqrt(var_mean + self.model_error_variance_at(V, sigma2_e))
         # q = t_{dof,(1+c)/2}
         q = float(stats.t.ppf(0.5 * (1.0 + level), self.dof))
         leverage_ratio = leverages(phi, self.xtx_inv) / self.leverage_max
-        distance_ratio, leverage_ratio, outside, reason = self.support.measure(V, leverage_ratio)
+        norm = self.normalisation
+        out_of_range = beyond_range(X, norm.low, norm.high, self.settings.support_margin)
+        distance_ratio, leverage_ratio, outside, reason = self.support.measure(
+            V, leverage_ratio, out_of_range
+        )
         return Prediction(
             response=self.response,
             points={name: X[:, k].copy() for k, name in enumerate(self.variables)},
@@ -338,6 +414,9 @@ class CoefficientModel(ResultSurface):
             leverage_ratio=leverage_ratio,
             outside=outside,
             reason=reason,
+            std_function=std_function,
+            function_lower=value - q * std_function,
+            function_upper=value + q * std_function,
         )
 
     # ---------------------------------------------------------------- reports
@@ -363,6 +442,9 @@ class CoefficientModel(ResultSurface):
             f"N = {self.n_samples}  N_eff = {self.n_eff:.1f}  R² = {self.r2:.6f}  "
             f"s = {np.sqrt(self.s2):.4g}  PSE = {self.pse:.4g} (σ²_max = {self.sigma2_max:.4g})"
             f"  residual lag {self.coloured_lag}",
+            f"σ_noise = {np.sqrt(self.noise_variance):.4g} (measurement noise, from sample "
+            f"differences)  σ_model = {np.sqrt(self.model_error_variance):.4g} (model error; "
+            f"function interval: σ_mean and σ_model)",
             f"{'parameter':<24s}{'term':<28s}{'value':>14s}{'σ':>12s}{'σ_cr':>12s}",
         ]
         for j, (name, term) in enumerate(zip(self.parameters, self.terms, strict=True)):
@@ -395,6 +477,8 @@ class CoefficientModel(ResultSurface):
             "std_kind": self.std_kind,
             "residuals_white": self.residuals_white,
             "leverage_max": float(self.leverage_max),
+            "noise_variance": float(self.noise_variance),
+            "model_error_variance": float(self.model_error_variance),
             "terms": [
                 {
                     "term": term,
@@ -416,6 +500,7 @@ class CoefficientModel(ResultSurface):
             "support": self.support.to_dict(),
             "local_reference": self.local_reference.tolist(),
             "local_squared_residuals": self.local_squared_residuals.tolist(),
+            "local_noise_variances": self.local_noise_variances.tolist(),
             "settings": self.settings.to_dict(),
         }
 
@@ -448,10 +533,13 @@ class CoefficientModel(ResultSurface):
             sigma2_max=float(entry["sigma2_max"]),
             rms_fit=float(entry["rms_fit"]),
             leverage_max=float(entry["leverage_max"]),
+            noise_variance=_nan(entry.get("noise_variance")),
+            model_error_variance=_nan(entry.get("model_error_variance")),
             residual_variance=str(entry["residual_variance"]),
             local_k=int(entry["local_k"]),
             local_reference=np.array(entry["local_reference"], dtype=float).reshape(-1, m),
             local_squared_residuals=np.array(entry["local_squared_residuals"], dtype=float),
+            local_noise_variances=np.array(entry.get("local_noise_variances", []), dtype=float),
             support=Support.from_dict(entry["support"]),
             settings=GlobalModelSettings.from_dict(entry["settings"]),
             path_table=tuple(dict(e) for e in entry.get("path", ())),

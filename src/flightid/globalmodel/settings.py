@@ -67,6 +67,8 @@ class GlobalModelSettings:
         spacing_s: thinning of the support reference set, s per sample per maneuver.
         support_quantile: quantile of the reference set's own k-NN distance (d_ref).
         support_factor: distance ratio above which a point is outside the support.
+        support_margin: a point beyond the data's range [low, high] of any variable by more
+            than support_margin × (high − low) is outside the support.
         tol: relative squared norm under which a candidate counts as dependent.
     """
 
@@ -91,6 +93,7 @@ class GlobalModelSettings:
     spacing_s: float = 0.1
     support_quantile: float = 0.99
     support_factor: float = 2.0
+    support_margin: float = 0.02
     tol: float = field(default=1e-10)
 
     def __post_init__(self) -> None:
@@ -111,6 +114,7 @@ class GlobalModelSettings:
         _number("spacing_s", self.spacing_s, 0.0)
         _number("support_quantile", self.support_quantile, 0.0, 1.0, open_low=True)
         _number("support_factor", self.support_factor, 0.0, open_low=True)
+        _number("support_margin", self.support_margin, 0.0)
         _number("tol", self.tol, 0.0, 1.0, open_low=True)
 
     def _check_choices(self) -> None:
@@ -180,6 +184,7 @@ class GlobalModelSettings:
             "spacing_s": self.spacing_s,
             "support_quantile": self.support_quantile,
             "support_factor": self.support_factor,
+            "support_margin": self.support_margin,
             "tol": self.tol,
         }
 

@@ -2,7 +2,7 @@
 
 A polynomial fitted over many maneuvers answers anywhere, also where no data were flown: in
 the empty corner of the flight envelope (high α at high Mach, say) inside the box of the
-data, "hidden extrapolation". Two measures flag it, both on every prediction:
+data, "hidden extrapolation". Three measures flag it, all on every prediction:
 
 - **distance**: in support coordinates v = (x − c)/r (the data box is [−1, 1]^m,
   ``flightid.globalmodel.variables``) the distance d_k(x₀) from the point to its k-th nearest
@@ -15,8 +15,16 @@ data, "hidden extrapolation". Two measures flag it, both on every prediction:
   h_max = max_i h_ii of the fitted samples: ``leverage_ratio = h₀ / h_max`` (the regression
   textbook's criterion for hidden extrapolation).
 
-A point is ``outside`` when ``distance_ratio > factor`` (2) or ``leverage_ratio > 1``;
-``reason`` is ``""``, ``"distance"``, ``"leverage"`` or ``"both"``.
+- **range**: beyond the data's range [low, high] of any variable by more than
+  ``margin`` × (high − low) (``support_margin``, 0.02). A point just below the lowest α flown
+  or above the highest Mach can have data samples near it in the other variables, so that its
+  k-NN distance and its leverage stay small (a low-order polynomial extrapolates smoothly a
+  little way), while the coefficient there is not known from the data at all.
+
+A point is ``outside`` when it is beyond the range, ``distance_ratio > factor`` (2) or
+``leverage_ratio > 1``; ``reason`` names the criteria that fired, joined by ``+`` in the
+order range, distance, leverage (``""``, ``"range"``, ``"distance"``, ``"leverage"``,
+``"range+distance"``, ``"distance+leverage"``, ``"range+distance+leverage"`` …).
 """
 
 from __future__ import annotations
@@ -27,7 +35,10 @@ import numpy as np
 
 from flightid.globalmodel.variables import GlobalModelError
 
-__all__ = ["Support", "thinned_indices", "leverages"]
+__all__ = ["Support", "thinned_indices", "leverages", "beyond_range", "REASONS"]
+
+# the criteria in the order ``reason`` names them
+REASONS = ("range", "distance", "leverage")
 
 # above this many reference samples the set is thinned evenly further (k-NN cost and the size
 # of a saved model)
@@ -49,6 +60,18 @@ def thinned_indices(
     if index.size > max_reference:
         index = index[np.linspace(0, index.size - 1, max_reference).round().astype(int)]
     return np.unique(index)
+
+
+def beyond_range(X: np.ndarray, low: np.ndarray, high: np.ndarray, margin: float) -> np.ndarray:
+    """True (n,) where a point of X (n, m, signal units) lies below ``low`` or above ``high``
+    of any variable by more than ``margin`` × (high − low) (module docstring)."""
+    X = np.asarray(X, dtype=float)
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    # allowed excess per variable: margin · (high − low); 0 for a variable the data held constant
+    allowance = margin * (high - low)
+    below = X < low - allowance
+    above = X > high + allowance
+    return np.any(below | above, axis=1)
 
 
 def leverages(regressors: np.ndarray, xtx_inv: np.ndarray) -> np.ndarray:
@@ -117,17 +140,28 @@ class Support:
         return d_k / self.d_ref
 
     def measure(
-        self, V: np.ndarray, leverage_ratio: np.ndarray
+        self,
+        V: np.ndarray,
+        leverage_ratio: np.ndarray,
+        out_of_range: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]]:
-        """(distance_ratio, leverage_ratio, outside, reason) of points v (n, m)."""
+        """(distance_ratio, leverage_ratio, outside, reason) of points v (n, m);
+        ``out_of_range`` (n,) marks the points beyond the data's range (``beyond_range``;
+        default none)."""
         distance_ratio = self.distance_ratio(V)
         leverage_ratio = np.asarray(leverage_ratio, dtype=float)
         far = distance_ratio > self.factor
         high = leverage_ratio > 1.0
-        reasons = {(False, False): "", (True, False): "distance", (False, True): "leverage"}
-        reasons[(True, True)] = "both"
-        reason = tuple(reasons[(bool(a), bool(b))] for a, b in zip(far, high, strict=True))
-        return distance_ratio, leverage_ratio, far | high, reason
+        ranged = (
+            np.zeros(far.shape, dtype=bool)
+            if out_of_range is None
+            else np.asarray(out_of_range, dtype=bool).reshape(far.shape)
+        )
+        flags = np.column_stack([ranged, far, high])
+        reason = tuple(
+            "+".join(name for name, hit in zip(REASONS, row, strict=True) if hit) for row in flags
+        )
+        return distance_ratio, leverage_ratio, flags.any(axis=1), reason
 
     def to_dict(self) -> dict:
         return {

@@ -11,10 +11,12 @@ Files beside results.json:
 
 The carpet plot shows the coefficient against the first variable, one curve for each of a
 few values of the second variable spread over its data range, the other variables held at
-0 where 0 lies in their data range, else at its middle. Around each curve the prediction
-interval is shaded; where a point lies outside the data's support
-(``Prediction.outside``) the curve is dashed and the band is left out: there the model is
-an extrapolation, and the interval does not hold.
+0 where 0 lies in their data range, else at its middle. Around each curve two bands are
+shaded: darker the function interval (the coefficient itself, with the model error: what a
+simulator needs), lighter around it the prediction interval (a new measurement, with its
+noise besides). Where a point lies outside the data's support (``Prediction.outside``) the
+curve is dashed and the bands are left out: there the model is an extrapolation, and the
+intervals do not hold.
 """
 
 from __future__ import annotations
@@ -47,7 +49,9 @@ MODEL_FILE = "global_model.json"
 TERMS_FILE = "global_model_terms.csv"
 # one colour per curve of a carpet
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
-BAND_OPACITY = 0.18
+BAND_OPACITY = 0.15
+# the function interval, drawn over the prediction interval's band
+FUNCTION_BAND_OPACITY = 0.3
 
 
 def _held_value(low: float, high: float) -> float:
@@ -76,7 +80,7 @@ def carpet_points(model, x: str, by: str | None, n_by: int = 4, n_x: int = 61):
     return xs, levels, curves, held
 
 
-def _band_path(panel: Panel, x, low, high, colour: str) -> None:
+def _band_path(panel: Panel, x, low, high, colour: str, opacity: float = BAND_OPACITY) -> None:
     """The region between ``low`` and ``high`` over ``x``, one polygon per finite run."""
     px, lo, hi = panel.px(x), panel.py(low), panel.py(high)
     finite = np.isfinite(px) & np.isfinite(lo) & np.isfinite(hi)
@@ -85,13 +89,19 @@ def _band_path(panel: Panel, x, low, high, colour: str) -> None:
         ys = np.concatenate([hi[start:stop], lo[start:stop][::-1]])
         panel.parts.insert(
             0,
-            f"<polygon fill='{colour}' fill-opacity='{BAND_OPACITY}' stroke='none' "
+            f"<polygon fill='{colour}' fill-opacity='{opacity}' stroke='none' "
             f"points='{ax._pairs(xs, ys)}'/>",
         )
 
 
 def _fmt(value: float) -> str:
     return f"{value:.4g}"
+
+
+def _root(variance) -> str:
+    """sqrt of a variance for the page ("–" where it is not known)."""
+    value = float("nan") if variance is None else float(variance)
+    return f"{np.sqrt(value):.4g}" if np.isfinite(value) and value >= 0 else "–"
 
 
 def carpet_svg(model, x: str | None = None, by: str | None = None, level: float = 0.95) -> str:
@@ -118,6 +128,11 @@ def carpet_svg(model, x: str | None = None, by: str | None = None, level: float 
     for k, (value, prediction) in enumerate(zip(levels, predictions, strict=True)):
         colour = COLOURS[k % len(COLOURS)]
         inside = ~np.asarray(prediction.outside, dtype=bool)
+        # inserted beneath the curves: the function interval first, the prediction interval
+        # then beneath it
+        function = [np.where(inside, prediction.function_lower, np.nan),
+                    np.where(inside, prediction.function_upper, np.nan)]  # fmt: skip
+        _band_path(panel, xs, *function, colour, FUNCTION_BAND_OPACITY)
         lower = np.where(inside, prediction.lower, np.nan)
         upper = np.where(inside, prediction.upper, np.nan)
         _band_path(panel, xs, lower, upper, colour)
@@ -129,7 +144,7 @@ def carpet_svg(model, x: str | None = None, by: str | None = None, level: float 
         if value is not None:
             entries.append(("line", colour, f"{by} = {_fmt(value)}"))
     held_text = ", ".join(f"{n} = {_fmt(v)}" for n, v in held.items())
-    title = f"{model.response}: global model, {level:.0%} prediction interval"
+    title = f"{model.response}: global model, {level:.0%} intervals"
     text = PanelText(
         axis_label(model.response, "–"),  # an aerodynamic coefficient: dimensionless
         title,
@@ -138,14 +153,18 @@ def carpet_svg(model, x: str | None = None, by: str | None = None, level: float 
         tuple(entries),
     )
     body = [ax.render_panel(panel, ticks, labels, text)]
-    note = "dashed: outside the data's support (extrapolation)"
-    if held_text:
-        note += f"; held: {held_text}"
-    body.append(
-        f"<text x='{left:.1f}' y='{52.0 + height + 48.0:.1f}' font-size='{ax.TICK_PX}'>"
-        f"{ax.escape(note)}</text>"
-    )
-    return ax.document(width, 52.0 + height + 60.0, body)
+    notes = [
+        "darker band: function interval (the coefficient itself, with its model error)",
+        "lighter band: prediction interval (a new measurement, with its noise too)",
+        "dashed: outside the data's support (extrapolation)"
+        + (f"; held: {held_text}" if held_text else ""),
+    ]
+    for row, note in enumerate(notes):
+        body.append(
+            f"<text x='{left:.1f}' y='{52.0 + height + 48.0 + 14.0 * row:.1f}' "
+            f"font-size='{ax.TICK_PX}'>{ax.escape(note)}</text>"
+        )
+    return ax.document(width, 52.0 + height + 60.0 + 14.0 * (len(notes) - 1), body)
 
 
 def write_global_model_files(model, directory: Path) -> list[str]:
@@ -194,7 +213,10 @@ def _terms_table(coefficient) -> str:
         f"R² = {entry['r2']:.5f}, fit RMS = {entry['rms_fit']:.4g}, PSE = {entry['pse']:.4g} "
         f"(σ²_max = {entry['sigma2_max']:.4g}); σ: {entry['std_kind']} "
         f"(residual lag {entry['coloured_lag']}); prediction intervals with the "
-        f"{entry['residual_variance']} residual variance.</p>"
+        f"{entry['residual_variance']} residual variance; σ_noise = "
+        f"{_root(entry['noise_variance'])} (measurement noise, from sample differences), "
+        f"σ_model = {_root(entry['model_error_variance'])} (model error: the function "
+        f"interval).</p>"
     )
     return facts + table(headers, rows)
 
