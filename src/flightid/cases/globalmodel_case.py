@@ -53,7 +53,14 @@ GLOBAL_MODEL_KIND = "global_model"
 # the whole model (reloadable: flightid.globalmodel.load_global_model) beside results.json
 GLOBAL_MODEL_FILE = "global_model.json"
 # what results.json leaves to GLOBAL_MODEL_FILE: the matrices and reference sets
-_HEAVY = ("covariance", "covariance_cr", "xtx_inv", "local_reference", "local_squared_residuals")
+_HEAVY = (
+    "covariance",
+    "covariance_cr",
+    "xtx_inv",
+    "local_reference",
+    "local_squared_residuals",
+    "local_noise_variances",
+)
 # keys of the stage besides the settings' fields
 _STAGE_KEYS = {"variables", "conditions", "coefficients"}
 
