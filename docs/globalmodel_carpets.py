@@ -34,19 +34,6 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728")
 DATA_MACH = 0.025
 
 
-def _band(panel: Panel, x, low, high, colour: str) -> None:
-    px, lo, hi = panel.px(x), panel.py(low), panel.py(high)
-    finite = np.isfinite(lo) & np.isfinite(hi)
-    for start, stop in ax._runs(finite):
-        xs = np.concatenate([px[start:stop], px[start:stop][::-1]])
-        ys = np.concatenate([hi[start:stop], lo[start:stop][::-1]])
-        panel.parts.insert(
-            0,
-            f"<polygon fill='{colour}' fill-opacity='0.25' stroke='none' "
-            f"points='{ax._pairs(xs, ys)}'/>",
-        )
-
-
 def carpet(carpets: dict, coefficient: str) -> str:
     """One coefficient's carpet as SVG text."""
     alpha = np.asarray(carpets["alpha_deg"], dtype=float)
@@ -77,7 +64,7 @@ def carpet(carpets: dict, coefficient: str) -> str:
         outside = np.asarray(model["outside"][row], dtype=bool)
         low = np.where(outside, np.nan, np.asarray(model["function_lower"][row], dtype=float))
         high = np.where(outside, np.nan, np.asarray(model["function_upper"][row], dtype=float))
-        _band(panel, alpha, low, high, colour)
+        ax.band_between(panel, alpha, low, high, colour, 0.25)
         near = np.abs(data_mach - mach) <= DATA_MACH
         ax.markers(panel, data_alpha[near], data_value[near], "#9a9a9a", 4.0)
         ax.polyline(panel, alpha, np.where(outside, np.nan, value), colour, 1.6)

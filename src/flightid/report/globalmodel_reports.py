@@ -80,20 +80,6 @@ def carpet_points(model, x: str, by: str | None, n_by: int = 4, n_x: int = 61):
     return xs, levels, curves, held
 
 
-def _band_path(panel: Panel, x, low, high, colour: str, opacity: float = BAND_OPACITY) -> None:
-    """The region between ``low`` and ``high`` over ``x``, one polygon per finite run."""
-    px, lo, hi = panel.px(x), panel.py(low), panel.py(high)
-    finite = np.isfinite(px) & np.isfinite(lo) & np.isfinite(hi)
-    for start, stop in ax._runs(finite):
-        xs = np.concatenate([px[start:stop], px[start:stop][::-1]])
-        ys = np.concatenate([hi[start:stop], lo[start:stop][::-1]])
-        panel.parts.insert(
-            0,
-            f"<polygon fill='{colour}' fill-opacity='{opacity}' stroke='none' "
-            f"points='{ax._pairs(xs, ys)}'/>",
-        )
-
-
 def _fmt(value: float) -> str:
     return f"{value:.4g}"
 
@@ -132,10 +118,10 @@ def carpet_svg(model, x: str | None = None, by: str | None = None, level: float 
         # then beneath it
         function = [np.where(inside, prediction.function_lower, np.nan),
                     np.where(inside, prediction.function_upper, np.nan)]  # fmt: skip
-        _band_path(panel, xs, *function, colour, FUNCTION_BAND_OPACITY)
+        ax.band_between(panel, xs, *function, colour, FUNCTION_BAND_OPACITY)
         lower = np.where(inside, prediction.lower, np.nan)
         upper = np.where(inside, prediction.upper, np.nan)
-        _band_path(panel, xs, lower, upper, colour)
+        ax.band_between(panel, xs, lower, upper, colour, BAND_OPACITY)
         ax.polyline(panel, xs, np.where(inside, prediction.value, np.nan), colour, 1.6)
         # outside the support: dashed, one sample into the support so the line is unbroken
         outside = ~inside

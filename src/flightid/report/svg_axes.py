@@ -372,6 +372,21 @@ def band(panel: Panel, low: float, high: float, colour: str) -> None:
     )
 
 
+def band_between(panel: Panel, x, low, high, colour: str, opacity: float = 0.2) -> None:
+    """The region between the curves ``low`` and ``high`` over ``x``, translucent, under the
+    data; one polygon per run of finite values (a NaN leaves a gap)."""
+    px, lo, hi = panel.px(x), panel.py(low), panel.py(high)
+    finite = np.isfinite(px) & np.isfinite(lo) & np.isfinite(hi)
+    for start, stop in _runs(finite):
+        xs = np.concatenate([px[start:stop], px[start:stop][::-1]])
+        ys = np.concatenate([hi[start:stop], lo[start:stop][::-1]])
+        panel.parts.insert(
+            0,
+            f"<polygon fill='{colour}' fill-opacity='{opacity}' stroke='none' "
+            f"points='{_pairs(xs, ys)}'/>",
+        )
+
+
 @dataclass
 class PanelText:
     """What is written around a panel: the y label, a title (left), the x tick labels and
