@@ -234,3 +234,7 @@ def test_a_case_with_method_table_runs_through_flightid_run_json(tmp_path: Path,
     tables = model["CL"].tables
     assert model["CL"].method == "table" and tables.components[0].grid_shape == (4, 3)
     assert np.all(np.abs(tables.values[0] - VALUES) < 3.0 * tables.value_std[0] + 1e-12)
+    # the page lists the table and draws its carpet
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "Table <code>alpha:de</code>" in page
+    assert (out / "figures" / "carpet_CL.svg").read_text().startswith("<svg")

@@ -62,6 +62,26 @@ def _table_entry(k: int, entry) -> dict:
     return {"by": tuple(by), "times": times, "degree": int(degree)}
 
 
+def _breakpoints_entry(name: str, values) -> tuple[float, ...] | str:
+    """One variable's ``breakpoints``: ``"auto"`` or ≥ 2 strictly increasing numbers."""
+    if isinstance(values, str):
+        if values != "auto":
+            raise GlobalModelError(
+                f"breakpoints[{name!r}]: expected a list of numbers or 'auto', got {values!r}"
+            )
+        return "auto"
+    if not isinstance(values, Sequence) or len(values) < 2:
+        raise GlobalModelError(
+            f"breakpoints[{name!r}]: expected at least 2 numbers or 'auto', got {values!r}"
+        )
+    numbers = tuple(_number(f"breakpoints[{name!r}]", v, -np.inf) for v in values)
+    if not all(b > a for a, b in zip(numbers, numbers[1:], strict=False)):
+        raise GlobalModelError(
+            f"breakpoints[{name!r}]: expected strictly increasing values, got {list(numbers)}"
+        )
+    return numbers
+
+
 def _number(name: str, value, low: float, high: float = np.inf, open_low=False) -> float:
     ok = isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
     if ok:
@@ -241,27 +261,7 @@ class GlobalModelSettings:
                 f"breakpoints: expected a mapping {{variable: [numbers] | 'auto'}}, got "
                 f"{self.breakpoints!r}"
             )
-        checked = {}
-        for name, values in breakpoints.items():
-            if isinstance(values, str):
-                if values != "auto":
-                    raise GlobalModelError(
-                        f"breakpoints[{name!r}]: expected a list of numbers or 'auto', got "
-                        f"{values!r}"
-                    )
-                checked[name] = "auto"
-                continue
-            if not isinstance(values, Sequence) or len(values) < 2:
-                raise GlobalModelError(
-                    f"breakpoints[{name!r}]: expected at least 2 numbers or 'auto', got {values!r}"
-                )
-            numbers = tuple(_number(f"breakpoints[{name!r}]", v, -np.inf) for v in values)
-            if not all(b > a for a, b in zip(numbers, numbers[1:], strict=False)):
-                raise GlobalModelError(
-                    f"breakpoints[{name!r}]: expected strictly increasing values, got "
-                    f"{list(numbers)}"
-                )
-            checked[name] = numbers
+        checked = {name: _breakpoints_entry(name, values) for name, values in breakpoints.items()}
         missing = sorted({v for t in tables for v in t["by"]} - set(checked))
         if missing:
             raise GlobalModelError(
