@@ -230,6 +230,10 @@ def test_a_case_with_method_table_runs_through_flightid_run_json(tmp_path: Path,
     assert main(["run", str(case), "--json", "--quiet", "--out", str(out)]) == 0
     document = json.loads(capsys.readouterr().out)
     assert "tables" in json.dumps(document)
+    jsonschema = pytest.importorskip("jsonschema")
+    root = Path(__file__).resolve().parents[1]
+    schema = json.loads((root / "docs" / "schema" / "results.schema.json").read_text())
+    jsonschema.validate(document, schema)
     model = load_global_model(out / "global_model.json")
     tables = model["CL"].tables
     assert model["CL"].method == "table" and tables.components[0].grid_shape == (4, 3)
