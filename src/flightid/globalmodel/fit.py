@@ -7,6 +7,12 @@ coloured-residual covariance by maneuver, σ_cr, R², PSE), and attach what pred
 the effective sample size, the leverage bound, the data support, the measurement-noise and
 model-error variances of the function interval (``noise_variance``, ``model_error_variance``)
 and, for ``residual_variance="local"``, the residual and noise reference (``model``).
+
+With ``method = "table"`` the selection and refit are replaced by ``fit_table_model`` on the
+settings' tables (breakpoints given, or ``"auto"``: ``auto_breakpoints`` with a count or
+``choose_breakpoints`` by PSE); its basis is the regressors and its fitted values the
+parameters, and everything after the fit (N_eff, σ²_noise, σ²_model, support, leverage) is
+the same code for both methods (``_completed``).
 """
 
 from __future__ import annotations

@@ -48,7 +48,9 @@ correction (``flightid.coloured.automatic_lag``; N_eff = N for white residuals).
 
 Each prediction also says whether x₀ is inside the data's support
 (``flightid.globalmodel.support``): ``distance_ratio``, ``leverage_ratio``, ``outside``,
-``reason``.
+``reason``. For a table model a point where a table value without data acts is
+``outside`` with the reason ``"empty-cell"`` (its value and intervals NaN), and one whose cell
+touches a value filled by the smoothing with ``"filled"``.
 
 A model written by ``to_dict`` / ``write`` predicts the same after ``from_dict`` /
 ``load_global_model``, without the data: it keeps θ̂, the covariances, (ΦᵀΦ)⁻¹, the scales,
@@ -231,7 +233,7 @@ class CoefficientModel(ResultSurface):
     Attributes:
         response: the coefficient's name (``"CL"``).
         channel: the data channel it was fitted to.
-        method: ``"mof"``.
+        method: ``"mof"`` or ``"table"``.
         normalisation: the variables' scales and box.
         terms: the selected terms, raw signal units, in the order selected.
         parameters: parameter names (``CL_alpha2``).
