@@ -323,3 +323,76 @@ def test_the_airplane_file_must_hold_an_airplane(envelope, capsys):  # noqa: F81
                  "--airplane", str(wrong)]) != 0  # fmt: skip
     assert "expected an [airplane] table" in capsys.readouterr().err
     assert not out.exists()
+
+
+# ------------------------------------------------------------------------ table models
+TABLE_BREAKPOINTS = {"alpha": [-0.05, 0.05, 0.15, 0.3], "Mach": [0.3, 0.55, 0.8],
+                     "de": [-0.1, 0.0, 0.1], "beta": [-0.1, 0.0, 0.1]}  # fmt: skip
+TABLE_SETTINGS = {
+    # 3-D lift table, a q̂ product table
+    "CL": [{"by": ["alpha", "Mach", "de"]}, {"by": ["alpha"], "times": "qhat"}],
+    # 2-D drag table
+    "CD": [{"by": ["alpha", "Mach"]}],
+    # 1-D side-force tables
+    "CY": [{"by": ["beta"]}],
+}
+
+
+@pytest.fixture(scope="module")
+def table_model():
+    """Table models of CL (3-D + q̂·1-D), CD (2-D), CY (1-D) and term models of Cl, Cm, Cn,
+    fitted to 3000 seeded samples of the polynomial truth (noise σ 0.001)."""
+    rng = np.random.default_rng(8)
+    x = _uniform(rng, 3000)
+    truth = _truth(x)
+    signals = {**x, **{c: truth[c] + 0.001 * rng.standard_normal(3000) for c in truth}}
+    settings = {
+        name: GlobalModelSettings(method="table", tables=tables, breakpoints=TABLE_BREAKPOINTS)
+        for name, tables in TABLE_SETTINGS.items()
+    }
+    for name in ("Cl", "Cm", "Cn"):
+        settings[name] = GlobalModelSettings(max_order=2)
+    return fit_global_model(signals, list(truth), list(VARIABLES), settings=settings)
+
+
+def test_table_models_are_written_as_jsbsim_tables_and_read_back_exactly(table_model, tmp_path):
+    airplane = dataclasses.replace(navion(), Ixz=150.0)
+    aircraft = write_jsbsim_global(table_model, airplane, tmp_path / "Tables")
+    text = (aircraft.folder / "aerodynamics" / "nominal.xml").read_text()
+    root = ET.fromstring(text.split("\n", 2)[2])
+    cl = next(f for f in root.iter("function") if f.get("name") == "flightid/coefficient/CL")
+    assert len(cl.findall(".//table")) == 2
+    assert len(cl.findall(".//tableData[@breakPoint]")) == 3  # one per δe breakpoint
+    rng = np.random.default_rng(13)
+    inner = _uniform(rng, 12)
+    # beyond every breakpoint: the tables hold their edge values, as the model does
+    beyond = {"alpha": (0.35, 0.45), "beta": (0.12, 0.2), "Mach": (0.85, 0.95),
+              "qhat": (0.025, 0.04), "de": (-0.2, -0.12), "da": (0.12, 0.2),
+              "dr": (-0.2, -0.12)}  # fmt: skip
+    outer = _uniform(rng, 8, beyond)
+    points = {k: np.concatenate([inner[k], outer[k]]) for k in inner}
+    got, expected, _, predicted = _compare(table_model, aircraft, points, 5000.0)
+    for name in got:
+        np.testing.assert_allclose(got[name], expected[name], rtol=0, atol=1e-10, err_msg=name)
+    assert np.all(predicted["CL"].outside[12:])
+
+
+def test_a_degree_3_table_or_a_table_without_data_is_refused_by_name(tmp_path):
+    rng = np.random.default_rng(9)
+    x = _uniform(rng, 800)
+    signals = {**x, "CY": _truth(x)["CY"]}
+    cubic = GlobalModelSettings(method="table", tables=[{"by": ["beta"], "degree": 3}],
+                                breakpoints={"beta": [-0.1, 0.0, 0.1]})  # fmt: skip
+    model = fit_global_model(signals, ["CY"], list(VARIABLES), settings=cubic)
+    with pytest.raises(JSBSimExportError, match="degree 3"):
+        write_jsbsim_global(model, navion(), tmp_path / "Cubic")
+    empty = GlobalModelSettings(method="table", tables=[{"by": ["beta"]}],
+                                breakpoints={"beta": [-0.1, 0.0, 0.1, 0.5]})  # fmt: skip
+    model = fit_global_model(signals, ["CY"], list(VARIABLES), settings=empty)
+    with pytest.raises(JSBSimExportError, match="no data"):
+        write_jsbsim_global(model, navion(), tmp_path / "Empty")
+    linear = GlobalModelSettings(method="table", tables=[{"by": ["beta"]}],
+                                 breakpoints={"beta": [-0.1, 0.0, 0.1]})  # fmt: skip
+    model = fit_global_model(signals, ["CY"], list(VARIABLES), settings=linear)
+    with pytest.raises(JSBSimExportError, match="draws"):
+        write_jsbsim_global(model, navion(), tmp_path / "Draws", draws=2)

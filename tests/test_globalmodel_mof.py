@@ -271,7 +271,7 @@ def test_too_few_samples_and_too_many_candidates_are_named_errors():
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        ({"method": "table"}, r"method: expected one of \['mof'\], got 'table'"),
+        ({"method": "spline"}, r"method: expected one of \['mof', 'table'\], got 'spline'"),
         ({"ranking": "best"}, "ranking: expected one of"),
         ({"sigma2_max": "noise"}, "sigma2_max: expected 'response', 'full' or a number"),
         ({"decimate": 0}, "decimate: expected an integer ≥ 1"),

@@ -47,6 +47,13 @@ says where a point is outside; the box itself has empty corners the data never v
     aircraft = write_jsbsim_global(model, airplane_from_table({"library": "navion"}),
                                    "out/Envelope", controls={"de": "fcs/elevator-pos-rad"})
     flown = fly_jsbsim(aircraft, t, {"de": de, "da": da, "dr": dr}, {"u": 60.0})
+
+Table models. A coefficient fitted with ``method = "table"`` is written as JSBSim
+``<table>`` functions (``_jsbsim_tables``): 1-D, 2-D and 3-D tables of the fitted values on
+their breakpoints, a ``times`` signal as a product; JSBSim interpolates linearly and holds
+the edge values, as the degree-1 model does, so the round trip is exact. Degree-3 tables and
+tables with values left without data are refused (``JSBSimExportError``), and so are
+``draws`` for a model with tables (the draws perturb polynomial parameters only).
 """
 
 from __future__ import annotations
@@ -128,12 +135,70 @@ def _check_units(model, signals: tuple[str, ...], controls, thrust_input) -> Non
         )
 
 
+def _term_aero(model):
+    """The ``AeroModel`` the aircraft writer takes: the term coefficients' terms, and for
+    each table coefficient a constant placeholder ``<C>_tables`` (value 0) whose function is
+    replaced by the tables after writing."""
+    from flightid.aircraft.aero import AeroModel
+
+    return AeroModel(
+        {
+            name: {f"{name}_tables": "1"}
+            if c.tables is not None
+            else dict(zip(c.parameters, c.terms, strict=True))
+            for name, c in model.coefficients.items()
+        }
+    )
+
+
+def _write_tables(model, nominal: Path, signals: SignalMap) -> None:
+    """Replace each table coefficient's placeholder function in ``nominal`` (the written
+    aerodynamics file) by its tables, preceded by the signal functions the tables read."""
+    import xml.etree.ElementTree as ET
+
+    from flightid.export._jsbsim_tables import (
+        signal_functions,
+        table_coefficient_function,
+        table_signals,
+    )
+
+    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
+    root = ET.parse(nominal, parser).getroot()
+    written: list[str] = []
+    first = None
+    for name, coefficient in model.coefficients.items():
+        if coefficient.tables is None:
+            continue
+        wanted = f"flightid/coefficient/{name}"
+        index, old = next(
+            (k, e) for k, e in enumerate(root) if e.tag == "function" and e.get("name") == wanted
+        )
+        first = index if first is None else min(first, index)
+        root.remove(old)
+        root.insert(index, table_coefficient_function(name, coefficient))
+        fresh = [s for s in table_signals(coefficient) if s not in written]
+        for k, function in enumerate(signal_functions(fresh, signals, name)):
+            root.insert(first + k, function)
+        first += len(fresh)
+        written += fresh
+    ET.indent(root)
+    text = ET.tostring(root, encoding="unicode")
+    header = '<?xml version="1.0"?>\n<!-- flightid: identified aerodynamics (nominal values) -->\n'
+    nominal.write_text(header + text + "\n", encoding="utf-8")
+
+
 def _estimate(model) -> SimpleNamespace:
     """The values and the block-diagonal covariance of every coefficient's θ̂ (the form
     ``write_jsbsim`` takes from an ``Estimate``): coefficients are fitted separately, so
     their estimates are uncorrelated with each other."""
     names, values, blocks = [], [], []
-    for coefficient in model.coefficients.values():
+    for name, coefficient in model.coefficients.items():
+        if coefficient.tables is not None:
+            # the placeholder of the table functions (``_term_aero``)
+            names.append(f"{name}_tables")
+            values.append(0.0)
+            blocks.append(np.zeros((1, 1)))
+            continue
         names.extend(coefficient.parameters)
         values.extend(np.asarray(coefficient.estimates, dtype=float))
         blocks.append(np.asarray(coefficient.covariance, dtype=float))
@@ -202,6 +267,11 @@ def _check_model(model) -> None:
         )
     if not model.coefficients:
         raise JSBSimExportError("model: expected at least one coefficient, got none")
+    from flightid.export._jsbsim_tables import check_exportable
+
+    for name, coefficient in model.coefficients.items():
+        if coefficient.tables is not None:
+            check_exportable(name, coefficient)
 
 
 def write_jsbsim_global(
@@ -245,15 +315,26 @@ def write_jsbsim_global(
         raise InputTypeError(
             f"controls: expected a mapping {{variable: JSBSim property}}, got {describe(controls)}"
         )
-    aero = model.aero_model()
+    tabled = [name for name, c in model.coefficients.items() if c.tables is not None]
+    if tabled and draws:
+        raise JSBSimExportError(
+            f"draws: expected 0 for a model with tables ({tabled}), got {draws!r}; the draws "
+            "perturb polynomial parameters only"
+        )
+    aero = _term_aero(model) if tabled else model.aero_model()
     mapping = {**DEFAULT_CONTROLS, **dict(controls or {})}
-    _check_units(model, aero.signals, mapping, airplane.thrust_input)
+    from flightid.export._jsbsim_tables import table_signals
+
+    used = list(aero.signals) + [
+        s for name in tabled for s in table_signals(model.coefficients[name])
+    ]
+    _check_units(model, tuple(dict.fromkeys(used)), mapping, airplane.thrust_input)
     span_ft = None if airplane.b is None else airplane.b / FT_M
     signals = SignalMap(
         span_ft, airplane.cbar / FT_M, reference_speed, "V", mapping, airplane.thrust_input
     )
     notes = (f"global model: {EXTRAPOLATION_NOTE}", f"axes: {AXES_NOTE}")
-    return write_aircraft(
+    result = write_aircraft(
         _estimate(model),
         airplane,
         path_dir,
@@ -268,3 +349,6 @@ def write_jsbsim_global(
         notes=notes,
         summary=_support_summary(model, signals),
     )
+    if tabled:
+        _write_tables(model, result.aerodynamics_files[0], signals)
+    return result

@@ -7,6 +7,12 @@ coloured-residual covariance by maneuver, σ_cr, R², PSE), and attach what pred
 the effective sample size, the leverage bound, the data support, the measurement-noise and
 model-error variances of the function interval (``noise_variance``, ``model_error_variance``)
 and, for ``residual_variance="local"``, the residual and noise reference (``model``).
+
+With ``method = "table"`` the selection and refit are replaced by ``fit_table_model`` on the
+settings' tables (breakpoints given, or ``"auto"``: ``auto_breakpoints`` with a count or
+``choose_breakpoints`` by PSE); its basis is the regressors and its fitted values the
+parameters, and everything after the fit (N_eff, σ²_noise, σ²_model, support, leverage) is
+the same code for both methods (``_completed``).
 """
 
 from __future__ import annotations
@@ -304,22 +310,47 @@ def _fit_coefficient(
     dt: float | None,
     units: Mapping[str, str],
 ) -> CoefficientModel:
-    """One coefficient's model (module docstring)."""
+    """One coefficient's model (module docstring): the method's fit, then what predictions
+    need (``_completed``), the same for every method."""
+    rows = decimated_indices(maneuver_index, settings.decimate)
+    data = _FitData(name, channel, z_all, X_all, maneuver_index, rows, normalisation)
+    if settings.method == "table":
+        fitted = _table_fit(data, settings, units)
+    else:
+        fitted = _mof_fit(data, settings, units)
+    return _completed(data, fitted, settings, dt)
+
+
+class _FitData:
+    """The samples of one coefficient's fit: every sample (``*_all``) and the decimated rows."""
+
+    def __init__(self, name, channel, z_all, X_all, maneuver_index, rows, normalisation):
+        self.name, self.channel = name, channel
+        self.z_all, self.X_all, self.index_all = z_all, X_all, maneuver_index
+        self.rows = rows
+        self.X, self.z, self.index = X_all[rows], z_all[rows], maneuver_index[rows]
+        self.normalisation = normalisation
+        self.variables = normalisation.names
+
+    def signals(self, every: bool = False) -> dict[str, np.ndarray]:
+        X = self.X_all if every else self.X
+        return {v: X[:, k] for k, v in enumerate(self.variables)}
+
+
+def _mof_fit(data: _FitData, settings: GlobalModelSettings, units) -> dict:
+    """MOF: candidates, term selection by PSE, least squares on the selected raw terms."""
     from flightid.regression.least_squares import least_squares
 
-    rows = decimated_indices(maneuver_index, settings.decimate)
-    X, z, index = X_all[rows], z_all[rows], maneuver_index[rows]
-    variables = normalisation.names
-    terms, forced = _candidates(variables, settings)
-    if z.size <= len(terms) + _MIN_DOF:
+    terms, forced = _candidates(data.variables, settings)
+    if data.z.size <= len(terms) + _MIN_DOF:
         raise GlobalModelError(
-            f"signals[{channel!r}]: expected more samples than the {len(terms)} candidate terms "
-            f"+ {_MIN_DOF} after decimate = {settings.decimate}, got {z.size}"
+            f"signals[{data.channel!r}]: expected more samples than the {len(terms)} candidate "
+            f"terms + {_MIN_DOF} after decimate = {settings.decimate}, got {data.z.size}"
         )
-    signals = {v: X[:, k] for k, v in enumerate(variables)}
-    columns = candidate_columns(terms, signals, normalisation)
+    signals = data.signals()
+    columns = candidate_columns(terms, signals, data.normalisation)
     path = select_terms(
-        z,
+        data.z,
         columns,
         [t.label for t in terms],
         forced=forced,
@@ -331,31 +362,170 @@ def _fit_coefficient(
     )
     selected = [terms[j] for j in path.indices[: path.n_terms]]
     Phi = evaluate_terms(selected, signals)
-    parameters = tuple(f"{name}_{t.identifier}" for t in selected)
-    response_unit = units.get(channel, "")
+    parameters = tuple(f"{data.name}_{t.identifier}" for t in selected)
+    response_unit = units.get(data.channel, "")
     parameter_units = {
         p: _parameter_unit(t, response_unit, units)
         for p, t in zip(parameters, selected, strict=True)
     }
     fit = least_squares(
         Phi,
-        z,
+        data.z,
         parameters,
         sigma2_max=path.sigma2_max,
         units=parameter_units,
-        maneuver_index=index,
+        maneuver_index=data.index,
     )
-    # the residuals of the selected model on every sample (before decimation), in time order
-    all_signals = {v: X_all[:, k] for k, v in enumerate(variables)}
-    residuals_all = z_all - evaluate_terms(selected, all_signals) @ np.asarray(fit.estimates)
+    spread = float(np.sum((data.z - data.z.mean()) ** 2))
+    return {
+        "fit": fit,
+        "Phi": Phi,
+        "xtx_inv": _xtx_inverse(Phi),
+        "fitted_all": evaluate_terms(selected, data.signals(every=True))
+        @ np.asarray(fit.estimates),
+        "terms": tuple(t.label for t in selected),
+        "parameters": parameters,
+        "units": tuple(parameter_units[p] for p in parameters),
+        "n_parameters": len(selected),
+        "extra": {
+            "sigma2_max": float(path.sigma2_max),
+            "path_table": tuple(path.to_dict()),
+            "cost_share": tuple(float(x) for x in path.cost_share(spread)[: path.n_terms]),
+            "n_candidates": len(terms),
+            "path": path,
+        },
+    }
+
+
+def _breakpoints_for(data: _FitData, settings: GlobalModelSettings, variable: str, entry):
+    """The breakpoints of ``variable``: as given, or ``"auto"`` (module ``tables``)."""
+    from flightid.globalmodel.tables import TableError, auto_breakpoints, choose_breakpoints
+
+    given = settings.breakpoints[variable]
+    if not isinstance(given, str):
+        return np.array(given, dtype=float)
+    x = data.signals()[variable]
+    try:
+        if settings.breakpoint_count is not None:
+            return auto_breakpoints(x, settings.breakpoint_count)
+        signals = data.signals()
+        choice = choose_breakpoints(
+            data.z, variable, signals, times=entry["times"], degree=entry["degree"],
+            smoothing=settings.smoothing, min_weight=settings.min_weight,
+            maneuver_index=data.index,
+        )  # fmt: skip
+    except TableError as error:
+        raise GlobalModelError(f"breakpoints[{variable!r}]: {error}") from None
+    return choice.breakpoints
+
+
+def _table_components(data: _FitData, settings: GlobalModelSettings):
+    """The ``TableComponent``s of the settings' tables; table variables and ``times`` signals
+    must be among the model's variables (predictions see only those)."""
+    from flightid.globalmodel.tables import TableComponent, TableError
+
+    used = {v for t in settings.tables for v in (*t["by"], t["times"]) if v is not None}
+    unknown = sorted(used - set(data.variables))
+    if unknown:
+        raise GlobalModelError(
+            f"tables: expected variables and times signals from the model's variables "
+            f"{list(data.variables)}, got {unknown}"
+        )
+    breakpoints = {}
+    for entry in settings.tables:
+        for v in entry["by"]:
+            if v not in breakpoints:
+                breakpoints[v] = _breakpoints_for(data, settings, v, entry)
+    try:
+        return [
+            TableComponent(t["by"], breakpoints, t["times"], t["degree"]) for t in settings.tables
+        ]
+    except TableError as error:
+        raise GlobalModelError(f"tables: {error}") from None
+
+
+def _table_sigma2_max(settings: GlobalModelSettings, z: np.ndarray) -> float:
+    """PSE's σ²_max for a table fit: a number as given, else the variance of z about its mean
+    (the bound of ``"response"``; ``"full"`` has no candidate set to fit here)."""
+    if isinstance(settings.sigma2_max, str):
+        return float(np.mean((z - z.mean()) ** 2))
+    return float(settings.sigma2_max)
+
+
+def _table_fit(data: _FitData, settings: GlobalModelSettings, units) -> dict:
+    """Tables: ``fit_table_model`` on the decimated samples; the regressors are the table
+    basis (``TableFit.regressors``), the estimates the fitted table coefficients."""
+    from flightid.globalmodel.tables import TableError, fit_table_model
+
+    components = _table_components(data, settings)
+    sigma2_max = _table_sigma2_max(settings, data.z)
+    try:
+        table = fit_table_model(
+            data.z, components, data.signals(), smoothing=settings.smoothing,
+            min_weight=settings.min_weight, maneuver_index=data.index, sigma2_max=sigma2_max,
+        )  # fmt: skip
+    except TableError as error:
+        raise GlobalModelError(f"signals[{data.channel!r}]: {error}") from None
+    fit = table.fit
+    n_p = len(table.names)
+    if data.z.size <= n_p + _MIN_DOF:
+        raise GlobalModelError(
+            f"signals[{data.channel!r}]: expected more samples than the {n_p} table values "
+            f"+ {_MIN_DOF} after decimate = {settings.decimate}, got {data.z.size}"
+        )
+    Phi = table.regressors(data.signals())
+    # (ΦᵀΦ)⁻¹ for the leverage: Cov_cr / s² ((ΦᵀΦ)⁻¹ without smoothing, A⁻¹ΦᵀΦA⁻¹ with it)
+    covariance_cr = np.asarray(fit.covariance, dtype=float)
+    xtx_inv = covariance_cr / fit.s2 if fit.s2 > 0 else _xtx_inverse(Phi)
+    effective = getattr(fit, "effective_parameters", float("nan"))
+    response_unit = units.get(data.channel, "")
+    return {
+        "fit": fit,
+        "Phi": Phi,
+        "xtx_inv": xtx_inv,
+        "fitted_all": table.evaluate(data.signals(every=True)),
+        "terms": tuple(table.names),
+        "parameters": tuple(f"{data.name}_{label}" for label in table.names),
+        "units": tuple(_table_unit(label, response_unit, units) for label in table.names),
+        "n_parameters": effective if np.isfinite(effective) and settings.smoothing > 0 else n_p,
+        "extra": {
+            "sigma2_max": sigma2_max,
+            "n_candidates": n_p,
+            "tables": table,
+        },
+    }
+
+
+def _table_unit(label: str, response_unit: str, units: Mapping[str, str]) -> str:
+    """Unit of a table value: the response's, over the ``times`` signal's unit if any."""
+    head = label.partition("[")[0]
+    times = head.partition("*")[0] if "*" in head else None
+    unit = units.get(times, "") if times else ""
+    if not unit or unit in ("-", "1"):
+        return response_unit
+    return f"{response_unit or '1'}/{unit}"
+
+
+def _completed(data: _FitData, fitted: dict, settings: GlobalModelSettings, dt) -> CoefficientModel:
+    """The ``CoefficientModel`` of a method's fit: N_eff, σ²_noise and σ²_model from the
+    residuals on every sample, the leverage bound, the support and the local reference."""
+    fit, Phi, n_p = fitted["fit"], fitted["Phi"], fitted["n_parameters"]
+    z, index = data.z, data.index
+    # the residuals of the model on every sample (before decimation), in time order; a
+    # sample where the model is undefined (a table value without data) is left out
+    residuals_all = data.z_all - fitted["fitted_all"]
+    defined = np.isfinite(residuals_all)
     noise_variance, error_variance = model_error_variance(
-        residuals_all, maneuver_index, len(selected)
+        residuals_all[defined], data.index_all[defined], n_p
     )
-    noise_shares = half_squared_differences(residuals_all, maneuver_index, noise_variance)[rows]
-    n_p = len(selected)
+    shares = np.full(residuals_all.size, noise_variance)
+    shares[defined] = half_squared_differences(
+        residuals_all[defined], data.index_all[defined], noise_variance
+    )
+    noise_shares = shares[data.rows]
     n_eff = effective_sample_size(np.asarray(fit.residuals), fit.coloured_lag, index, n_p)
-    xtx_inv = _xtx_inverse(Phi)
-    V = normalisation.support_coordinates(X)
+    xtx_inv = fitted["xtx_inv"]
+    V = data.normalisation.support_coordinates(data.X)
     support = Support.from_data(
         V,
         index,
@@ -367,19 +537,18 @@ def _fit_coefficient(
     )
     local = settings.residual_variance == "local"
     local_k = settings.local_k or max(100, z.size // 50)
-    spread = float(np.sum((z - z.mean()) ** 2))
     return CoefficientModel(
-        response=name,
-        channel=channel,
+        response=data.name,
+        channel=data.channel,
         method=settings.method,
-        normalisation=normalisation,
-        terms=tuple(t.label for t in selected),
-        parameters=parameters,
+        normalisation=data.normalisation,
+        terms=fitted["terms"],
+        parameters=fitted["parameters"],
         estimates=np.array(fit.estimates),
         covariance=np.array(fit.covariance_default),
         covariance_cr=np.array(fit.covariance),
         xtx_inv=xtx_inv,
-        units=tuple(parameter_units[p] for p in parameters),
+        units=fitted["units"],
         s2=float(fit.s2),
         n_samples=int(z.size),
         n_eff=n_eff,
@@ -389,23 +558,19 @@ def _fit_coefficient(
         residuals_white=fit.residuals_white,
         r2=float(fit.r2),
         pse=float(fit.pse),
-        sigma2_max=float(path.sigma2_max),
         rms_fit=float(np.sqrt(fit.rss / z.size)),
-        leverage_max=float(np.max(leverages(Phi, xtx_inv))),
+        leverage_max=float(np.nanmax(leverages(Phi, xtx_inv))),
         noise_variance=noise_variance,
         model_error_variance=error_variance,
         residual_variance=settings.residual_variance,
         local_k=int(min(local_k, z.size)),
-        local_reference=V if local else np.zeros((0, len(variables))),
+        local_reference=V if local else np.zeros((0, len(data.variables))),
         local_squared_residuals=np.asarray(fit.residuals) ** 2 if local else np.zeros(0),
         local_noise_variances=noise_shares if local else np.zeros(0),
         support=support,
         settings=settings,
-        path_table=tuple(path.to_dict()),
-        cost_share=tuple(float(x) for x in path.cost_share(spread)[: path.n_terms]),
-        n_candidates=len(terms),
-        path=path,
         fit=fit,
+        **fitted["extra"],
     )
 
 

@@ -48,7 +48,9 @@ correction (``flightid.coloured.automatic_lag``; N_eff = N for white residuals).
 
 Each prediction also says whether x₀ is inside the data's support
 (``flightid.globalmodel.support``): ``distance_ratio``, ``leverage_ratio``, ``outside``,
-``reason``.
+``reason``. For a table model a point where a table value without data acts is
+``outside`` with the reason ``"empty-cell"`` (its value and intervals NaN), and one whose cell
+touches a value filled by the smoothing with ``"filled"``.
 
 A model written by ``to_dict`` / ``write`` predicts the same after ``from_dict`` /
 ``load_global_model``, without the data: it keeps θ̂, the covariances, (ΦᵀΦ)⁻¹, the scales,
@@ -68,6 +70,7 @@ import numpy as np
 from flightid.globalmodel.mof import MofPath
 from flightid.globalmodel.settings import GlobalModelSettings
 from flightid.globalmodel.support import Support, beyond_range, leverages
+from flightid.globalmodel.tables import TableFit
 from flightid.globalmodel.variables import GlobalModelError, Normalisation, points_matrix
 from flightid.model.terms import Term, evaluate_terms, parse_term
 from flightid.numbers import format_with_sigma
@@ -230,7 +233,7 @@ class CoefficientModel(ResultSurface):
     Attributes:
         response: the coefficient's name (``"CL"``).
         channel: the data channel it was fitted to.
-        method: ``"mof"``.
+        method: ``"mof"`` or ``"table"``.
         normalisation: the variables' scales and box.
         terms: the selected terms, raw signal units, in the order selected.
         parameters: parameter names (``CL_alpha2``).
@@ -262,6 +265,9 @@ class CoefficientModel(ResultSurface):
         n_candidates: candidates offered.
         path: the ``MofPath`` (None after reloading).
         fit: the ``LeastSquaresResult`` of the selected terms (None after reloading).
+        tables: (method ``"table"``) the ``TableFit``: the tables' breakpoints, values, σ,
+            filled and dropped values; ``terms`` and ``parameters`` are then its basis labels
+            (``"alpha:de[2,3]"``) and the regressors its basis.
     """
 
     response: str
@@ -301,6 +307,7 @@ class CoefficientModel(ResultSurface):
     n_candidates: int = 0
     path: MofPath | None = None
     fit: LeastSquaresResult | None = None
+    tables: TableFit | None = None
 
     @property
     def variables(self) -> tuple[str, ...]:
@@ -325,7 +332,18 @@ class CoefficientModel(ResultSurface):
         {variable: values} or an (n, m) matrix in variable order."""
         X = self._matrix(points)
         signals = {name: X[:, k] for k, name in enumerate(self.variables)}
+        if self.tables is not None:
+            return self.tables.regressors(signals)
         return evaluate_terms(self.parsed_terms, signals)
+
+    def _cell_flags(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(empty, filled) per point: a table value without data acts there (the model is
+        NaN), or a value filled by the smoothing does; both False for MOF."""
+        if self.tables is None:
+            none = np.zeros(X.shape[0], dtype=bool)
+            return none, none
+        signals = {name: X[:, k] for k, name in enumerate(self.variables)}
+        return self.tables.cell_flags(signals)
 
     def _matrix(self, points) -> np.ndarray:
         if isinstance(points, Mapping):
@@ -397,8 +415,15 @@ class CoefficientModel(ResultSurface):
         leverage_ratio = leverages(phi, self.xtx_inv) / self.leverage_max
         norm = self.normalisation
         out_of_range = beyond_range(X, norm.low, norm.high, self.settings.support_margin)
+        empty, filled = self._cell_flags(X)
         distance_ratio, leverage_ratio, outside, reason = self.support.measure(
-            V, leverage_ratio, out_of_range
+            V, np.where(empty, 0.0, leverage_ratio), out_of_range
+        )
+        leverage_ratio = np.where(empty, np.nan, leverage_ratio)
+        outside = outside | empty | filled
+        reason = tuple(
+            "+".join(x for x in (r, "empty-cell" if e else "", "filled" if f else "") if x)
+            for r, e, f in zip(reason, empty, filled, strict=True)
         )
         return Prediction(
             response=self.response,
@@ -436,9 +461,13 @@ class CoefficientModel(ResultSurface):
 
     def summary(self) -> str:
         """Text table: the selected terms with value, σ (default) and σ_cr, and the fit."""
+        what = (
+            f"{len(self.tables.components)} tables, {len(self.terms)} fitted values"
+            if self.tables is not None
+            else f"{len(self.terms)} of {self.n_candidates} candidate terms"
+        )
         lines = [
-            f"{self.response} ({self.method}, {self.channel}): {len(self.terms)} of "
-            f"{self.n_candidates} candidate terms",
+            f"{self.response} ({self.method}, {self.channel}): {what}",
             f"N = {self.n_samples}  N_eff = {self.n_eff:.1f}  R² = {self.r2:.6f}  "
             f"s = {np.sqrt(self.s2):.4g}  PSE = {self.pse:.4g} (σ²_max = {self.sigma2_max:.4g})"
             f"  residual lag {self.coloured_lag}",
@@ -452,7 +481,23 @@ class CoefficientModel(ResultSurface):
             lines.append(
                 f"{name:<24s}{term:<28s}{value_text:>14s}{std_text:>12s}{self.std_cr[j]:>12.2g}"
             )
+        if self.tables is not None:
+            lines += self._table_lines()
         return "\n".join(lines)
+
+    def _table_lines(self) -> list[str]:
+        """Each table's breakpoints and the number of values filled or dropped."""
+        lines = []
+        for c, component in enumerate(self.tables.components):
+            marks = (
+                f"{int(self.tables.filled[c].sum())} filled, "
+                f"{int(self.tables.dropped[c].sum())} without data"
+            )
+            lines.append(f"table {component.label} (degree {component.degree}; {marks})")
+            for v in component.variables:
+                points = ", ".join(f"{b:.4g}" for b in component.breakpoints[v])
+                lines.append(f"  {v}: [{points}]")
+        return lines
 
     def to_dict(self) -> dict:
         """Plain Python (JSON-ready, strict JSON through ``flightid.jsonout``); reloadable."""
@@ -502,6 +547,7 @@ class CoefficientModel(ResultSurface):
             "local_squared_residuals": self.local_squared_residuals.tolist(),
             "local_noise_variances": self.local_noise_variances.tolist(),
             "settings": self.settings.to_dict(),
+            "tables": None if self.tables is None else self.tables.to_dict(),
         }
 
     @classmethod
@@ -545,6 +591,7 @@ class CoefficientModel(ResultSurface):
             path_table=tuple(dict(e) for e in entry.get("path", ())),
             cost_share=tuple(_nan(t.get("cost_share")) for t in terms),
             n_candidates=int(entry.get("n_candidates", 0)),
+            tables=None if entry.get("tables") is None else TableFit.from_dict(entry["tables"]),
         )
 
 
@@ -598,6 +645,12 @@ class GlobalModel(ResultSurface):
         if unknown:
             raise GlobalModelError(
                 f"aero_model: expected coefficients from {list(COEFFICIENTS)}, got {unknown}"
+            )
+        tabled = [c for c, m in self.coefficients.items() if m.tables is not None]
+        if tabled:
+            raise GlobalModelError(
+                f"aero_model: expected term models, got table models for {tabled} (tables are "
+                "no terms of an AeroModel; export them with write_jsbsim_global)"
             )
         return AeroModel(
             {

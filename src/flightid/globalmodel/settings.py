@@ -17,7 +17,9 @@ from flightid.globalmodel.variables import GlobalModelError
 
 __all__ = ["GlobalModelSettings", "METHODS", "RESIDUAL_VARIANCES"]
 
-METHODS = ("mof",)
+METHODS = ("mof", "table")
+# most variables of one table (JSBSim's row, column and table breakpoints)
+_MAX_TABLE_VARIABLES = 3
 RESIDUAL_VARIANCES = ("global", "local")
 
 
@@ -25,6 +27,59 @@ def _integer(name: str, value, low: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
         raise GlobalModelError(f"{name}: expected an integer ≥ {low}, got {value!r}")
     return int(value)
+
+
+def _table_entry(k: int, entry) -> dict:
+    """One table of ``tables`` checked: {"by": tuple of 1–3 names, "times", "degree"}."""
+    if not isinstance(entry, Mapping) or "by" not in entry:
+        raise GlobalModelError(
+            f"tables[{k}]: expected a mapping {{by = [variables], times = signal, degree = 1|3}}"
+            f", got {entry!r}"
+        )
+    unknown = sorted(set(entry) - {"by", "times", "degree"})
+    if unknown:
+        raise GlobalModelError(
+            f"tables[{k}]: expected keys by, times, degree, got unknown keys {unknown}"
+        )
+    by = entry["by"]
+    by = (by,) if isinstance(by, str) else by
+    if (
+        not isinstance(by, Sequence)
+        or not 1 <= len(by) <= _MAX_TABLE_VARIABLES
+        or not all(isinstance(v, str) and v for v in by)
+        or len(set(by)) != len(by)
+    ):
+        raise GlobalModelError(
+            f"tables[{k}].by: expected 1 to {_MAX_TABLE_VARIABLES} distinct variable names, "
+            f"got {entry['by']!r}"
+        )
+    times = entry.get("times")
+    if times is not None and not (isinstance(times, str) and times):
+        raise GlobalModelError(f"tables[{k}].times: expected a signal name, got {times!r}")
+    degree = entry.get("degree", 1)
+    if isinstance(degree, bool) or degree not in (1, 3):
+        raise GlobalModelError(f"tables[{k}].degree: expected 1 or 3, got {degree!r}")
+    return {"by": tuple(by), "times": times, "degree": int(degree)}
+
+
+def _breakpoints_entry(name: str, values) -> tuple[float, ...] | str:
+    """One variable's ``breakpoints``: ``"auto"`` or ≥ 2 strictly increasing numbers."""
+    if isinstance(values, str):
+        if values != "auto":
+            raise GlobalModelError(
+                f"breakpoints[{name!r}]: expected a list of numbers or 'auto', got {values!r}"
+            )
+        return "auto"
+    if not isinstance(values, Sequence) or len(values) < 2:
+        raise GlobalModelError(
+            f"breakpoints[{name!r}]: expected at least 2 numbers or 'auto', got {values!r}"
+        )
+    numbers = tuple(_number(f"breakpoints[{name!r}]", v, -np.inf) for v in values)
+    if not all(b > a for a, b in zip(numbers, numbers[1:], strict=False)):
+        raise GlobalModelError(
+            f"breakpoints[{name!r}]: expected strictly increasing values, got {list(numbers)}"
+        )
+    return numbers
 
 
 def _number(name: str, value, low: float, high: float = np.inf, open_low=False) -> float:
@@ -43,7 +98,8 @@ class GlobalModelSettings:
     """Options of one coefficient's global model (all checked on construction).
 
     Attributes:
-        method: ``"mof"`` (multivariate orthogonal functions; the only method offered).
+        method: ``"mof"`` (multivariate orthogonal functions: selected polynomial and spline
+            terms) or ``"table"`` (a sum of tables on breakpoints, ``flightid.globalmodel.tables``).
         orders: highest power of each variable in the monomial candidates (a variable not
             listed: ``max_order``).
         max_order: highest total order Σ e_k of a monomial candidate.
@@ -70,6 +126,15 @@ class GlobalModelSettings:
         support_margin: a point beyond the data's range [low, high] of any variable by more
             than support_margin × (high − low) is outside the support.
         tol: relative squared norm under which a candidate counts as dependent.
+        tables: (``"table"``) the tables, each a mapping ``{"by": [1–3 variables],
+            "times": signal (optional), "degree": 1 or 3 (optional, default 1)}``.
+        breakpoints: (``"table"``) {variable: [breakpoints] or ``"auto"``}: ``"auto"`` places
+            ``breakpoint_count`` breakpoints at the data quantiles (``auto_breakpoints``), or,
+            without a count, chooses the count 3…12 with the least PSE (``choose_breakpoints``).
+        breakpoint_count: number of ``"auto"`` breakpoints (None: chosen by PSE).
+        smoothing: (``"table"``) λ ≥ 0 of the second-difference penalty (0: none; values
+            without data are then dropped, else filled).
+        min_weight: (``"table"``) data weight below which a table value has no data.
     """
 
     method: str = "mof"
@@ -95,10 +160,16 @@ class GlobalModelSettings:
     support_factor: float = 2.0
     support_margin: float = 0.02
     tol: float = field(default=1e-10)
+    tables: Sequence[Mapping] | None = None
+    breakpoints: Mapping[str, Sequence[float] | str] | None = None
+    breakpoint_count: int | None = None
+    smoothing: float = 0.0
+    min_weight: float = 1.0
 
     def __post_init__(self) -> None:
         self._check_choices()
         self._check_structure()
+        self._check_tables()
         for name, low in (("max_order", 0), ("spline_order", 1), ("cross_order", 1)):
             _integer(name, getattr(self, name), low)
         for name, low in (("patience", 1), ("max_candidates", 1), ("decimate", 1)):
@@ -158,6 +229,47 @@ class GlobalModelSettings:
             if isinstance(value, str) or not all(isinstance(x, str) for x in value):
                 raise GlobalModelError(f"{name}: expected a list of names, got {value!r}")
 
+    def _check_tables(self) -> None:
+        """``tables``, ``breakpoints``, ``breakpoint_count``, ``smoothing``, ``min_weight``;
+        the tables normalised to tuples of {"by": tuple, "times": str | None, "degree": int}
+        and the breakpoints to {variable: tuple of floats | "auto"}."""
+        _number("smoothing", self.smoothing, 0.0)
+        _number("min_weight", self.min_weight, 0.0)
+        if self.breakpoint_count is not None:
+            _integer("breakpoint_count", self.breakpoint_count, 2)
+        if self.method != "table":
+            if self.tables is not None:
+                raise GlobalModelError(
+                    f"tables: expected only with method = 'table', got method {self.method!r}"
+                )
+            return
+        if (
+            self.tables is None
+            or isinstance(self.tables, (str, Mapping))
+            or not isinstance(self.tables, Sequence)
+            or not self.tables
+        ):
+            raise GlobalModelError(
+                f"tables: expected a non-empty list of tables {{by = [variables], times = "
+                f"signal, degree = 1|3}} with method = 'table', got {self.tables!r}"
+            )
+        tables = tuple(_table_entry(k, entry) for k, entry in enumerate(self.tables))
+        object.__setattr__(self, "tables", tables)
+        breakpoints = self.breakpoints or {}
+        if not isinstance(breakpoints, Mapping):
+            raise GlobalModelError(
+                f"breakpoints: expected a mapping {{variable: [numbers] | 'auto'}}, got "
+                f"{self.breakpoints!r}"
+            )
+        checked = {name: _breakpoints_entry(name, values) for name, values in breakpoints.items()}
+        missing = sorted({v for t in tables for v in t["by"]} - set(checked))
+        if missing:
+            raise GlobalModelError(
+                f"breakpoints: expected breakpoints (a list or 'auto') for every table variable, "
+                f"missing {missing}"
+            )
+        object.__setattr__(self, "breakpoints", checked)
+
     def to_dict(self) -> dict:
         """The settings as plain Python (JSON-ready)."""
         return {
@@ -186,6 +298,21 @@ class GlobalModelSettings:
             "support_factor": self.support_factor,
             "support_margin": self.support_margin,
             "tol": self.tol,
+            "tables": None
+            if self.tables is None
+            else [
+                {"by": list(t["by"]), "times": t["times"], "degree": t["degree"]}
+                for t in self.tables
+            ],
+            "breakpoints": None
+            if self.breakpoints is None
+            else {
+                k: v if isinstance(v, str) else [float(x) for x in v]
+                for k, v in self.breakpoints.items()
+            },
+            "breakpoint_count": self.breakpoint_count,
+            "smoothing": self.smoothing,
+            "min_weight": self.min_weight,
         }
 
     @classmethod

@@ -763,6 +763,21 @@ class TableFit:
         X[self._undetermined(bases)] = np.nan
         return X
 
+    def cell_flags(self, signals: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        """(empty, filled), each (N,) bool: the points where a dropped value acts (the model
+        is NaN there) and those whose cell touches a value filled by the smoothing (its hat
+        function on the breakpoint grid is non-zero there, for either degree)."""
+        bases = self._active(signals)
+        empty = self._undetermined(bases)
+        data = _check_signals(signals, _signal_names(self.components))
+        filled = np.zeros(empty.shape, dtype=bool)
+        for component, mask in zip(self.components, self.filled, strict=True):
+            if mask.any():
+                linear = TableComponent(component.variables, component.breakpoints)
+                hats = _raw_component_basis(linear, data)
+                filled |= np.any(hats[:, mask.ravel()] != 0, axis=1)
+        return empty, filled & ~empty
+
     def to_dict(self) -> dict:
         """Plain lists and numbers (NaN as None: strict JSON); ``from_dict`` reads it back."""
         return {

@@ -193,9 +193,14 @@ def _terms_table(coefficient) -> str:
             ]
         )
     headers = ["parameter", "term", "value", "σ (default)", "CR σ", "cost share"]
+    chosen = (
+        f"{len(entry['terms'])} table values fitted"
+        if coefficient.tables is not None
+        else f"{len(entry['terms'])} of {entry['n_candidates']} candidate terms selected by "
+        "predicted squared error"
+    )
     facts = (
-        f"<p>{len(entry['terms'])} of {entry['n_candidates']} candidate terms selected by "
-        f"predicted squared error; N = {entry['n_samples']}, N_eff = {entry['n_eff']:.0f}, "
+        f"<p>{chosen}; N = {entry['n_samples']}, N_eff = {entry['n_eff']:.0f}, "
         f"R² = {entry['r2']:.5f}, fit RMS = {entry['rms_fit']:.4g}, PSE = {entry['pse']:.4g} "
         f"(σ²_max = {entry['sigma2_max']:.4g}); σ: {entry['std_kind']} "
         f"(residual lag {entry['coloured_lag']}); prediction intervals with the "
@@ -204,7 +209,29 @@ def _terms_table(coefficient) -> str:
         f"σ_model = {_root(entry['model_error_variance'])} (model error: the function "
         f"interval).</p>"
     )
-    return facts + table(headers, rows)
+    return facts + table(headers, rows) + _tables_section(coefficient)
+
+
+def _tables_section(coefficient) -> str:
+    """Each table of a table model: its breakpoints and, per grid point, the value with its
+    σ and whether the data or the smoothing determined it ("" for a term model)."""
+    tables = coefficient.tables
+    if tables is None:
+        return ""
+    parts = []
+    for c, component in enumerate(tables.components):
+        grid = np.meshgrid(*(component.breakpoints[v] for v in component.variables), indexing="ij")
+        rows = []
+        for g in np.ndindex(component.grid_shape):
+            value, std = tables.values[c][g], tables.value_std[c][g]
+            note = "no data" if tables.dropped[c][g] else "filled" if tables.filled[c][g] else ""
+            rows.append([f"{mesh[g]:.6g}" for mesh in grid] + [f"{value:.6g}", f"{std:.3g}", note])
+        parts.append(
+            f"<p>Table <code>{html.escape(component.label)}</code> (degree "
+            f"{component.degree}): values at its breakpoints.</p>"
+            + table([*component.variables, "value", "σ", "note"], rows)
+        )
+    return "".join(parts)
 
 
 def global_model_sections(
