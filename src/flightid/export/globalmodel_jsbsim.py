@@ -76,9 +76,9 @@ AXES_NOTE = (
     "Cn: body-axis moments about the c.g. (AERORP at the c.g.)"
 )
 EXTRAPOLATION_NOTE = (
-    "the polynomial coefficients are evaluated as written at every state: outside the data "
-    "support (the box low..high of each variable, and empty regions inside it) they "
-    "extrapolate, and JSBSim does not flag it"
+    "the coefficients are evaluated at every state: outside the data support (the box "
+    "low..high of each variable, and empty regions inside it) a polynomial coefficient "
+    "extrapolates and a table coefficient holds its edge values, and JSBSim does not flag it"
 )
 # the unit of each signal's JSBSim expression (flightid's signal units); "1": none
 _RADIAN_SIGNALS = ("alpha", "beta", "theta", "phi")
