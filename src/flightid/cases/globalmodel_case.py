@@ -407,7 +407,9 @@ def validate_global_model_stage(
     tail = ""
     if stage.settings.get("batch") is not None:
         cases = len({s.case for s in data.sources})
-        tail = f" from {cases} batch case(s), {len(data.skipped)} skipped"
+        tail = f" from {cases} batch case(s), {len(data.skipped)} skipped" + "".join(
+            f"\n      skipped {s['case']}: {s['reason']}" for s in data.skipped
+        )
     return (
         f"global_model '{stage.name}': {len(stage.coefficients)} coefficient(s) over "
         f"{', '.join(stage.settings['variables'])}, {len(signals[stage.coefficients[0][1]])} "
