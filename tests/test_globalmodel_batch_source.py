@@ -201,11 +201,11 @@ def test_the_sources_are_recorded_in_the_model_file(batch_folder, tmp_path):
 
 
 def test_the_stage_conditions_override_the_batch_conditions(batch_folder):
-    from flightid.cases.globalmodel_case import global_model_stage_data
+    from flightid.cases.batch_source import batch_stage_data
 
     stage_text = STAGE + "[stages.conditions]\nm1 = { Mach = 0.35 }\n'm2/m2' = { Mach = 0.5 }\n"
     case = load_case(_case(batch_folder, stage_text))
-    data = global_model_stage_data(case.stages[0], [], case.directory)
+    data = batch_stage_data(case.stages[0], case.directory)
     index = np.asarray(data.maneuver_index)
     machs = [float(np.unique(data.signals["Mach"][index == k])[0]) for k in range(4)]
     assert machs == [0.35, 0.5, 0.6, 0.75]

@@ -6,7 +6,9 @@ flight-condition columns ``conditions``, the path the case had when the batch ra
 ``case_path`` and its ``status``). ``read_batch_maneuvers`` re-reads every case that did not
 fail from its text, with the record's ``case_path`` as its path (so its relative data paths
 resolve as when the batch ran it), loads its estimation maneuvers with its own ``[data]``
-(files, channels, pre-processing) and pairs each maneuver with the case's conditions.
+(files, channels, pre-processing) and pairs each maneuver with the case's conditions;
+``batch_stage_data`` turns them into what a global-model stage with ``batch = ...`` is
+fitted to (``flightid.cases.globalmodel_case.StageData``).
 
 The records are read here as JSON: this package comes before ``flightid.batch`` in the layer
 order and does not import it; ``RECORD_FILE`` and ``RECORD_VERSION`` are the record's file
@@ -18,12 +20,13 @@ from __future__ import annotations
 import json
 import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from flightid.cases.checks import CaseError
+from flightid.cases.globalmodel_case import StageData, check_stage_channels, maneuver_signals
 from flightid.data.flightdata import FlightData
 from flightid.errors import FlightIdError
 
@@ -32,6 +35,7 @@ __all__ = [
     "RECORD_FILE",
     "RECORD_VERSION",
     "BatchManeuver",
+    "batch_stage_data",
     "read_batch_maneuvers",
     "resolve_batch_folder",
 ]
@@ -161,3 +165,61 @@ def read_batch_maneuvers(
             f"{[s['case'] for s in skipped]})"
         )
     return maneuvers, skipped
+
+
+def _batch_conditions(stage, found: Sequence[BatchManeuver]) -> list[dict[str, float]]:
+    """Per batch maneuver: the record's numeric conditions, then the stage's table (by case
+    name, then by ``case/maneuver``)."""
+    where = f"stages[{stage.index}].conditions"
+    table = stage.settings["conditions"]
+    keys = {b.case for b in found} | {b.name for b in found}
+    unknown = sorted(set(table) - keys)
+    if unknown:
+        raise CaseError(
+            f"{where}: {unknown} are neither batch cases nor their maneuvers (case/maneuver); "
+            f"maneuvers: {[b.name for b in found]}"
+        )
+    variables = set(stage.settings["variables"])
+    merged = []
+    for b in found:
+        entry = {**b.conditions, **table.get(b.case, {}), **table.get(b.name, {})}
+        text = sorted((set(b.text_conditions) & variables) - set(entry))
+        if text:
+            raise CaseError(
+                f"stages[{stage.index}].variables: the batch condition(s) {text} of case "
+                f"{b.case!r} are not numbers ({[b.text_conditions[t] for t in text]!r})"
+            )
+        merged.append(entry)
+    return merged
+
+
+def batch_stage_data(
+    stage,
+    case_directory: Path,
+    data_dir: str | Path | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> StageData:
+    """The data of a global-model stage with ``batch``: the maneuvers of the batch folder
+    (relative to ``case_directory``) with their conditions (the records', then the stage's)
+    and their sources; the skipped cases. ``data_dir`` is the ``--data-dir`` override,
+    applied to every batch case."""
+    from flightid.globalmodel import SourceInfo
+
+    say = progress or (lambda message: None)
+
+    folder = resolve_batch_folder(stage.settings["batch"], case_directory)
+    if not folder.is_dir():
+        raise CaseError(f"stages[{stage.index}].batch: the batch folder {folder} does not exist")
+    found, skipped = read_batch_maneuvers(folder, data_dir, say)
+    conditions = _batch_conditions(stage, found)
+    labelled = [(b.data, b.name, c) for b, c in zip(found, conditions, strict=True)]
+    signals, index, dt = maneuver_signals(labelled, f"stages[{stage.index}].conditions")
+    check_stage_channels(stage, signals)
+    sources = tuple(
+        SourceInfo(b.data.name, b.case, c, b.data.n_samples)
+        for b, c in zip(found, conditions, strict=True)
+    )
+    cases = len({b.case for b in found})
+    say(f"global model: {len(found)} maneuvers of {cases} batch cases ({len(skipped)} skipped)")
+    units = {k: v for k, v in found[0].data.units.items() if k in signals and v}
+    return StageData(signals, index, dt, units, sources, tuple(skipped))

@@ -41,7 +41,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -54,11 +53,13 @@ __all__ = [
     "GLOBAL_MODEL_FILE",
     "GLOBAL_MODEL_KIND",
     "StageData",
+    "check_stage_channels",
     "global_model_entry",
     "global_model_options",
     "global_model_signals",
     "global_model_stage_data",
     "is_batch_stage",
+    "maneuver_signals",
     "parse_global_model_stage",
     "run_global_model_stage",
     "validate_global_model_stage",
@@ -113,8 +114,10 @@ def _conditions(value: Any, where: str) -> dict[str, dict[str, float]]:
 def parse_global_model_stage(
     stage: Mapping[str, Any], where: str, channels: set[str]
 ) -> tuple[dict[str, Any], tuple]:
-    """Check a global-model stage: (its settings: ``variables``, ``conditions`` and the
-    stage-wide ``options``; its coefficients: (name, response, (), options) each). Every
+    """Check a global-model stage: (its settings: ``variables``, ``conditions``, ``batch``
+    (the folder as written, or None) and the stage-wide ``options``; its coefficients:
+    (name, response, (), options) each). A batch stage's variables and responses are
+    checked against the batch cases' channels when it runs. Every
     option set is tried on ``GlobalModelSettings`` here, so a bad value stops the case
     before any data is read."""
     options_keys = set(global_model_options())
@@ -138,6 +141,25 @@ def parse_global_model_stage(
         )
     options = {k: v for k, v in settings.items() if k in options_keys}
     _settings(options, where)
+    coefficients = _coefficients(stage, where, None if batch else channels, options)
+    stage_settings = {
+        "variables": tuple(variables),
+        "conditions": conditions,
+        "options": options,
+        "batch": batch,
+    }
+    return stage_settings, coefficients
+
+
+def _coefficients(
+    stage: Mapping[str, Any],
+    where: str,
+    channels: set[str] | None,
+    options: Mapping[str, Any],
+) -> tuple:
+    """``[stages.coefficients.NAME]``: (name, response, (), own options) each; responses are
+    checked against ``channels`` (None: a batch stage, checked when it runs)."""
+    options_keys = set(global_model_options())
     table = _table(stage.get("coefficients", {}), f"{where}.coefficients")
     if not table:
         raise CaseError(f"{where}.coefficients: expected at least one [{where}.coefficients.NAME]")
@@ -147,7 +169,7 @@ def parse_global_model_stage(
         entry = _table(entry, key)
         _known(entry, {"response"} | options_keys, key)
         response = _string(entry.get("response", name), f"{key}.response")
-        if response not in channels and batch is None:
+        if channels is not None and response not in channels:
             raise CaseError(
                 f"{key}.response: {response!r} is not a channel of [data.inputs] / "
                 f"[data.outputs]; channels: {sorted(channels)}"
@@ -155,13 +177,7 @@ def parse_global_model_stage(
         own = {k: v for k, v in entry.items() if k != "response"}
         _settings({**options, **own}, key)
         coefficients.append((name, response, (), own))
-    stage_settings = {
-        "variables": tuple(variables),
-        "conditions": conditions,
-        "options": options,
-        "batch": batch,
-    }
-    return stage_settings, tuple(coefficients)
+    return tuple(coefficients)
 
 
 def is_batch_stage(stage: Mapping[str, Any]) -> bool:
@@ -188,13 +204,15 @@ def global_model_signals(
             f"{[m.name for m in maneuvers]}"
         )
     labelled = [(m, m.name, conditions.get(m.name, {})) for m in maneuvers]
-    return _signals(labelled, where)
+    return maneuver_signals(labelled, where)
 
 
-def _signals(
+def maneuver_signals(
     labelled: Sequence[tuple[FlightData, str, Mapping[str, float]]], where: str
 ) -> tuple[dict[str, np.ndarray], np.ndarray, float]:
-    """``global_model_signals`` for (maneuver, its label, its conditions) triples."""
+    """``global_model_signals`` for (maneuver, its label, its conditions) triples: every
+    channel concatenated, each condition a constant channel (given for every maneuver),
+    the maneuver index of each sample and the first maneuver's sample interval (s)."""
     maneuvers = [m for m, _, _ in labelled]
     names = list(maneuvers[0].input_names) + list(maneuvers[0].output_names)
     for maneuver, label, _ in labelled[1:]:
@@ -237,56 +255,7 @@ class StageData:
     skipped: tuple[Mapping[str, str], ...] = ()
 
 
-def _batch_conditions(stage, found: Sequence) -> list[dict[str, float]]:
-    """Per batch maneuver: the record's numeric conditions, then the stage's table (by case
-    name, then by ``case/maneuver``)."""
-    where = f"stages[{stage.index}].conditions"
-    table = stage.settings["conditions"]
-    keys = {b.case for b in found} | {b.name for b in found}
-    unknown = sorted(set(table) - keys)
-    if unknown:
-        raise CaseError(
-            f"{where}: {unknown} are neither batch cases nor their maneuvers (case/maneuver); "
-            f"maneuvers: {[b.name for b in found]}"
-        )
-    variables = set(stage.settings["variables"])
-    merged = []
-    for b in found:
-        entry = {**b.conditions, **table.get(b.case, {}), **table.get(b.name, {})}
-        text = sorted((set(b.text_conditions) & variables) - set(entry))
-        if text:
-            raise CaseError(
-                f"stages[{stage.index}].variables: the batch condition(s) {text} of case "
-                f"{b.case!r} are not numbers ({[b.text_conditions[t] for t in text]!r})"
-            )
-        merged.append(entry)
-    return merged
-
-
-def _batch_stage_data(stage, case_directory: Path, data_dir, say) -> StageData:
-    """The maneuvers of the stage's batch folder, with their conditions and sources."""
-    from flightid.cases.batch_source import read_batch_maneuvers, resolve_batch_folder
-    from flightid.globalmodel import SourceInfo
-
-    folder = resolve_batch_folder(stage.settings["batch"], case_directory)
-    if not folder.is_dir():
-        raise CaseError(f"stages[{stage.index}].batch: the batch folder {folder} does not exist")
-    found, skipped = read_batch_maneuvers(folder, data_dir, say)
-    conditions = _batch_conditions(stage, found)
-    labelled = [(b.data, b.name, c) for b, c in zip(found, conditions, strict=True)]
-    signals, index, dt = _signals(labelled, f"stages[{stage.index}].conditions")
-    _check_channels(stage, signals)
-    sources = tuple(
-        SourceInfo(b.data.name, b.case, c, b.data.n_samples)
-        for b, c in zip(found, conditions, strict=True)
-    )
-    cases = len({b.case for b in found})
-    say(f"global model: {len(found)} maneuvers of {cases} batch cases ({len(skipped)} skipped)")
-    units = {k: v for k, v in found[0].data.units.items() if k in signals and v}
-    return StageData(signals, index, dt, units, sources, tuple(skipped))
-
-
-def _check_channels(stage, signals: Mapping[str, np.ndarray]) -> None:
+def check_stage_channels(stage, signals: Mapping[str, np.ndarray]) -> None:
     """Every variable and response is a channel or condition of the stage's maneuvers."""
     where = f"stages[{stage.index}]"
     missing = [v for v in stage.settings["variables"] if v not in signals]
@@ -303,19 +272,9 @@ def _check_channels(stage, signals: Mapping[str, np.ndarray]) -> None:
             )
 
 
-def global_model_stage_data(
-    stage,
-    maneuvers: Sequence[FlightData],
-    case_directory: Path | None = None,
-    data_dir: str | Path | None = None,
-    progress: Callable[[str], None] | None = None,
-) -> StageData:
-    """The data a global-model stage is fitted to: the case's maneuvers, or for a stage with
-    ``batch`` those of the batch folder (relative to ``case_directory``; ``data_dir`` is the
-    ``--data-dir`` override applied to every batch case)."""
-    say = progress or (lambda message: None)
-    if stage.settings.get("batch") is not None:
-        return _batch_stage_data(stage, Path(case_directory or "."), data_dir, say)
+def global_model_stage_data(stage, maneuvers: Sequence[FlightData]) -> StageData:
+    """The data a global-model stage without ``batch`` is fitted to: the case's maneuvers
+    with the stage's conditions (a batch stage's: ``flightid.cases.batch_source``)."""
     signals, index, dt = global_model_signals(stage, maneuvers)
     units = {k: v for k, v in maneuvers[0].units.items() if k in signals and v}
     return StageData(signals, index, dt, units)
@@ -400,7 +359,7 @@ def validate_global_model_stage(
     response is a finite channel; one line for ``flightid validate``."""
     data = data if data is not None else global_model_stage_data(stage, maneuvers)
     signals = data.signals
-    _check_channels(stage, signals)
+    check_stage_channels(stage, signals)
     for name in (*stage.settings["variables"], *(c[1] for c in stage.coefficients)):
         if not np.isfinite(signals[name]).all():
             raise CaseError(f"stages[{stage.index}]: non-finite values in {name!r} on the data")

@@ -315,12 +315,9 @@ def run_stages(
         if stage.kind in ("stepwise", "regression"):
             regressions.append((stage, run_regression_stage(stage, signals, say)))
         elif stage.kind == "global_model":
-            from flightid.cases.globalmodel_case import (
-                global_model_stage_data,
-                run_global_model_stage,
-            )
+            from flightid.cases.globalmodel_case import run_global_model_stage
 
-            data = global_model_stage_data(stage, maneuvers, case.directory, data_dir, say)
+            data = _global_model_data(stage, case, maneuvers, data_dir, say)
             global_models.append((stage, run_global_model_stage(stage, maneuvers, say, data=data)))
             if data.skipped:
                 skipped[stage.index] = data.skipped
@@ -341,6 +338,24 @@ def run_stages(
     if structure is not None:
         pipeline = PipelineResult(regressions[-1][1], structure, start, base[0], run.estimate)
     return StagesRun(case, directory, tuple(regressions), run, pipeline, **samples)
+
+
+def _global_model_data(
+    stage: StageSpec,
+    case: Case,
+    maneuvers: Sequence[FlightData],
+    data_dir: str | Path | None,
+    progress: Progress | None = None,
+):
+    """What a global-model stage is fitted to: the maneuvers of its batch folder
+    (``batch = ...``, relative to the case file) or the case's own."""
+    if stage.settings.get("batch") is not None:
+        from flightid.cases.batch_source import batch_stage_data
+
+        return batch_stage_data(stage, case.directory, data_dir, progress)
+    from flightid.cases.globalmodel_case import global_model_stage_data
+
+    return global_model_stage_data(stage, maneuvers)
 
 
 def _own_maneuvers(case: Case, data_dir: str | Path | None) -> tuple[Path, list[FlightData]]:
@@ -413,12 +428,9 @@ def validate_stages(
             lines.append(_check_terms(stage, signals))
             last_regression = stage
         elif stage.kind == "global_model":
-            from flightid.cases.globalmodel_case import (
-                global_model_stage_data,
-                validate_global_model_stage,
-            )
+            from flightid.cases.globalmodel_case import validate_global_model_stage
 
-            data = global_model_stage_data(stage, maneuvers, case.directory, data_dir)
+            data = _global_model_data(stage, case, maneuvers, data_dir)
             lines.append(validate_global_model_stage(stage, maneuvers, data))
         elif stage.kind == "output_error":
             base = None
