@@ -271,3 +271,20 @@ def test_a_missing_batch_folder_is_a_case_error_with_its_path(batch_folder, tmp_
     with pytest.raises(CaseError, match=r"stages\[0\]\.batch: .* does not exist") as raised:
         run_stages(case)
     assert str(tmp_path / "none") in str(raised.value)
+
+
+def test_the_data_dir_option_applies_to_every_batch_case(envelope, capsys):
+    moved = envelope / "moved"
+    moved.mkdir()
+    cases = envelope / "out" / "envelope" / "cases"
+    for name in MACHS:
+        (envelope / f"{name}.csv").rename(moved / f"{name}.csv")
+        # each case as if it had run from the copy (its data_dir "." is now empty)
+        record = _record(envelope, name)
+        record["case_path"] = str(envelope / "case.toml")
+        (cases / name / "batch.json").write_text(json.dumps(record))
+    path = str(_case(envelope))
+    assert main(["validate", path]) != 0
+    assert "no usable case" in capsys.readouterr().err
+    assert main(["validate", path, "--data-dir", str(moved)]) == 0
+    assert "2400 samples from 4 batch case(s), 1 skipped" in capsys.readouterr().out
