@@ -240,10 +240,26 @@ def _top_level(raw: Mapping[str, Any]) -> None:
                 f"language (docs/cases.md, 'One case language') {new}"
             )
     _known(raw, _TOP, "")
+    if _batch_only(raw):
+        if "data" in raw:
+            raise CaseError(
+                "data: the case's stages all take their maneuvers from batch folders "
+                "(global_model stages with batch = ...), so [data] would not be read; remove it"
+            )
+        return
     # a file of regression stages alone needs no model
     for required in ("data",) if "stages" in raw else ("data", "model"):
         if required not in raw:
             raise CaseError(f"{required}: missing section [{required}]")
+
+
+def _batch_only(raw: Mapping[str, Any]) -> bool:
+    """True when every ``[[stages]]`` entry is a global_model stage with ``batch``: such a
+    case has no data of its own and no ``[data]`` section."""
+    from flightid.cases.globalmodel_case import is_batch_stage
+
+    stages = raw.get("stages")
+    return isinstance(stages, list) and bool(stages) and all(map(is_batch_stage, stages))
 
 
 def _channels(data: Mapping[str, Any]) -> None:
@@ -560,7 +576,7 @@ def parse_case(raw: Mapping[str, Any], path: Path) -> Case:
 
     _top_level(raw)
     staged = "stages" in raw
-    data, maneuvers = _data_section(raw, staged)
+    data, maneuvers = _data_section(raw, staged) if "data" in raw else ({}, [])
     model = _model_section(raw)
     initial_state = _table(raw.get("initial_state", {}), "initial_state")
     _initial_state_types(initial_state, "initial_state")

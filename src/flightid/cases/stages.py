@@ -14,7 +14,7 @@ prediction stages, whose settings ``parse_case`` placed in the Case).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -128,6 +128,8 @@ class StagesRun:
     dt: float | None = None  # s, sample interval of the first maneuver
     # per global-model stage (in order): (stage, flightid.globalmodel.GlobalModel)
     global_models: tuple[tuple[StageSpec, Any], ...] = ()
+    # per global-model stage index: the batch cases it skipped, {"case", "reason"} each
+    global_model_skipped: Mapping[int, tuple[Mapping[str, str], ...]] = field(default_factory=dict)
 
     def whiteness(self, result: RegressionResult) -> Whiteness | None:
         """Residual whiteness of one regression fit (``flightid.accuracy.whiteness``; lags
@@ -161,7 +163,8 @@ class StagesRun:
         for stage in self.case.stages:
             entry: dict[str, Any] = {"kind": stage.kind, "name": stage.name}
             if stage.index in global_models:
-                entry.update(global_model_entry(global_models[stage.index]))
+                skipped = self.global_model_skipped.get(stage.index, ())
+                entry.update(global_model_entry(global_models[stage.index], skipped))
             if stage.index in regressions:
                 coefficients = {}
                 for n, r in regressions[stage.index].items():
@@ -300,23 +303,26 @@ def run_stages(
         heartbeat_s: seconds between "still running" messages of the estimation.
     """
     say = progress or (lambda message: None)
-    directory = _data_directory(case, data_dir)
-    maneuvers = load_maneuvers(case, directory)
-    signals = stage_signals(maneuvers)
-    samples = dict(
-        maneuver_index=np.concatenate([np.full(m.n_samples, k) for k, m in enumerate(maneuvers)]),
-        dt=float(maneuvers[0].dt),
-    )
+    directory, maneuvers = _own_maneuvers(case, data_dir)
+    signals = stage_signals(maneuvers) if maneuvers else {}
+    samples: dict[str, Any] = {"maneuver_index": None, "dt": None}
+    if maneuvers:
+        counts = [np.full(m.n_samples, k) for k, m in enumerate(maneuvers)]
+        samples.update(maneuver_index=np.concatenate(counts), dt=float(maneuvers[0].dt))
     regressions: list[tuple[StageSpec, Mapping[str, RegressionResult]]] = []
-    global_models = []
+    global_models, skipped = [], {}
     for stage in case.stages:
         if stage.kind in ("stepwise", "regression"):
             regressions.append((stage, run_regression_stage(stage, signals, say)))
         elif stage.kind == "global_model":
             from flightid.cases.globalmodel_case import run_global_model_stage
 
-            global_models.append((stage, run_global_model_stage(stage, maneuvers, say)))
+            data = _global_model_data(stage, case, maneuvers, data_dir, say)
+            global_models.append((stage, run_global_model_stage(stage, maneuvers, say, data=data)))
+            if data.skipped:
+                skipped[stage.index] = data.skipped
     samples["global_models"] = tuple(global_models)
+    samples["global_model_skipped"] = skipped
     oe_stage = _output_error_stage(case)
     if oe_stage is None:
         return StagesRun(case, directory, tuple(regressions), **samples)
@@ -332,6 +338,34 @@ def run_stages(
     if structure is not None:
         pipeline = PipelineResult(regressions[-1][1], structure, start, base[0], run.estimate)
     return StagesRun(case, directory, tuple(regressions), run, pipeline, **samples)
+
+
+def _global_model_data(
+    stage: StageSpec,
+    case: Case,
+    maneuvers: Sequence[FlightData],
+    data_dir: str | Path | None,
+    progress: Progress | None = None,
+):
+    """What a global-model stage is fitted to: the maneuvers of its batch folder
+    (``batch = ...``, relative to the case file) or the case's own."""
+    if stage.settings.get("batch") is not None:
+        from flightid.cases.batch_source import batch_stage_data
+
+        return batch_stage_data(stage, case.directory, data_dir, progress)
+    from flightid.cases.globalmodel_case import global_model_stage_data
+
+    return global_model_stage_data(stage, maneuvers)
+
+
+def _own_maneuvers(case: Case, data_dir: str | Path | None) -> tuple[Path, list[FlightData]]:
+    """(the data directory, the case's own maneuvers); a case without ``[data]`` (its
+    global-model stages take their maneuvers from batch folders) has none and its
+    directory need not exist."""
+    if not case.data:
+        return resolve_data_dir(case, data_dir), []
+    directory = _data_directory(case, data_dir)
+    return directory, load_maneuvers(case, directory)
 
 
 def _data_directory(case: Case, data_dir: str | Path | None) -> Path:
@@ -385,9 +419,8 @@ def validate_stages(
     """Check every stage without estimating: (one line per stage, the ``Prepared`` output-
     error stage or None). The output-error stage after a regression is built with all the
     candidate terms (start 0), so ``check_model`` sees every term it may get."""
-    directory = _data_directory(case, data_dir)
-    maneuvers = load_maneuvers(case, directory)
-    signals = stage_signals(maneuvers)
+    directory, maneuvers = _own_maneuvers(case, data_dir)
+    signals = stage_signals(maneuvers) if maneuvers else {}
     lines, prepared = [], None
     last_regression = None
     for stage in case.stages:
@@ -397,7 +430,8 @@ def validate_stages(
         elif stage.kind == "global_model":
             from flightid.cases.globalmodel_case import validate_global_model_stage
 
-            lines.append(validate_global_model_stage(stage, maneuvers))
+            data = _global_model_data(stage, case, maneuvers, data_dir)
+            lines.append(validate_global_model_stage(stage, maneuvers, data))
         elif stage.kind == "output_error":
             base = None
             if stage.source == "previous":

@@ -26,8 +26,9 @@ Kinds and their keys:
   coefficient ``parameters`` (one name per term, for the reports).
 - ``global_model``: variables, conditions and the options of
   ``flightid.globalmodel.GlobalModelSettings``, and ``[stages.coefficients.NAME]`` with
-  response and any of those options for that coefficient alone
-  (``flightid.cases.globalmodel_case``).
+  response and any of those options for that coefficient alone; ``batch`` takes the
+  maneuvers from a ``flightid batch`` results folder (``flightid.cases.globalmodel_case``,
+  ``flightid.cases.batch_source``).
 - ``output_error``: the keys of ``[estimation]``; ``from = "previous"`` after a stepwise or
   regression stage takes the selected terms and their least-squares estimates as the
   structure and start values of ``[model] type = "alpha_q"`` (coefficients CZ and Cm).
