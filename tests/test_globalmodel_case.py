@@ -193,3 +193,12 @@ def test_the_page_and_estimates_csv_hold_the_global_model(envelope):
     assert "global model test: global model" in page and "fitted: 1 global model(s)" in page
     # the correlation matrix of each coefficient; no empty residual-analysis section
     assert "CL (global model)" in page and "Residual analysis" not in page
+
+
+def test_the_model_records_its_maneuvers_and_their_conditions(envelope):
+    out = envelope / "out"
+    assert main(["run", str(_case(envelope)), "--out", str(out), "--quiet"]) == 0
+    sources = json.loads((out / "global_model.json").read_text())["sources"]
+    assert [s["maneuver"] for s in sources] == list(MACHS)
+    assert [s["conditions"]["Mach"] for s in sources] == list(MACHS.values())
+    assert all(s["n_samples"] == 600 for s in sources)

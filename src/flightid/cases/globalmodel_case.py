@@ -243,7 +243,8 @@ class StageData:
         maneuver_index: (N,) the maneuver of each sample.
         dt: s, the sample interval of the first maneuver.
         units: {channel: unit} of the first maneuver's channels.
-        sources: per maneuver, ``flightid.globalmodel.SourceInfo`` (batch stages; else ()).
+        sources: per maneuver, ``flightid.globalmodel.SourceInfo`` (its name, its batch
+            case, its conditions, its samples).
         skipped: batch cases left out, ``{"case", "reason"}`` each.
     """
 
@@ -275,9 +276,16 @@ def check_stage_channels(stage, signals: Mapping[str, np.ndarray]) -> None:
 def global_model_stage_data(stage, maneuvers: Sequence[FlightData]) -> StageData:
     """The data a global-model stage without ``batch`` is fitted to: the case's maneuvers
     with the stage's conditions (a batch stage's: ``flightid.cases.batch_source``)."""
+    from flightid.globalmodel.model import SourceInfo
+
     signals, index, dt = global_model_signals(stage, maneuvers)
     units = {k: v for k, v in maneuvers[0].units.items() if k in signals and v}
-    return StageData(signals, index, dt, units)
+    conditions = stage.settings["conditions"]
+    sources = tuple(
+        SourceInfo(m.name, "", dict(conditions.get(m.name, {})), int(m.n_samples))
+        for m in maneuvers
+    )
+    return StageData(signals, index, dt, units, sources)
 
 
 def _coefficient_settings(stage) -> dict[str, Any]:
