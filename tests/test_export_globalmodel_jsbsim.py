@@ -23,7 +23,11 @@ import pytest
 from flightid.aircraft import navion
 from flightid.errors import InputTypeError
 from flightid.export._jsbsim_terms import JSBSimExportError
-from flightid.export.globalmodel_jsbsim import EXTRAPOLATION_NOTE, write_jsbsim_global
+from flightid.export.globalmodel_jsbsim import (
+    EXTRAPOLATION_NOTE,
+    RANGE_FLAG_PROPERTY,
+    write_jsbsim_global,
+)
 from flightid.export.jsbsim import fly_jsbsim
 from flightid.globalmodel import GlobalModelSettings, fit_global_model, load_global_model
 from test_globalmodel_case import _case, envelope  # noqa: F401  (the fixture of its run folder)
@@ -174,6 +178,24 @@ def test_outside_the_support_the_polynomial_extrapolates_identically(model, airc
     assert all(np.all(predicted[c].outside) for c in got)
     for name in got:
         np.testing.assert_allclose(got[name], expected[name], rtol=0, atol=1e-10, err_msg=name)
+
+
+def test_the_exported_aircraft_flags_a_state_outside_the_data_range(model, aircraft):
+    """The aircraft's range flag equals the model's range test (``beyond_range``) at the
+    state JSBSim reports: 0 inside the box, 1 with α or Mach beyond it."""
+    from flightid.globalmodel.support import beyond_range
+
+    norm = model.normalisation
+    fdm = _load(aircraft)
+    centre = {k: 0.5 * (lo + hi) for k, (lo, hi) in BOX.items()}
+    cases = [centre, {**centre, "alpha": 0.4}, {**centre, "Mach": 0.95}, {**centre, "de": -0.15}]
+    flags, expected = [], []
+    for point in cases:
+        seen, _ = _jsbsim_point(fdm, point, 5000.0)
+        flags.append(fdm[RANGE_FLAG_PROPERTY])
+        X = np.array([[seen[name] for name in norm.names]])
+        expected.append(float(beyond_range(X, norm.low, norm.high, 0.02)[0]))
+    assert flags == expected == [0.0, 1.0, 1.0, 1.0]
 
 
 def test_the_exported_aircraft_flies_a_maneuver(aircraft):

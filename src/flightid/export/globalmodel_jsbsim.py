@@ -68,7 +68,7 @@ from flightid.errors import InputTypeError, describe
 from flightid.export._jsbsim_terms import DEFAULT_CONTROLS, FT_M, JSBSimExportError, SignalMap
 from flightid.export.jsbsim import JSBSimAircraft, _check_airplane, write_aircraft
 
-__all__ = ["AXES_NOTE", "EXTRAPOLATION_NOTE", "write_jsbsim_global"]
+__all__ = ["AXES_NOTE", "EXTRAPOLATION_NOTE", "RANGE_FLAG_PROPERTY", "write_jsbsim_global"]
 
 AXES_NOTE = (
     "CL, CD: stability axes (body axes turned by alpha, no beta): X = qbar S (CL sin alpha - "
@@ -151,19 +151,33 @@ def _term_aero(model):
     )
 
 
+def _edit_aerodynamics(path: Path, edit) -> None:
+    """Rewrite the aerodynamics file ``path`` with ``edit(root)`` applied to its XML tree
+    (comments kept)."""
+    import xml.etree.ElementTree as ET
+
+    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
+    root = ET.parse(path, parser).getroot()
+    edit(root)
+    ET.indent(root)
+    text = ET.tostring(root, encoding="unicode")
+    header = '<?xml version="1.0"?>\n<!-- flightid: identified aerodynamics (nominal values) -->\n'
+    path.write_text(header + text + "\n", encoding="utf-8")
+
+
 def _write_tables(model, nominal: Path, signals: SignalMap) -> None:
     """Replace each table coefficient's placeholder function in ``nominal`` (the written
     aerodynamics file) by its tables, preceded by the signal functions the tables read."""
-    import xml.etree.ElementTree as ET
+    _edit_aerodynamics(nominal, lambda root: _insert_tables(model, root, signals))
 
+
+def _insert_tables(model, root, signals: SignalMap) -> None:
     from flightid.export._jsbsim_tables import (
         signal_functions,
         table_coefficient_function,
         table_signals,
     )
 
-    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
-    root = ET.parse(nominal, parser).getroot()
     written: list[str] = []
     first = None
     for name, coefficient in model.coefficients.items():
@@ -181,10 +195,6 @@ def _write_tables(model, nominal: Path, signals: SignalMap) -> None:
             root.insert(first + k, function)
         first += len(fresh)
         written += fresh
-    ET.indent(root)
-    text = ET.tostring(root, encoding="unicode")
-    header = '<?xml version="1.0"?>\n<!-- flightid: identified aerodynamics (nominal values) -->\n'
-    nominal.write_text(header + text + "\n", encoding="utf-8")
 
 
 def _estimate(model) -> SimpleNamespace:
@@ -249,6 +259,7 @@ def _support_summary(model, signals: SignalMap) -> dict:
             "maneuvers": len(model.sources),
             "axes": AXES_NOTE,
             "extrapolation": EXTRAPOLATION_NOTE,
+            "range_flag_property": RANGE_FLAG_PROPERTY,
         }
     }
 
@@ -351,4 +362,44 @@ def write_jsbsim_global(
     )
     if tabled:
         _write_tables(model, result.aerodynamics_files[0], signals)
+    flag = _range_flag(model, signals)
+    if flag is not None:
+        for path in result.aerodynamics_files:
+            _edit_aerodynamics(path, lambda root: root.insert(0, _range_flag(model, signals)))
     return result
+
+
+# the property of the exported aircraft that says whether its state is outside the data's range
+RANGE_FLAG_PROPERTY = "flightid/support/outside-range"
+
+
+def _range_flag(model, signals: SignalMap):
+    """The function ``RANGE_FLAG_PROPERTY`` (an XML element): 1 while any variable the
+    aircraft can compute lies outside the data's range by more than the support margin (the
+    range test of ``flightid.globalmodel.support``; the distance and leverage tests need the
+    data and are not exported), else 0. None when JSBSim computes none of the variables."""
+    import xml.etree.ElementTree as ET
+
+    norm = model.normalisation
+    margin = min(c.settings.support_margin for c in model.coefficients.values())
+    tests = []
+    for k, name in enumerate(norm.names):
+        # allowed excess: margin · (high − low)
+        allowance = margin * (float(norm.high[k]) - float(norm.low[k]))
+        for tag, bound in (("lt", norm.low[k] - allowance), ("gt", norm.high[k] + allowance)):
+            try:
+                expression = signals.expression(name)
+            except (KeyError, JSBSimExportError):
+                break  # a variable JSBSim does not compute: no test
+            test = ET.Element(tag)
+            test.append(expression)
+            ET.SubElement(test, "value").text = repr(float(bound))
+            tests.append(test)
+    if not tests:
+        return None
+    function = ET.Element("function", name=RANGE_FLAG_PROPERTY)
+    ET.SubElement(
+        function, "description"
+    ).text = "1 while a variable of the global model is outside the range of its data (flightid)"
+    ET.SubElement(function, "or").extend(tests)
+    return function
