@@ -397,6 +397,10 @@ def test_table_models_are_written_as_jsbsim_tables_and_read_back_exactly(table_m
     for name in got:
         np.testing.assert_allclose(got[name], expected[name], rtol=0, atol=1e-10, err_msg=name)
     assert np.all(predicted["CL"].outside[12:])
+    # export.json lists the model's own parameters (the table values), no placeholder
+    values = json.loads((aircraft.folder / "export.json").read_text())["values"]
+    assert values == pytest.approx(table_model.parameter_values(), rel=0, abs=0)
+    assert not any(name.endswith("_tables") for name in values)
 
 
 def test_a_degree_3_table_or_a_table_without_data_is_refused_by_name(tmp_path):

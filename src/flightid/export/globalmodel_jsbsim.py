@@ -227,9 +227,10 @@ def _estimate(model) -> SimpleNamespace:
 
 
 def _support_summary(model, signals: SignalMap) -> dict:
-    """The ``global_model`` entry of export.json: variables with the data's box and the
-    JSBSim expression each reads, coefficients with their terms, axes, the extrapolation
-    note."""
+    """The entries of export.json a global model adds: ``values`` (every parameter of the
+    model) and ``global_model`` (variables with the data's box and the JSBSim expression
+    each reads, coefficients with their terms, axes, the extrapolation note, the range
+    flag's property)."""
     import xml.etree.ElementTree as ET
 
     norm = model.normalisation
@@ -250,6 +251,9 @@ def _support_summary(model, signals: SignalMap) -> dict:
             }
         )
     return {
+        # the model's own parameters (a table coefficient's are its table values), in place
+        # of the writer's list, which holds the tables' placeholders
+        "values": model.parameter_values(),
         "global_model": {
             "variables": variables,
             "coefficients": {
@@ -260,7 +264,7 @@ def _support_summary(model, signals: SignalMap) -> dict:
             "axes": AXES_NOTE,
             "extrapolation": EXTRAPOLATION_NOTE,
             "range_flag_property": RANGE_FLAG_PROPERTY,
-        }
+        },
     }
 
 
