@@ -69,6 +69,7 @@ import numpy as np
 
 from flightid.coloured import COLOURED, CRAMER_RAO, automatic_lag, coloured_covariance
 from flightid.errors import InputError, describe
+from flightid.globalmodel.variables import check_series
 from flightid.regression.least_squares import (
     LeastSquaresError,
     LeastSquaresResult,
@@ -242,18 +243,7 @@ class TableComponent:
 
 def _series(name: str, values: Any, length: int | None = None) -> np.ndarray:
     """A finite 1-D float series (of ``length`` samples when given), else ``TableError``."""
-    try:
-        array = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise TableError(f"{name}: expected a series of numbers, got {describe(values)}") from None
-    if array.ndim != 1:
-        raise TableError(f"{name}: expected a 1-D series, got {describe(values)}")
-    if length is not None and array.size != length:
-        raise TableError(f"{name}: expected {length} samples, got {array.size}")
-    if not np.all(np.isfinite(array)):
-        bad = int(np.flatnonzero(~np.isfinite(array))[0])
-        raise TableError(f"{name}: expected finite values, got {array[bad]} at sample {bad}")
-    return array
+    return check_series(values, name, length, error=TableError, scalar=False)
 
 
 def hat_functions(x: Any, breakpoints: Any) -> np.ndarray:

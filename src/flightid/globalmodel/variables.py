@@ -29,32 +29,38 @@ class GlobalModelError(InputError):
     what was expected and what came."""
 
 
-def check_series(values: object, key: str, n_samples: int | None = None) -> np.ndarray:
-    """``values`` as a finite float series (N,), of ``n_samples`` entries when given.
+def check_series(
+    values: object,
+    key: str,
+    n_samples: int | None = None,
+    *,
+    error: type[Exception] = GlobalModelError,
+    scalar: bool = True,
+) -> np.ndarray:
+    """``values`` as a finite float series (N,), of ``n_samples`` entries when given; a
+    scalar is a series of one entry where ``scalar`` is true.
 
     Raises:
-        GlobalModelError: not one-dimensional, wrong length, or non-finite entries, naming
-            ``key``.
+        error (GlobalModelError by default): not one-dimensional, wrong length, or
+            non-finite entries, naming ``key``.
     """
     try:
         series = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
-        raise GlobalModelError(
-            f"{key}: expected a series of numbers, got {describe(values)}"
-        ) from None
-    if series.ndim == 0:
+        raise error(f"{key}: expected a series of numbers, got {describe(values)}") from None
+    if series.ndim == 0 and scalar:
         series = series[None]
     if series.ndim != 1:
-        raise GlobalModelError(f"{key}: expected a one-dimensional series, got {describe(series)}")
+        raise error(f"{key}: expected a one-dimensional series, got {describe(values)}")
     if n_samples is not None and series.shape[0] != n_samples:
-        raise GlobalModelError(
-            f"{key}: expected {n_samples} samples (as the other series), got {series.shape[0]}"
+        raise error(
+            f"{key}: expected {n_samples} samples, got {series.shape[0]} (as the other series)"
         )
     bad = np.flatnonzero(~np.isfinite(series))
     if bad.size:
-        raise GlobalModelError(
-            f"{key}: expected finite values, got {bad.size} non-finite (first at sample "
-            f"{int(bad[0])})"
+        raise error(
+            f"{key}: expected finite values, got {series[bad[0]]} at sample {int(bad[0])} "
+            f"({bad.size} non-finite in all)"
         )
     return series
 
