@@ -471,3 +471,20 @@ def test_the_carpet_shades_the_function_interval_inside_the_prediction_interval(
     facts = _terms_table(cm)
     assert f"σ_noise = {np.sqrt(cm.noise_variance):.4g}" in facts
     assert f"σ_model = {np.sqrt(cm.model_error_variance):.4g}" in facts
+
+
+def test_half_squared_differences_against_a_loop_over_each_maneuver():
+    """The per-sample noise estimate of the "local" variances: (r_{i+1} − r_i)²/2 to the
+    next sample of the same maneuver (the last of a maneuver: to its previous one), by an
+    explicit loop; on white noise its mean is the noise variance."""
+    from flightid.globalmodel.fit import half_squared_differences
+
+    rng = np.random.default_rng(5)
+    r = 0.3 * rng.standard_normal(4000)
+    index = np.repeat([0, 1, 2, 3], 1000)
+    expected = np.empty(r.size)
+    for i in range(r.size):
+        j = i + 1 if i + 1 < r.size and index[i + 1] == index[i] else i - 1
+        expected[i] = (r[j] - r[i]) ** 2 / 2
+    np.testing.assert_allclose(half_squared_differences(r, index), expected, rtol=1e-12)
+    assert np.mean(half_squared_differences(r, index)) == pytest.approx(0.09, rel=0.1)
